@@ -1,0 +1,445 @@
+"""Encode frames and parse exactly one frame from bytes (sans-I/O).
+
+``parse_frame`` checks a complete frame against F, B, A2/A4/A5 and E1–E3 and raises a
+typed :class:`~.errors.ProtocolError` naming the first clause it breaks. The order
+(the one vectors/README.md fixes) is: fewer than 12 bytes F5; the header (F1 start
+word, F2 version, F3 transfer type, A5 action, then the action's block type, length
+and count: B5/B1/B2/E1/E2/E3/A2); total length F5; F6 TCP check (per the profile's
+policy) or F7 UDP CRC; B3 indexes and B4 floats block by block; answer content
+(A4 action 00 answered 0000, E3 result code never 0 or 404).
+"""
+
+from __future__ import annotations
+
+import struct
+from math import isfinite
+
+from .constants import (
+    BLOCK_CLAUSE,
+    BLOCK_LEN,
+    CHECK_LEN,
+    HEADER_LEN,
+    MAX_BLOCK_COUNT,
+    POSE_BLOCK_LEN,
+    SHAPES,
+    START_WORD,
+    TOLERANCE_BLOCK_LEN,
+    VERSION,
+    Action,
+    BlockType,
+    ResultCode,
+    Shape,
+    TransferType,
+    Transport,
+)
+from .errors import (
+    AnswerError,
+    BlockIndexError,
+    CheckError,
+    DirectionError,
+    FloatError,
+    LengthError,
+    ProtocolError,
+    ShapeError,
+    StartWordError,
+    UnknownActionError,
+    VersionError,
+)
+from .frames import Block, Frame, Header, PoseBlock, ToleranceBlock, ValueBlock
+from .profile import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc_function
+
+_ENDIAN = {"big": ">", "little": "<"}
+_TRANSFER = {t.value: t for t in TransferType}
+_ACTION = {a.value: a for a in Action}
+_BLOCK_TYPE = {b.value: b for b in BlockType}
+_ZERO_CHECK = b"\x00\x00"
+_TCP = Transport.TCP
+#: (transfer type << 8 | action) -> (TransferType, Action, block type, L, fewest, most):
+#: the shape table of constants.SHAPES flattened to ints for the fast path.
+_RULES = {
+    (tt << 8) | act: (tt, act, shape.block_type.value, BLOCK_LEN[shape.block_type], shape.low, shape.high)
+    for tt, by_action in SHAPES.items()
+    for act, shape in by_action.items()
+    # answers whose content is checked (A4, E3) take the reference path
+    if not (tt is TransferType.BOX_TO_ROBOT and act in (Action.NONE, Action.VISION_RESULT))
+}
+
+
+# -- fast constructors -----------------------------------------------------------------
+# Frozen dataclasses pay for object.__setattr__ on every field; the hot paths below
+# set the slots directly through their descriptors (same objects, ~3x cheaper).
+_new = object.__new__
+_slot = {name: vars(cls)[name].__set__ for cls in (PoseBlock, Frame) for name in cls.__slots__}
+_set_pose_index, _set_pose = _slot["index"], _slot["pose"]
+_set_tt, _set_action, _set_blocks = _slot["transfer_type"], _slot["action"], _slot["blocks"]
+_set_error, _set_check = _slot["error_code"], _slot["check"]
+
+
+def _frame(tt: TransferType, action: Action, blocks: tuple[Block, ...], error_code: int, check: int) -> Frame:
+    frame = _new(Frame)
+    _set_tt(frame, tt)
+    _set_action(frame, action)
+    _set_blocks(frame, blocks)
+    _set_error(frame, error_code)
+    _set_check(frame, check)
+    return frame  # type: ignore[no-any-return]
+
+
+def _pose(index: int, pose: tuple[float, ...]) -> PoseBlock:
+    block = _new(PoseBlock)
+    _set_pose_index(block, index)
+    _set_pose(block, pose)
+    return block  # type: ignore[no-any-return]
+
+
+class Codec:
+    """Encoder and single-frame parser compiled for one profile (get it with :func:`codec_for`)."""
+
+    def __init__(self, profile: Profile) -> None:
+        self.profile = profile
+        e, f = _ENDIAN[profile.byte_order], _ENDIAN[profile.float_byte_order]
+        self.header = struct.Struct(e + "HHBBBBHH")
+        self.pose = struct.Struct(f + "B6f")
+        self.tolerance = struct.Struct(f + "Bf")
+        self.value = struct.Struct(f + "Bi")
+        self._unpack_header = self.header.unpack_from
+        self._unpack_pose = self.pose.unpack_from
+        self._block_struct = {PoseBlock: self.pose, ToleranceBlock: self.tolerance, ValueBlock: self.value}
+        self._crc = crc_function(profile.crc)
+        self._crc_order = profile.crc_byte_order
+        self._first = profile.first_index
+        self._strict = profile.strict
+        self._tcp_check = profile.tcp_check
+
+    # -- encoding --------------------------------------------------------------------
+    def check_bytes(self, body: bytes) -> bytes:
+        return self._crc(body).to_bytes(2, self._crc_order)  # type: ignore[arg-type]
+
+    def encode_header(self, header: Header) -> bytes:
+        try:
+            return self.header.pack(
+                header.start_word, header.version, header.transfer_type, header.action,
+                header.block_type, header.block_count, header.block_length, header.error_code,
+            )
+        except struct.error as exc:
+            raise ValueError(f"header field out of range: {exc}") from None
+
+    def encode_block(self, block: Block) -> bytes:
+        try:
+            if type(block) is PoseBlock:
+                if len(block.pose) != 6:
+                    raise ValueError(f"a pose has 6 values, not {len(block.pose)}")
+                return self.pose.pack(block.index, *block.pose)
+            if type(block) is ToleranceBlock:
+                return self.tolerance.pack(block.index, block.tolerance)
+            if type(block) is ValueBlock:
+                return self.value.pack(block.index, block.value)
+        except (struct.error, OverflowError, TypeError) as exc:
+            raise ValueError(f"block value out of range in {block!r}: {exc}") from None
+        raise TypeError(f"not a block: {block!r}")
+
+    def encode_body(self, frame: Frame) -> bytes:
+        blocks = frame.blocks
+        count = len(blocks)
+        if not count:
+            try:
+                return self.header.pack(START_WORD, VERSION, frame.transfer_type, frame.action, 0, 0, 0, frame.error_code)
+            except struct.error as exc:
+                raise ValueError(f"header field out of range: {exc}") from None
+        kind = type(blocks[0])
+        if count > MAX_BLOCK_COUNT:
+            raise ValueError(f"{count} blocks; a frame carries at most {MAX_BLOCK_COUNT}")
+        if count > 1 and any(type(b) is not kind for b in blocks):
+            raise ValueError("a frame's blocks must all be of one type")
+        block_type = kind.block_type
+        try:
+            head = self.header.pack(
+                START_WORD, VERSION, frame.transfer_type, frame.action, block_type,
+                count, BLOCK_LEN[block_type], frame.error_code,
+            )
+            if kind is PoseBlock:
+                pack = self.pose.pack
+                return head + b"".join([pack(b.index, *b.pose) for b in blocks])  # type: ignore[union-attr]
+        except (struct.error, TypeError):
+            pass  # fall through to the slow path for a precise message
+        else:
+            if kind is not PoseBlock:
+                return head + b"".join([self.encode_block(b) for b in blocks])
+        self.encode_header(frame.header)
+        for b in blocks:
+            self.encode_block(b)
+        raise ValueError(f"cannot encode {frame!r}")  # pragma: no cover
+
+    def encode(self, frame: Frame, transport: Transport = Transport.TCP) -> bytes:
+        body = self.encode_body(frame)
+        if transport is Transport.TCP or transport == "tcp":
+            return body + _ZERO_CHECK
+        return body + self.check_bytes(body)
+
+    def encode_raw(
+        self, header: Header, body: bytes = b"", check: bytes | None = None, transport: Transport = Transport.TCP
+    ) -> bytes:
+        data = self.encode_header(header) + bytes(body)
+        if check is None:
+            check = _ZERO_CHECK if transport == "tcp" else self.check_bytes(data)
+        return data + bytes(check)
+
+    # -- parsing ---------------------------------------------------------------------
+    def parse_header(self, data: bytes) -> Header:
+        return Header(*self.header.unpack_from(data))
+
+    def _fail(self, cls: type[ProtocolError], msg: str, data: bytes, offset: int, clause: str | None = None) -> ProtocolError:
+        header = self.parse_header(data) if len(data) >= HEADER_LEN else None
+        return cls(msg, offset=offset, raw=bytes(data), header=header, clause=clause)
+
+    def parse(self, data: bytes, transport: Transport = Transport.TCP, expect: TransferType | None = None) -> Frame:
+        """Parse exactly one complete frame; raise a ProtocolError naming the clause.
+
+        The fast path below only *returns* for a TCP frame that passes every header
+        check; anything else goes to :meth:`parse_checked`, which defines the result.
+        """
+        size = len(data)
+        if size >= 14 and transport is _TCP:
+            start, version, tt, act, bt, count, blen, error_code = self._unpack_header(data)
+            rule = _RULES.get((tt << 8) | act)
+            end = 12 + count * blen
+            if (
+                rule is not None
+                and start == 0xFEFE
+                and version == 1
+                and size == end + 2
+                and bt == rule[2]
+                and blen == rule[3]
+                and rule[4] <= count <= rule[5]
+                and (expect is None or rule[0] is expect)
+                and not data[end]
+                and not data[end + 1]
+            ):
+                if not count:
+                    blocks: tuple[Block, ...] = ()
+                elif count == 1 and bt == 1 and data[12] == self._first:
+                    index, x, y, z, w, p, r = self._unpack_pose(data, 12)
+                    if self._strict and not isfinite(x + y + z + w + p + r):
+                        raise self._fail(FloatError, "block 0: non-finite pose value", data, HEADER_LEN + 1)
+                    block = _new(PoseBlock)
+                    _set_pose_index(block, index)
+                    _set_pose(block, (x, y, z, w, p, r))
+                    blocks = (block,)
+                else:
+                    blocks = self._parse_blocks(data, rule[2], count)
+                frame = _new(Frame)
+                _set_tt(frame, rule[0])
+                _set_action(frame, rule[1])
+                _set_blocks(frame, blocks)
+                _set_error(frame, error_code)
+                _set_check(frame, 0)
+                return frame  # type: ignore[no-any-return]
+        return self.parse_checked(data, transport, expect)
+
+    def parse_checked(
+        self, data: bytes, transport: Transport = Transport.TCP, expect: TransferType | None = None
+    ) -> Frame:
+        """The reference parser: every check in the order of the module docstring."""
+        size = len(data)
+        fail = self._fail
+        if size < HEADER_LEN:
+            raise fail(LengthError, f"{size} bytes, shorter than the 12-byte header", data, size)
+        ttype, action, btype = self.check_header(data, expect)
+        _start, _version, _tt, _act, _bt, count, blen, error_code = self.header.unpack_from(data)
+        end = HEADER_LEN + count * blen
+        if size != end + CHECK_LEN:
+            raise fail(
+                LengthError,
+                f"{size} bytes, but N={count} L={blen} make the frame 12+{count}*{blen}+2 = {end + CHECK_LEN}",
+                data, min(size, end + CHECK_LEN),
+            )
+        check = (data[end] << 8) | data[end + 1]
+        if transport is Transport.TCP or transport == "tcp":
+            policy = self._tcp_check
+            if check and (
+                policy is TcpCheckPolicy.ZERO
+                or (policy is TcpCheckPolicy.ZERO_OR_CRC and data[end:] != self.check_bytes(bytes(data[:end])))
+            ):
+                raise fail(CheckError, f"TCP check 0x{check:04X}, expected 00 00", data, end, "F6")
+        else:
+            want = self.check_bytes(bytes(data[:end]))
+            if data[end:] != want:
+                got = bytes(data[end:]).hex(" ")
+                raise fail(
+                    CheckError, f"check {got}, expected {self.profile.crc} CRC {want.hex(' ')}", data, end, "F7"
+                )
+        blocks = self._parse_blocks(data, btype, count) if count else ()
+        if ttype is TransferType.BOX_TO_ROBOT:
+            self._check_answer_content(data, action, error_code, blocks)
+        return _frame(ttype, action, blocks, error_code, check)
+
+    def check_header(self, data: bytes, expect: TransferType | None = None) -> tuple[TransferType, Action, BlockType]:
+        """F1, F2, F3, A5 and the action's shape (B5/B1/B2/E1–E3/A2) of 12 header bytes."""
+        fail = self._fail
+        start, version, tt, act, bt, count, blen, _error = self.header.unpack_from(data)
+        if start != START_WORD:
+            raise fail(StartWordError, f"start word {bytes(data[:2]).hex(' ')}, expected fe fe", data, 0)
+        if version != VERSION:
+            raise fail(VersionError, f"version 0x{version:04X}, expected 0x0001", data, 2)
+        ttype = _TRANSFER.get(tt)
+        if ttype is None or (expect is not None and ttype is not expect):
+            want_tt = f"0x{expect.value:02X}" if expect is not None else "0x01 or 0x10"
+            raise fail(DirectionError, f"transfer type 0x{tt:02X}, expected {want_tt}", data, 4)
+        action = _ACTION.get(act)
+        if action is None:
+            raise fail(UnknownActionError, f"unknown action 0x{act:02X}", data, 5)
+        shape = SHAPES[ttype][action]
+        btype = _BLOCK_TYPE.get(bt)
+        if btype is not shape.block_type or blen != BLOCK_LEN[btype] or not shape.low <= count <= shape.high:
+            raise self._shape_error(data, ttype, action, shape, btype, bt, blen, count)
+        return ttype, action, btype
+
+    def _check_answer_content(self, data: bytes, action: Action, error_code: int, blocks: tuple[Block, ...]) -> None:
+        """A4: action 00 is answered 0000. E3: 0 and 404 are the robot's own values, never sent."""
+        if action is Action.NONE and error_code:
+            raise self._fail(AnswerError, f"NONE answered with error 0x{error_code:04X}, expected 0x0000", data, 10, "A4")
+        if action is Action.VISION_RESULT:
+            value = blocks[0].value  # type: ignore[union-attr]
+            if value in (ResultCode.EMPTY, ResultCode.NO_ANSWER):
+                raise self._fail(
+                    AnswerError, f"result code {value} is the robot's own value, never sent by a box", data, 13, "E3"
+                )
+
+    def _shape_error(
+        self, data: bytes, ttype: TransferType, action: Action, shape: Shape,
+        btype: BlockType | None, bt: int, blen: int, count: int,
+    ) -> ProtocolError:
+        role = "request" if ttype is TransferType.ROBOT_TO_BOX else "answer"
+        if btype is not shape.block_type:
+            return self._fail(
+                ShapeError, f"{action.name} {role} needs block type 0x{shape.block_type:02X}, got 0x{bt:02X}",
+                data, 6, shape.clause,
+            )
+        if blen != BLOCK_LEN[btype]:
+            clause = shape.clause if btype is BlockType.EMPTY else BLOCK_CLAUSE[btype]
+            return self._fail(
+                ShapeError, f"block type 0x{bt:02X} needs block length {BLOCK_LEN[btype]}, got {blen}",
+                data, 8, clause,
+            )
+        want_n = str(shape.low) if shape.low == shape.high else f"{shape.low}..{shape.high}"
+        return self._fail(ShapeError, f"{action.name} {role} needs {want_n} blocks, got {count}", data, 7, shape.clause)
+
+    def _parse_blocks(self, data: bytes, btype: int, count: int) -> tuple[Block, ...]:
+        """B3 indexes and B4 floats of ``count`` blocks whose header already checked out."""
+        first = self._first
+        if not self._strict and data[HEADER_LEN] in (0, 1):
+            first = data[HEADER_LEN]  # lenient: accept either reading of B3
+        strict = self._strict
+        blocks: list[Block] = []
+        if btype == BlockType.POSE:
+            end = HEADER_LEN + count * POSE_BLOCK_LEN
+            indexes = data[HEADER_LEN:end:POSE_BLOCK_LEN]
+            if indexes != bytes(range(first, first + count)):  # count <= 255, first <= 1
+                i = next(i for i, got in enumerate(indexes) if got != first + i)
+                raise self._index_error(data, HEADER_LEN + i * POSE_BLOCK_LEN, indexes[i], first + i)
+            records = list(self.pose.iter_unpack(memoryview(data)[HEADER_LEN:end]))
+            if strict and not isfinite(sum([sum(rec) for rec in records])):  # indexes are finite
+                i = next(i for i, rec in enumerate(records) if not isfinite(sum(rec)))
+                raise self._fail(FloatError, f"block {i}: non-finite pose value", data, HEADER_LEN + i * 25 + 1)
+            for rec in records:
+                block = _new(PoseBlock)
+                _set_pose_index(block, rec[0])
+                _set_pose(block, rec[1:])
+                blocks.append(block)
+            return tuple(blocks)
+        is_tolerance = btype == BlockType.TOLERANCE
+        unpack = (self.tolerance if is_tolerance else self.value).unpack_from
+        for i in range(count):
+            offset = HEADER_LEN + i * TOLERANCE_BLOCK_LEN
+            index, value = unpack(data, offset)
+            if index != first + i:
+                raise self._index_error(data, offset, index, first + i)
+            if is_tolerance:
+                if strict and not isfinite(value):
+                    raise self._fail(FloatError, f"block {i}: non-finite tolerance {value}", data, offset + 1)
+                blocks.append(ToleranceBlock(index, value))
+            else:
+                blocks.append(ValueBlock(index, value))
+        return tuple(blocks)
+
+    def _index_error(self, data: bytes, offset: int, got: int, want: int) -> ProtocolError:
+        return self._fail(BlockIndexError, f"block index {got}, expected {want}", data, offset)
+
+
+_CODECS: dict[Profile, Codec] = {}
+
+
+def codec_for(profile: Profile = DEFAULT_PROFILE) -> Codec:
+    """The compiled codec of a profile (cached)."""
+    codec = _CODECS.get(profile)
+    if codec is None:
+        if len(_CODECS) > 64:
+            _CODECS.clear()
+        codec = _CODECS[profile] = Codec(profile)
+    return codec
+
+
+# -- module-level API ----------------------------------------------------------------------
+
+
+def encode(frame: Frame, profile: Profile = DEFAULT_PROFILE, transport: Transport = Transport.TCP) -> bytes:
+    """The bytes of ``frame``: TCP with check 00 00 (F6), UDP with the CRC (F7)."""
+    return codec_for(profile).encode(frame, transport)
+
+
+def encode_tcp(frame: Frame, profile: Profile = DEFAULT_PROFILE) -> bytes:
+    return codec_for(profile).encode(frame, Transport.TCP)
+
+
+def encode_udp(frame: Frame, profile: Profile = DEFAULT_PROFILE) -> bytes:
+    return codec_for(profile).encode(frame, Transport.UDP)
+
+
+def encode_body(frame: Frame, profile: Profile = DEFAULT_PROFILE) -> bytes:
+    """Header and blocks of a frame, without the check field."""
+    return codec_for(profile).encode_body(frame)
+
+
+def encode_header(header: Header, profile: Profile = DEFAULT_PROFILE) -> bytes:
+    """Pack twelve header bytes, legal or not (fields must fit their widths)."""
+    return codec_for(profile).encode_header(header)
+
+
+def encode_block(block: Block, profile: Profile = DEFAULT_PROFILE) -> bytes:
+    return codec_for(profile).encode_block(block)
+
+
+def encode_raw(
+    header: Header,
+    body: bytes = b"",
+    check: bytes | None = None,
+    profile: Profile = DEFAULT_PROFILE,
+    transport: Transport = Transport.TCP,
+) -> bytes:
+    """Craft any frame: header fields and body as given; ``check=None`` computes it."""
+    return codec_for(profile).encode_raw(header, body, check, transport)
+
+
+def parse_header(data: bytes, profile: Profile = DEFAULT_PROFILE) -> Header:
+    """The header of ``data`` (at least 12 bytes) as raw integers."""
+    return codec_for(profile).parse_header(data)
+
+
+def parse_frame(
+    data: bytes,
+    profile: Profile = DEFAULT_PROFILE,
+    transport: Transport = Transport.TCP,
+    expect: TransferType | None = None,
+) -> Frame:
+    """Parse exactly one complete frame; raise a ProtocolError naming the clause.
+
+    ``expect`` is the transfer type the receiver expects (F3); None accepts both.
+    """
+    return codec_for(profile).parse(data, transport, expect)
+
+
+def decode_datagram(
+    data: bytes, profile: Profile = DEFAULT_PROFILE, expect: TransferType | None = None
+) -> Frame:
+    """F7/R7: one UDP datagram must be exactly one frame with a correct CRC."""
+    return codec_for(profile).parse(data, Transport.UDP, expect)
