@@ -1,0 +1,1 @@
+"""Evidence: independent views of the bytes on the wire (scapy layer, captures)."""
