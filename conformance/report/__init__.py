@@ -1,0 +1,27 @@
+"""Report writers: summary.json, junit.xml, report.html, latency SVGs and the terminal.
+
+Every writer derives its totals, clause verdicts and overall line from
+:mod:`.summary`, so the reports agree with each other. Files are written atomically.
+"""
+
+from __future__ import annotations
+
+from .html import render_html, write_html
+from .junit import write_junit
+from .summary import by_clause, conforms, overall_line, totals, write_summary
+from .svg import latency_svg
+from .terminal import Progress, print_final_table
+
+__all__ = [
+    "Progress",
+    "by_clause",
+    "conforms",
+    "latency_svg",
+    "overall_line",
+    "print_final_table",
+    "render_html",
+    "totals",
+    "write_html",
+    "write_junit",
+    "write_summary",
+]

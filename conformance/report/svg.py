@@ -1,0 +1,209 @@
+"""A small self-contained SVG of answer latencies (no script, no external reference).
+
+Presentation decisions:
+
+* linear scale from 0 ms, so a growing backlog (T2) shows as a slope;
+* huge outliers do not flatten the plot: when the maximum is above 3 × p99 the scale
+  stops there and every point above it is drawn on the top edge with a red ▲ marker
+  (and counted in the header line);
+* ``time_out`` is drawn when it is near the data (within 2 × the scale); otherwise the
+  header says it is off scale, and how far the maximum is below it;
+* a request whose latency is not finite (NaN/inf: no answer) is counted and marked ×;
+* more points than 2 per pixel column are reduced to the min and max of each column,
+  which keeps every spike visible and the SVG small (≈ 15 KB for 50,000 points).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from xml.sax.saxutils import escape
+
+from .summary import clean_text
+
+FONT = "DejaVu Sans, Helvetica, Arial, sans-serif"
+C_DATA, C_P50, C_P99, C_LIMIT, C_AXIS, C_GRID = "#1565c0", "#2e7d32", "#b26a00", "#c62828", "#444", "#e3e3e3"
+ML, MR, MT, MB = 48, 100, 38, 30  # margins: left (y labels), right (line labels), top (title + notes), bottom
+CLIP_FACTOR = 3.0  # scale stops at CLIP_FACTOR × p99 when the maximum is beyond it
+DOTS_UP_TO = 150  # draw a dot per point up to this many points
+
+
+def percentile(sorted_values: Sequence[float], q: float) -> float:
+    """Linear-interpolation percentile (q in [0, 100]) of an ascending, non-empty sequence."""
+    if len(sorted_values) == 1:
+        return sorted_values[0]
+    pos = (len(sorted_values) - 1) * q / 100
+    lo = math.floor(pos)
+    hi = min(lo + 1, len(sorted_values) - 1)
+    return sorted_values[lo] + (sorted_values[hi] - sorted_values[lo]) * (pos - lo)
+
+
+def fmt_ms(value: float) -> str:
+    """A latency for a label: 3 significant figures, no exponent."""
+    if value == 0:
+        return "0"
+    if value < 10:
+        return f"{value:.2f}".rstrip("0").rstrip(".") if value >= 0.01 else f"{value:.3g}"
+    if value < 100:
+        return f"{value:.1f}".rstrip("0").rstrip(".")
+    return f"{value:,.0f}"
+
+
+def _nice_step(raw: float) -> float:
+    """The smallest 1, 2, 2.5 or 5 × 10^k that is >= raw."""
+    if raw <= 0:
+        return 1.0
+    power = 10 ** math.floor(math.log10(raw))
+    for m in (1, 2, 2.5, 5, 10):
+        if m * power >= raw * (1 - 1e-9):
+            return m * power
+    return 10 * power
+
+
+def _f(x: float) -> str:
+    return f"{x:.1f}".rstrip("0").rstrip(".")
+
+
+def _text(x: float, y: float, body: str, anchor: str = "start", size: float = 10, fill: str = C_AXIS,
+          extra: str = "") -> str:
+    return (f'<text x="{_f(x)}" y="{_f(y)}" text-anchor="{anchor}" font-size="{size}" fill="{fill}"{extra}>'
+            f"{escape(clean_text(body))}</text>")
+
+
+def _spread(labels: list[tuple[float, str, str]], top: float, bottom: float, gap: float = 11) -> list[tuple[float, str, str]]:
+    """Move label baselines apart (at least ``gap``), keeping them within [top, bottom]."""
+    labels = sorted(labels)
+    for i in range(1, len(labels)):
+        if labels[i][0] - labels[i - 1][0] < gap:
+            labels[i] = (labels[i - 1][0] + gap, *labels[i][1:])
+    overflow = labels[-1][0] - bottom if labels else 0
+    if overflow > 0:
+        labels = [(y - overflow, c, t) for y, c, t in labels]
+    return [(max(y, top), c, t) for y, c, t in labels]
+
+
+def latency_svg(latencies_ms: Sequence[float], title: str, time_out_ms: float | None = None,
+                width: int = 640, height: int = 200) -> str:
+    """The latency of each request (in request order) as an SVG document string."""
+    width, height = max(int(width), ML + MR + 40), max(int(height), MT + MB + 40)
+    pw, ph = width - ML - MR, height - MT - MB
+    n = len(latencies_ms)
+    finite = [max(0.0, float(v)) for v in latencies_ms if math.isfinite(v)]
+    lost = n - len(finite)
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+        f'viewBox="0 0 {width} {height}" role="img" font-family="{FONT}" class="latency">',
+        f"<title>{escape(clean_text(title))}</title>",
+        f'<rect x="0" y="0" width="{width}" height="{height}" fill="#fff"/>',
+        _text(ML, 15, title, size=11, fill="#111", extra=' font-weight="bold"'),
+    ]
+    if not finite:
+        out.append(f'<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="none" stroke="{C_GRID}"/>')
+        msg = "no latency samples" if n == 0 else f"no answer to any of {n} requests"
+        out.append(_text(ML + pw / 2, MT + ph / 2 + 4, msg, anchor="middle", size=11, fill="#777"))
+        out.append("</svg>")
+        return "\n".join(out)
+
+    ordered = sorted(finite)
+    p50, p99, hi = percentile(ordered, 50), percentile(ordered, 99), ordered[-1]
+    y_max = CLIP_FACTOR * p99 if p99 > 0 and hi > CLIP_FACTOR * p99 else hi
+    limit_on_scale = bool(time_out_ms) and time_out_ms <= 2 * max(y_max, 1e-9)  # type: ignore[operator]
+    if limit_on_scale:
+        y_max = max(y_max, float(time_out_ms))  # type: ignore[arg-type]
+    y_max = y_max or 1.0
+    step = _nice_step(y_max / 4)
+    y_top = math.ceil(y_max / step - 1e-9) * step
+
+    def yy(v: float) -> float:
+        return MT + ph - min(v, y_top) / y_top * ph
+
+    def xx(i: int) -> float:
+        return ML + (i / (n - 1) * pw if n > 1 else pw / 2)
+
+    # grid and y axis
+    ticks = [k * step for k in range(int(round(y_top / step)) + 1)]
+    for t in ticks:
+        out.append(f'<line x1="{ML}" y1="{_f(yy(t))}" x2="{ML + pw}" y2="{_f(yy(t))}" stroke="{C_GRID}"/>')
+        out.append(_text(ML - 4, yy(t) + 3.5, fmt_ms(t), anchor="end"))
+    out.append(_text(12, MT + ph / 2, "latency (ms)", anchor="middle",
+                     extra=f' transform="rotate(-90 12 {_f(MT + ph / 2)})"'))
+    # x axis: request numbers
+    out.append(f'<line x1="{ML}" y1="{MT + ph}" x2="{ML + pw}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
+    out.append(f'<line x1="{ML}" y1="{MT}" x2="{ML}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
+    xstep = max(1, int(_nice_step(n / 6)))
+    for r in [1, *range(xstep, n + 1, xstep)] if n > 1 else [1]:
+        if r != 1 and xx(r - 1) - xx(0) < 24:
+            continue
+        out.append(f'<line x1="{_f(xx(r - 1))}" y1="{MT + ph}" x2="{_f(xx(r - 1))}" y2="{MT + ph + 3}" stroke="{C_AXIS}"/>')
+        out.append(_text(xx(r - 1), MT + ph + 13, f"{r:,}", anchor="middle"))
+    out.append(_text(ML + pw, height - 3, "request #", anchor="end", fill="#777"))
+
+    # the data: every point, or min/max per pixel column
+    points: list[tuple[float, float]] = []
+    clipped_x: list[float] = []
+    lost_x: list[float] = []
+    if n <= 2 * pw:
+        for i, v in enumerate(latencies_ms):
+            if not math.isfinite(v):
+                lost_x.append(xx(i))
+                continue
+            v = max(0.0, float(v))
+            points.append((xx(i), yy(v)))
+            if v > y_top:
+                clipped_x.append(xx(i))
+    else:
+        cols: dict[int, list[float]] = {}
+        for i, v in enumerate(latencies_ms):
+            c = i * pw // n
+            if not math.isfinite(v):
+                if not lost_x or lost_x[-1] != ML + c:
+                    lost_x.append(ML + c)
+                continue
+            v = max(0.0, float(v))
+            col = cols.get(c)
+            if col is None:
+                cols[c] = [v, v, i, i]  # min, max, index of min, index of max
+            elif v < col[0]:
+                col[0], col[2] = v, i
+            elif v > col[1]:
+                col[1], col[3] = v, i
+        for c, (lo, top, i_lo, i_top) in sorted(cols.items()):
+            pair = [(i_lo, lo), (i_top, top)] if i_lo <= i_top else [(i_top, top), (i_lo, lo)]
+            points.extend((ML + c + 0.5, yy(v)) for _, v in pair)
+            if top > y_top:
+                clipped_x.append(ML + c + 0.5)
+    if len(points) > 1:
+        pts = " ".join(f"{_f(x)},{_f(y)}" for x, y in points)
+        out.append(f'<polyline points="{pts}" fill="none" stroke="{C_DATA}" stroke-width="1" stroke-linejoin="round"/>')
+    if len(points) <= DOTS_UP_TO:
+        out.append(f'<g fill="{C_DATA}">' + "".join(f'<circle cx="{_f(x)}" cy="{_f(y)}" r="2"/>' for x, y in points)
+                   + "</g>")
+    if clipped_x:
+        path = "".join(f"M{_f(x)},{MT - 1}l3.5,6h-7z" for x in clipped_x)
+        out.append(f'<path d="{path}" fill="{C_LIMIT}"/>')
+    if lost_x:
+        path = "".join(f"M{_f(x - 3)},{MT + ph - 6}l6,6m0,-6l-6,6" for x in lost_x)
+        out.append(f'<path d="{path}" stroke="{C_LIMIT}" stroke-width="1.2" fill="none"/>')
+
+    # reference lines, labelled on the right
+    labels = [(yy(p50) + 3.5, C_P50, f"p50 {fmt_ms(p50)} ms"), (yy(p99) + 3.5, C_P99, f"p99 {fmt_ms(p99)} ms")]
+    out.append(f'<line x1="{ML}" y1="{_f(yy(p50))}" x2="{ML + pw}" y2="{_f(yy(p50))}" stroke="{C_P50}" stroke-dasharray="5 3"/>')
+    out.append(f'<line x1="{ML}" y1="{_f(yy(p99))}" x2="{ML + pw}" y2="{_f(yy(p99))}" stroke="{C_P99}" stroke-dasharray="5 3"/>')
+    if limit_on_scale:
+        y_lim = yy(float(time_out_ms))  # type: ignore[arg-type]
+        out.append(f'<line x1="{ML}" y1="{_f(y_lim)}" x2="{ML + pw}" y2="{_f(y_lim)}" stroke="{C_LIMIT}" stroke-width="1.5"/>')
+        labels.append((y_lim + 3.5, C_LIMIT, f"time_out {fmt_ms(float(time_out_ms))} ms"))  # type: ignore[arg-type]
+    for y, colour, label in _spread(labels, MT + 4, MT + ph + 3):
+        out.append(_text(ML + pw + 5, y, label, fill=colour))
+
+    # header line: what the reader must know that the lines do not show
+    notes = [f"n={n:,}", f"max {fmt_ms(hi)} ms"]
+    if clipped_x:
+        notes.append(f"▲ {sum(v > y_top for v in finite):,} above {fmt_ms(y_top)} ms")
+    if lost:
+        notes.append(f"× {lost:,} no answer")
+    if time_out_ms and not limit_on_scale:
+        notes.append(f"time_out {fmt_ms(float(time_out_ms))} ms off scale")
+    out.append(_text(ML, 29, " · ".join(notes), size=9.5, fill="#555"))
+    out.append("</svg>")
+    return "\n".join(out)

@@ -1,0 +1,1 @@
+"""The conformance suite's model: verdicts, case metadata, results."""

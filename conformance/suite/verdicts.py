@@ -1,0 +1,113 @@
+"""Verdicts, levels and the result of one case.
+
+Levels follow RFC 2119 as PROTOCOL.md uses them: a MUST broken is FAIL, a SHOULD
+broken is NON-STRICT, a MAY is INFORMATIONAL (recorded, never failing).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+
+class Verdict(str, enum.Enum):
+    PASS = "PASS"
+    NON_STRICT = "NON-STRICT"  # a SHOULD is broken
+    INFORMATIONAL = "INFORMATIONAL"  # recorded behaviour, never failing (MAY, discovery)
+    INCONCLUSIVE = "INCONCLUSIVE"  # could not be judged (box not ready, box unreachable)
+    SKIP = "SKIP"  # not applicable (no UDP target, extension not implemented, deselected)
+    FAIL = "FAIL"  # a MUST is broken
+    ERROR = "ERROR"  # the suite's own fault
+
+    @property
+    def failing(self) -> bool:
+        return self in (Verdict.FAIL, Verdict.ERROR)
+
+
+class Level(str, enum.Enum):
+    MUST = "MUST"
+    SHOULD = "SHOULD"
+    MAY = "MAY"
+
+    @property
+    def broken_verdict(self) -> Verdict:
+        """The verdict when a box breaks a requirement of this level."""
+        return {Level.MUST: Verdict.FAIL, Level.SHOULD: Verdict.NON_STRICT, Level.MAY: Verdict.INFORMATIONAL}[self]
+
+
+#: Order in which reports list verdicts (worst first).
+VERDICT_ORDER = (
+    Verdict.FAIL, Verdict.ERROR, Verdict.NON_STRICT, Verdict.INCONCLUSIVE,
+    Verdict.INFORMATIONAL, Verdict.SKIP, Verdict.PASS,
+)
+
+
+@dataclass(frozen=True)
+class WireLine:
+    """One line of a case's wire log, as reports show it."""
+
+    t_ms: float  # since the case started
+    conn: int
+    direction: str  # "→" sent, "←" received, "·" connection event or note
+    kind: str
+    hex: str
+    summary: str  # decoded frame, error clause, or the event
+
+
+@dataclass
+class CaseResult:
+    id: str
+    title: str
+    clauses: tuple[str, ...]
+    level: Level
+    verdict: Verdict
+    duration_s: float = 0.0
+    message: str = ""  # one line
+    requirement: str = ""  # what PROTOCOL.md asks, in words
+    expected: str = ""  # the set of acceptable outcomes
+    observed: str = ""  # what the box did
+    sent_hex: str = ""  # the bytes that matter (e.g. the malformed frame)
+    received_hex: str = ""
+    pcap: str | None = None
+    wire: list[WireLine] = field(default_factory=list)
+    #: timing cases: answer latencies in ms, in request order (for plots)
+    latencies_ms: list[float] = field(default_factory=list)
+    details: dict[str, Any] = field(default_factory=dict)
+
+    def to_summary(self) -> dict[str, Any]:
+        """The case's entry in summary.json."""
+        return {
+            "id": self.id,
+            "title": self.title,
+            "clauses": list(self.clauses),
+            "level": self.level.value,
+            "verdict": self.verdict.value,
+            "duration_s": round(self.duration_s, 4),
+            "message": self.message,
+            "expected": self.expected,
+            "observed": self.observed,
+            "sent_hex": self.sent_hex,
+            "received_hex": self.received_hex,
+            "pcap": self.pcap,
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["level"] = self.level.value
+        out["verdict"] = self.verdict.value
+        out["clauses"] = list(self.clauses)
+        return out
+
+
+@dataclass
+class SuiteInfo:
+    version: str
+    started: str  # ISO 8601 UTC
+    duration_s: float
+    target: str  # "10.0.0.5:9000" or "bundled reference box at 127.0.0.1:PORT"
+    profile: dict[str, Any]
+    udp_target: str | None = None
+    extension: str = "auto"  # how E was decided: "detected", "not implemented", "forced on", "off"
+    expected_failures: str | None = None  # path of the list, if any
+    command: str = ""  # the command line that produced the run

@@ -1,0 +1,214 @@
+"""report.html: well-formed, self-contained, escaped, and carrying what an integrator signs."""
+
+from __future__ import annotations
+
+import os
+import re
+import time
+from html.parser import HTMLParser
+from importlib import resources
+
+from conformance.report import render_html, write_html
+from conformance.report.html import WIRE_HEAD, WIRE_TAIL, pcap_href
+from conformance.report.summary import CLAUSES
+from conformance.suite.verdicts import CaseResult, Level, Verdict, WireLine
+
+from .test_report_summary import sample_cases, sample_suite
+
+VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "track", "wbr"}
+
+
+class Checker(HTMLParser):
+    """Checks nesting and collects what the tests look at."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.stack: list[str] = []
+        self.errors: list[str] = []
+        self.links: list[tuple[str, str]] = []  # (attribute, value) of every src/href
+        self.details: dict[str, bool] = {}  # id -> open
+        self.scripts = 0
+        self.text: list[str] = []
+        self.rows: list[list[str]] = []  # clause table rows: [clause, title, result...]
+        self._in_clauses = False
+        self._row: list[str] | None = None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        for name in ("src", "href", "xlink:href", "action", "data"):
+            if name in a:
+                self.links.append((name, a[name] or ""))
+        if tag == "details":
+            self.details[a.get("id")] = "open" in a
+        if tag == "script":
+            self.scripts += 1
+            if "src" in a:
+                self.errors.append("external script")
+        if tag == "table" and "clauses" in (a.get("class") or ""):
+            self._in_clauses = True
+        if self._in_clauses and tag == "tr":
+            self._row = []
+        if tag not in VOID:
+            self.stack.append(tag)
+
+    def handle_startendtag(self, tag, attrs):
+        self.handle_starttag(tag, attrs)
+        if tag not in VOID:
+            self.stack.pop()
+
+    def handle_endtag(self, tag):
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes <{self.stack[-1] if self.stack else None}>")
+            return
+        self.stack.pop()
+        if tag == "tr" and self._row is not None:
+            self.rows.append(self._row)
+            self._row = None
+        if tag == "table":
+            self._in_clauses = False
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._row is not None and data.strip():
+            self._row.append(data.strip())
+
+
+def _check(html: str) -> Checker:
+    checker = Checker()
+    checker.feed(html)
+    checker.close()
+    assert checker.errors == []
+    assert checker.stack == [], f"unclosed: {checker.stack}"
+    return checker
+
+
+def _render(tmp_path, cases=None, **suite_changes) -> tuple[str, Checker]:
+    path = tmp_path / "out" / "report.html"
+    write_html(path, sample_suite(**suite_changes), sample_cases() if cases is None else cases, pcap_base=tmp_path)
+    html = path.read_text(encoding="utf-8")
+    return html, _check(html)
+
+
+def test_well_formed_and_self_contained(tmp_path):
+    html, checker = _render(tmp_path)
+    assert html.startswith("<!DOCTYPE html>")
+    for attr, value in checker.links:
+        assert not re.match(r"^\s*(https?:|//|javascript:|data:)", value, re.IGNORECASE), (attr, value)
+    assert not re.search(r"<(link|img|iframe|object|embed)\b", html)
+    assert "@import" not in html and "url(" not in html
+    assert checker.scripts == 1  # our small inline filter script, nothing else
+
+
+def test_hostile_strings_are_escaped(tmp_path):
+    html, checker = _render(tmp_path)
+    assert "<script>alert(" not in html
+    assert "&lt;script&gt;alert(" in html
+    assert "[bold]markup[/]" in html
+    assert "\\x00\\x1b[31m\\ud800" in html  # control characters and surrogates made visible
+    assert not re.search("[\x00-\x08\x0b\x0c\x0e-\x1f]", html)
+
+
+def test_header_for_signing(tmp_path):
+    html, checker = _render(tmp_path)
+    text = " ".join(" ".join(checker.text).split())
+    assert "DOES NOT CONFORM: 1 FAIL, 1 ERROR; 1 NON-STRICT; 1 INCONCLUSIVE (not judged)" in text
+    assert 'class="overall o-fails"' in html
+    for needle in ("10.0.0.5:9004", "isight-conformance 0.1.0", "2026-05-09 07:35:25 UTC", "3 min 07 s",
+                   "implemented (detected)", "isight-conformance run --target 10.0.0.5:9004 --first-index 1",
+                   "none: UDP cases (F7, R7) are SKIP", "Tested by", "Signature", "Date"):
+        assert needle in text, needle
+    # the one non-default setting is highlighted
+    changed = re.findall(r'<tr class="changed"><td class="mono">(\w+)</td>', html)
+    assert changed == ["first_index"]
+    assert "1 setting differs from PROTOCOL.md's defaults" in text
+
+
+def test_overall_line_when_conforming(tmp_path):
+    cases = [c for c in sample_cases() if c.verdict in (Verdict.PASS, Verdict.NON_STRICT)]
+    html, checker = _render(tmp_path, cases=cases)
+    assert "CONFORMS (no FAIL/ERROR); 1 NON-STRICT" in html
+    assert 'class="overall o-conforms"' in html
+
+
+def test_clause_table_lists_every_clause(tmp_path):
+    html, checker = _render(tmp_path)
+    rows = {r[0]: r for r in checker.rows if r and r[0] in CLAUSES}
+    assert set(rows) == set(CLAUSES)
+    assert rows["F2"][2] == "not tested"
+    assert rows["F1"][2] == "FAIL" and "F1-01" in rows["F1"]
+    assert rows["R1"][2] == "FAIL"
+    assert rows["A3"][2] == "NON-STRICT" and rows["A3"][3:5] == ["–", "NON-STRICT"]
+    assert rows["T2"][2] == "PASS" and "T2-01" in rows["T2"]
+    assert rows["R5"][2] == "ERROR"
+    assert '<a class="chip v-FAIL" href="#case-F1-01">F1-01</a>' in html
+
+
+def test_cases_expanded_unless_pass(tmp_path):
+    html, checker = _render(tmp_path)
+    for case in sample_cases():
+        anchor = "case-" + case.id
+        assert checker.details[anchor] is (case.verdict is not Verdict.PASS), case.id
+    assert html.index("case-F1-01") < html.index("case-B3-01")  # run order
+
+
+def test_case_content(tmp_path):
+    html, checker = _render(tmp_path)
+    text = " ".join(checker.text)
+    assert "R1: never answer 0000 to a frame that breaks F" in text
+    assert "no answer, a non-zero error, or close" in text and "answer 23/0000 after 3.1 ms" in text
+    assert "0000  ff fe 00 01 01 23 01 01  00 19 00 00 00 00 00 00" in text  # hexdump, grouped in bytes
+    assert "0000  fe fe 00 01 10 23 00 00  00 00 00 00 00 00" in text
+    assert "Wire log (7 lines)" in text
+    assert "connected (command)" in text and "→" in text and "←" in text
+    assert "traceback" in text  # details of the ERROR case
+    assert html.count("<svg") == 1  # only T2-01 has latencies
+    assert "T2-01: answer latency per request" in html
+
+
+def test_pcap_link_is_relative_to_the_report(tmp_path):
+    html, checker = _render(tmp_path)
+    assert ("href", "../pcaps/F1-01.pcapng") in checker.links
+    report_dir = tmp_path / "out"
+    assert pcap_href(str(tmp_path / "cap dir" / "a.pcapng"), report_dir, None) == "../cap%20dir/a.pcapng"
+    assert pcap_href("x.pcapng", report_dir, report_dir) == "x.pcapng"
+    assert not pcap_href("javascript:alert(1)", report_dir, report_dir).startswith("javascript:")
+
+
+def test_long_wire_log_is_cut_with_a_note(tmp_path):
+    wire = [WireLine(i, 1, "→", "send", "fefe", f"line {i}") for i in range(2000)]
+    case = CaseResult("R4-01", "many frames", ("R4",), Level.MUST, Verdict.FAIL, wire=wire)
+    html, checker = _render(tmp_path, cases=[case])
+    assert html.count("<tr class=\"sent\">") == WIRE_HEAD + WIRE_TAIL
+    assert f"… {2000 - WIRE_HEAD - WIRE_TAIL} lines omitted here" in html
+    assert "line 0<" in html and "line 1999<" in html and "line 1000<" not in html
+
+
+def test_no_cases(tmp_path):
+    html, checker = _render(tmp_path, cases=[])
+    assert "NOT JUDGED: no case ran" in html
+    assert "No case ran." in html
+
+
+def test_write_is_atomic(tmp_path):
+    _render(tmp_path)
+    _render(tmp_path, cases=[])
+    assert os.listdir(tmp_path / "out") == ["report.html"]
+
+
+def test_template_is_package_data():
+    assert resources.files("conformance.report").joinpath("templates/report.html.j2").is_file()
+
+
+def test_large_run_renders_quickly(tmp_path):
+    """300 cases with 2,000 wire lines each; prints the time, asserts none."""
+    wire = [WireLine(i * 0.5, 1 + i % 2, "→" if i % 2 == 0 else "←", "send" if i % 2 == 0 else "recv",
+                     "fefe00010123010100190000" + "ab" * 25 + "0000", f"pose {i}") for i in range(2000)]
+    verdicts = list(Verdict)
+    cases = [CaseResult(f"R1-{i:03d}", f"case {i}", ("R1",), Level.MUST, verdicts[i % len(verdicts)], 0.1,
+                        message="m", wire=wire, latencies_ms=[float(i % 50)] * 2000 if i % 10 == 0 else [])
+             for i in range(300)]
+    start = time.perf_counter()
+    html = render_html(sample_suite(), cases, tmp_path)
+    elapsed = time.perf_counter() - start
+    print(f"\nrender_html: 300 cases x 2,000 wire lines in {elapsed:.2f} s, {len(html) / 1e6:.1f} MB")
+    assert html.count("<details") == 300
