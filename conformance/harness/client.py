@@ -1,0 +1,342 @@
+"""Recorded connections to a box, and what a box can do in answer (outcomes).
+
+Nothing a box does raises out of here: an answer, bytes that do not parse, silence
+until the deadline, a close and a reset are all *values* (:data:`Outcome`). Only a
+target that cannot be reached at all raises :class:`~.target.Unreachable`. Every
+byte in and out is recorded in the case's :class:`~.transcript.Transcript`.
+"""
+
+from __future__ import annotations
+
+import errno
+import select
+import socket
+import time
+from dataclasses import dataclass
+
+from ..protocol import (
+    CLOSED,
+    NEED_DATA,
+    Frame,
+    Profile,
+    ProtocolError,
+    StreamDecoder,
+    TransferType,
+    Transport,
+    codec_for,
+    decode_datagram,
+)
+from .target import Target, Unreachable
+from .transcript import Endpoint, Kind, Transcript
+
+# -- outcomes ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Answer:
+    """A well-formed answer frame."""
+
+    frame: Frame
+    latency_s: float
+    raw: bytes
+
+    def describe(self) -> str:
+        return f"answered {self.frame.describe()}"
+
+
+@dataclass(frozen=True)
+class Malformed:
+    """Bytes from the box that are not a conforming answer."""
+
+    error: ProtocolError
+    latency_s: float
+
+    def describe(self) -> str:
+        return f"sent a malformed answer: {self.error} ({self.error.raw.hex(' ')})"
+
+
+@dataclass(frozen=True)
+class Silence:
+    """Nothing arrived before the deadline."""
+
+    waited_s: float
+
+    def describe(self) -> str:
+        return f"stayed silent for {self.waited_s * 1000:.0f} ms"
+
+
+@dataclass(frozen=True)
+class Closed:
+    """The box closed (FIN) or reset (RST) the connection."""
+
+    reset: bool
+    latency_s: float
+
+    def describe(self) -> str:
+        return "reset the connection" if self.reset else "closed the connection"
+
+
+Outcome = Answer | Malformed | Silence | Closed
+
+
+def describe(outcome: Outcome) -> str:
+    return outcome.describe()
+
+
+# -- TCP ---------------------------------------------------------------------------------------
+
+
+class TcpConnection:
+    """One recorded TCP connection to the box (the robot's side)."""
+
+    def __init__(
+        self, transcript: Transcript, target: Target, profile: Profile, label: str = "", time_out_s: float | None = None
+    ) -> None:
+        self.transcript = transcript
+        self.target = target
+        self.profile = profile
+        self.label = label
+        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_ms / 1000
+        self.codec = codec_for(profile)
+        self.decoder = StreamDecoder(profile, expect=TransferType.BOX_TO_ROBOT)
+        self.sock: socket.socket | None = None
+        self.conn_id = 0
+        self.closed_by_peer: Closed | None = None
+        self._closed = False
+
+    # -- lifecycle -------------------------------------------------------------------------
+    def connect(self) -> TcpConnection:
+        start = time.monotonic()
+        try:
+            sock = socket.create_connection((self.target.host, self.target.port), timeout=self.time_out_s)
+        except OSError as exc:
+            info = self.transcript.open("tcp", Endpoint("0.0.0.0", 0), Endpoint(self.target.host, self.target.port), self.label)
+            self.conn_id = info.conn
+            reason = _reason(exc, self.time_out_s)
+            self.transcript.add(info.conn, Kind.CONNECT_FAILED, note=reason)
+            raise Unreachable(f"cannot connect to {self.target}: {reason}") from None
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.setblocking(False)
+        self.sock = sock
+        local, remote = sock.getsockname(), sock.getpeername()
+        info = self.transcript.open("tcp", Endpoint(local[0], local[1]), Endpoint(remote[0], remote[1]), self.label)
+        self.conn_id = info.conn
+        self.transcript.add(self.conn_id, Kind.CONNECT, note=f"{self.label} connected in {(time.monotonic() - start) * 1000:.1f} ms")
+        return self
+
+    def close(self, note: str = "") -> None:
+        """Close our side (FIN) and release the socket."""
+        if self.sock is None or self._closed:
+            return
+        self._closed = True
+        try:
+            self.sock.shutdown(socket.SHUT_WR)
+        except OSError:
+            pass
+        self.transcript.add(self.conn_id, Kind.CLOSE, note=note)
+        self.sock.close()
+
+    def abort(self, note: str = "") -> None:
+        """Reset the connection (RST) instead of closing it."""
+        if self.sock is None or self._closed:
+            return
+        self._closed = True
+        try:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+        except OSError:
+            pass
+        self.transcript.add(self.conn_id, Kind.ABORT, note=note)
+        self.sock.close()
+
+    def __enter__(self) -> TcpConnection:
+        return self if self.sock is not None else self.connect()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- sending ---------------------------------------------------------------------------
+    def send(self, data: bytes | Frame, note: str = "") -> bool:
+        """Write all of ``data``; False (and a recorded close/reset) if the box is gone."""
+        if isinstance(data, Frame):
+            data = self.codec.encode(data, Transport.TCP)
+        assert self.sock is not None, "connect() first"
+        if self.closed_by_peer and self.closed_by_peer.reset:
+            return False
+        view = memoryview(data)
+        deadline = time.monotonic() + self.time_out_s
+        sent = 0
+        while sent < len(data):
+            try:
+                sent += self.sock.send(view[sent:])
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    break
+                select.select([], [self.sock], [], 0.05)
+            except OSError as exc:
+                self._peer_gone(exc)
+                if sent:
+                    self.transcript.add(self.conn_id, Kind.SEND, data[:sent], note)
+                return False
+        self.transcript.add(self.conn_id, Kind.SEND, data[:sent], note)
+        return sent == len(data)
+
+    def send_pieces(self, pieces: list[bytes], gap_s: float = 0.0, note: str = "") -> bool:
+        """Send bytes as separate segments (TCP_NODELAY), ``gap_s`` apart (R3)."""
+        for i, piece in enumerate(pieces):
+            if not self.send(piece, f"{note} piece {i + 1}/{len(pieces)}" if note else ""):
+                return False
+            if gap_s and i < len(pieces) - 1:
+                time.sleep(gap_s)
+        return True
+
+    # -- receiving -------------------------------------------------------------------------
+    def next_outcome(self, timeout_s: float | None = None, since: float | None = None) -> Outcome:
+        """The box's next answer, malformed bytes, close, or silence until the deadline."""
+        start = since if since is not None else time.monotonic()
+        wait = self.time_out_s if timeout_s is None else timeout_s
+        deadline = time.monotonic() + wait
+        while True:
+            event = self.decoder.next_event()
+            now = time.monotonic()
+            if isinstance(event, Frame):
+                return Answer(event, now - start, self.codec.encode_body(event) + event.check.to_bytes(2, "big"))
+            if isinstance(event, ProtocolError):
+                return Malformed(event, now - start)
+            if event is CLOSED:
+                return self.closed_by_peer or Closed(False, now - start)
+            assert event is NEED_DATA
+            if self.closed_by_peer is not None:
+                return Closed(self.closed_by_peer.reset, now - start)
+            remaining = deadline - now
+            if remaining <= 0 or self.sock is None or self._closed:
+                if timeout_s is None and remaining <= 0:
+                    self.transcript.timeouts += 1
+                    self.transcript.note(f"no answer within time_out ({wait * 1000:.0f} ms)", self.conn_id)
+                return Silence(time.monotonic() - start)
+            self._read(remaining, start)
+
+    def _read(self, wait_s: float, start: float) -> None:
+        assert self.sock is not None
+        try:
+            ready, _, _ = select.select([self.sock], [], [], max(0.0, wait_s))
+        except (OSError, ValueError):
+            ready = []
+        if not ready:
+            return
+        try:
+            data = self.sock.recv(65536)
+        except BlockingIOError:
+            return
+        except OSError as exc:
+            self._peer_gone(exc, start)
+            self.decoder.receive_data(b"")
+            return
+        if data:
+            self.transcript.add(self.conn_id, Kind.RECV, data)
+            self.decoder.receive_data(data)
+        else:
+            self.closed_by_peer = Closed(False, time.monotonic() - start)
+            self.transcript.add(self.conn_id, Kind.PEER_CLOSE)
+            self.decoder.receive_data(b"")
+
+    def _peer_gone(self, exc: OSError, start: float | None = None) -> None:
+        if self.closed_by_peer is not None:
+            return
+        reset = exc.errno in (errno.ECONNRESET, errno.EPIPE, errno.ECONNABORTED)
+        latency = time.monotonic() - start if start is not None else 0.0
+        self.closed_by_peer = Closed(reset, latency)
+        self.transcript.add(self.conn_id, Kind.PEER_RESET if reset else Kind.PEER_CLOSE, note=str(exc))
+
+    def request(self, data: bytes | Frame, note: str = "", timeout_s: float | None = None) -> Outcome:
+        """Send one request and wait for what follows (A1: one answer, T1: within time_out)."""
+        start = time.monotonic()
+        if not self.send(data, note):
+            return self.closed_by_peer or Closed(False, time.monotonic() - start)
+        return self.next_outcome(timeout_s, since=start)
+
+    def drain(self, quiet_s: float = 0.05) -> list[Outcome]:
+        """Everything the box sends until it has been quiet for ``quiet_s``."""
+        out: list[Outcome] = []
+        while True:
+            outcome = self.next_outcome(quiet_s)
+            if isinstance(outcome, Silence):
+                return out
+            out.append(outcome)
+            if isinstance(outcome, Closed):
+                return out
+
+
+def _reason(exc: OSError, time_out_s: float) -> str:
+    if isinstance(exc, (TimeoutError, socket.timeout)):
+        return f"no answer to the connection request within time_out ({time_out_s * 1000:.0f} ms)"
+    if isinstance(exc, ConnectionRefusedError):
+        return "connection refused (nothing listens on that port)"
+    if isinstance(exc, socket.gaierror):
+        return f"host name does not resolve ({exc.strerror})"
+    return exc.strerror or str(exc)
+
+
+# -- UDP ----------------------------------------------------------------------------------------
+
+
+class UdpChannel:
+    """A recorded UDP socket talking to the box: one datagram, one frame (F7)."""
+
+    def __init__(self, transcript: Transcript, target: Target, profile: Profile, label: str = "udp") -> None:
+        self.transcript = transcript
+        self.target = target
+        self.profile = profile
+        self.codec = codec_for(profile)
+        self.time_out_s = profile.time_out_ms / 1000
+        family = socket.AF_INET6 if ":" in target.host else socket.AF_INET
+        self.sock = socket.socket(family, socket.SOCK_DGRAM)
+        self.sock.setblocking(False)
+        try:
+            self.sock.connect((target.host, target.port))
+        except OSError as exc:
+            self.sock.close()
+            raise Unreachable(f"cannot reach UDP target {target}: {_reason(exc, self.time_out_s)}") from None
+        local, remote = self.sock.getsockname(), self.sock.getpeername()
+        info = transcript.open("udp", Endpoint(local[0], local[1]), Endpoint(remote[0], remote[1]), label)
+        self.conn_id = info.conn
+
+    def send(self, data: bytes | Frame, note: str = "") -> None:
+        if isinstance(data, Frame):
+            data = self.codec.encode(data, Transport.UDP)
+        try:
+            self.sock.send(data)
+        except OSError as exc:  # ICMP port unreachable from an earlier datagram, and the like
+            self.transcript.note(f"send failed: {exc.strerror or exc}", self.conn_id)
+        self.transcript.add(self.conn_id, Kind.SEND, data, note)
+
+    def next_outcome(self, timeout_s: float | None = None, since: float | None = None) -> Outcome:
+        start = since if since is not None else time.monotonic()
+        deadline = time.monotonic() + (self.time_out_s if timeout_s is None else timeout_s)
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return Silence(time.monotonic() - start)
+            ready, _, _ = select.select([self.sock], [], [], remaining)
+            if not ready:
+                continue
+            try:
+                data = self.sock.recv(65536)
+            except BlockingIOError:
+                continue
+            except OSError as exc:  # ECONNREFUSED: ICMP port unreachable
+                self.transcript.note(f"recv failed: {exc.strerror or exc}", self.conn_id)
+                return Closed(True, time.monotonic() - start)
+            self.transcript.add(self.conn_id, Kind.RECV, data)
+            latency = time.monotonic() - start
+            try:
+                return Answer(decode_datagram(data, self.profile, TransferType.BOX_TO_ROBOT), latency, data)
+            except ProtocolError as exc:
+                return Malformed(exc, latency)
+
+    def request(self, data: bytes | Frame, note: str = "", timeout_s: float | None = None) -> Outcome:
+        start = time.monotonic()
+        self.send(data, note)
+        return self.next_outcome(timeout_s, since=start)
+
+    def close(self) -> None:
+        self.sock.close()

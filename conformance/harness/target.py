@@ -1,0 +1,49 @@
+"""``HOST:PORT`` targets and the one clear error when they cannot be reached."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+class Unreachable(Exception):
+    """The target refused, timed out, or does not resolve; str() is one clear line."""
+
+
+@dataclass(frozen=True)
+class Target:
+    host: str
+    port: int
+
+    @classmethod
+    def parse(cls, text: str, default_port: int | None = None) -> Target:
+        """``10.0.0.5:9000``, ``[::1]:9004``, ``localhost:9004`` (or a bare host with a default port)."""
+        text = text.strip()
+        if not text:
+            raise ValueError("empty target; expected HOST:PORT")
+        if text.startswith("["):
+            host, sep, rest = text[1:].partition("]")
+            if not sep:
+                raise ValueError(f"bad target {text!r}: missing ']'")
+            port_text = rest[1:] if rest.startswith(":") else ""
+        elif text.count(":") == 1:
+            host, _, port_text = text.partition(":")
+        elif text.count(":") > 1:
+            raise ValueError(f"bad target {text!r}: write IPv6 addresses as [ADDR]:PORT")
+        else:
+            host, port_text = text, ""
+        if not port_text:
+            if default_port is None:
+                raise ValueError(f"bad target {text!r}: expected HOST:PORT")
+            return cls(host, default_port)
+        try:
+            port = int(port_text)
+        except ValueError:
+            raise ValueError(f"bad target {text!r}: port {port_text!r} is not a number") from None
+        if not 0 < port < 65536:
+            raise ValueError(f"bad target {text!r}: port {port} is out of range 1-65535")
+        if not host:
+            raise ValueError(f"bad target {text!r}: no host")
+        return cls(host, port)
+
+    def __str__(self) -> str:
+        return f"[{self.host}]:{self.port}" if ":" in self.host else f"{self.host}:{self.port}"
