@@ -82,12 +82,19 @@ def add_profile_options(add: Callable[..., Any]) -> None:
         add(opt.flag, **opt.kwargs())
 
 
-def profile_from_options(values: Mapping[str, Any] | Any, base: Profile = DEFAULT_PROFILE) -> Profile:
-    """Build the profile from parsed options (a mapping or an argparse Namespace).
+def profile_from_options(values: Mapping[str, Any] | Callable[[str], Any] | Any, base: Profile = DEFAULT_PROFILE) -> Profile:
+    """Build the profile from parsed options: a mapping, a ``get(dest)`` function, or
+    an argparse Namespace. Options left unset keep ``base``'s value. Raises ValueError
+    with a clear message."""
+    get: Callable[[str], Any]
+    if isinstance(values, Mapping):
+        get = values.get
+    elif callable(values):
+        get = values
+    else:
+        def get(key: str) -> Any:
+            return getattr(values, key, None)
 
-    Options left unset keep ``base``'s value. Raises ValueError with a clear message.
-    """
-    get = values.get if isinstance(values, Mapping) else (lambda key: getattr(values, key, None))
     changes = {opt.field: get(opt.dest) for opt in PROFILE_OPTIONS if get(opt.dest) is not None}
     return base.replace(**changes) if changes else base
 

@@ -27,8 +27,15 @@ from .protocol import (
 
 SCHEMA = "isight-vectors-1"
 DIRECTIONS = {"robot-to-box": TransferType.ROBOT_TO_BOX, "box-to-robot": TransferType.BOX_TO_ROBOT}
-#: The repository's vector directory (present in a source checkout, not in a wheel).
-REPO_VECTORS = Path(__file__).resolve().parents[1] / "vectors"
+def _vectors_dir() -> Path:
+    """``vectors/`` of a source checkout, else the copy a wheel ships as ``conformance/_vectors``."""
+    here = Path(__file__).resolve().parent
+    checkout = here.parent / "vectors"
+    return checkout if checkout.is_dir() else here / "_vectors"
+
+
+#: The golden vectors and scripted sequences (data, not code).
+REPO_VECTORS = _vectors_dir()
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,9 @@ Every writer derives its totals, clause verdicts and overall line from
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from ..suite.verdicts import CaseResult, SuiteInfo
 from .html import render_html, write_html
 from .junit import write_junit
 from .summary import by_clause, conforms, overall_line, totals, write_summary
@@ -23,5 +26,14 @@ __all__ = [
     "totals",
     "write_html",
     "write_junit",
+    "write_reports",
     "write_summary",
 ]
+
+
+def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult]) -> None:
+    """summary.json, junit.xml and report.html into ``report_dir``, each written atomically."""
+    report_dir.mkdir(parents=True, exist_ok=True)
+    write_summary(report_dir / "summary.json", suite, cases)
+    write_junit(report_dir / "junit.xml", suite, cases)
+    write_html(report_dir / "report.html", suite, cases)

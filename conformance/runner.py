@@ -1,0 +1,276 @@
+"""``isight-conformance run``: the suite as one command.
+
+A thin driver around pytest: it resolves the settings once (the same options the
+pytest plugin offers), starts the bundled reference box when no ``--target`` is
+given, checks that the target is reachable (one clear line and exit 2 if not),
+runs ``conformance.cases`` through :func:`pytest.main` with the settings injected,
+shows progress, applies the expected-failures list and sets the exit code:
+0 nothing FAILed or ERRORed (or the failing set equals the expected-failures list),
+1 something did, 2 usage error or unreachable target.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import json
+import os
+import socket
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from .harness.target import Target
+from .pytest_plugin import results, suite_info
+from .suite.catalogue import CaseInfo, info_of
+from .suite.settings import SuiteSettings, add_suite_options
+from .suite.verdicts import CaseResult, Verdict
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+def add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("suite")
+    add_suite_options(group.add_argument)
+    group.add_argument("--list", action="store_true", help="list the cases (ID, clauses, level, title) and exit")
+    group.add_argument("--list-format", choices=["text", "markdown", "json"], default="text",
+                       help="with --list: plain text, the Markdown catalogue (docs/CATALOGUE.md), or JSON")
+    group.add_argument("--expected-failures", metavar="FILE", default=None,
+                       help="case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
+                            "only when the failing set equals the list")
+    group.add_argument("--quiet", action="store_true", help="no live progress line (for CI logs)")
+
+
+def read_expected_failures(path: Path) -> set[str]:
+    ids = set()
+    for line in path.read_text(encoding="utf-8").splitlines():
+        text = line.split("#", 1)[0].strip()
+        if text:
+            ids.add(text)
+    return ids
+
+
+class _RunPlugin:
+    """Carries the resolved settings into the plugin and reports progress."""
+
+    def __init__(self, settings: SuiteSettings, progress: Any = None) -> None:
+        self.isight_settings = settings  # found by the isight plugin's pytest_configure
+        self.progress = progress
+        self.config: pytest.Config | None = None
+        self.collected: list[CaseInfo] = []
+        self.collect_errors: list[str] = []
+
+    def pytest_configure(self, config: pytest.Config) -> None:
+        self.config = config
+
+    def pytest_collection_finish(self, session: pytest.Session) -> None:
+        self.collected = [info for item in session.items if (info := info_of(item)) is not None]
+        if self.progress is not None:
+            self.progress.start(len(self.collected))
+
+    def pytest_collectreport(self, report: pytest.CollectReport) -> None:
+        if report.failed:
+            self.collect_errors.append(f"{report.nodeid}: {report.longreprtext.strip().splitlines()[-1] if report.longreprtext else 'collection failed'}")
+
+    def pytest_runtest_logstart(self, nodeid: str, location: tuple[str, int | None, str]) -> None:
+        if self.progress is not None:
+            self.progress.case_started(location[2])
+
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        if self.progress is None or self.config is None or not hasattr(report, "isight_verdict"):
+            return
+        done = results(self.config)
+        if done:
+            self.progress.case_done(done[-1])
+
+
+def _pytest_args(settings: SuiteSettings, collect_only: bool = False) -> list[str]:
+    # -c devnull: the user's own pytest configuration (addopts, plugins) stays out of the run
+    args = ["-c", os.devnull, "--rootdir", os.getcwd(), "--pyargs", "conformance.cases",
+            "-p", "no:cacheprovider", "-p", "no:terminal", "-p", "no:warnings"]
+    if collect_only:
+        args.append("--collect-only")
+    return args
+
+
+def check_reachable(target: Target, time_out_s: float) -> str | None:
+    """None when a TCP connection opens within time_out, else one line saying why not."""
+    try:
+        with socket.create_connection((target.host, target.port), timeout=time_out_s):
+            return None
+    except ConnectionRefusedError:
+        return f"target {target} unreachable: connection refused (nothing listens on that port)"
+    except TimeoutError:
+        return f"target {target} unreachable: no answer to the connection request within {time_out_s * 1000:.0f} ms"
+    except socket.gaierror as exc:
+        return f"target {target} unreachable: host name does not resolve ({exc.strerror})"
+    except OSError as exc:
+        return f"target {target} unreachable: {exc.strerror or exc}"
+
+
+def collect(settings: SuiteSettings) -> list[CaseInfo] | None:
+    """The selected cases' metadata (None if the catalogue fails to load)."""
+    plugin = _RunPlugin(settings)
+    code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
+    return None if code not in (0, 5) or plugin.collect_errors else plugin.collected
+
+
+def catalogue_markdown(cases: list[CaseInfo]) -> str:
+    """docs/CATALOGUE.md: one table per clause family, parametrised cases folded into one row."""
+    rows: dict[str, tuple[CaseInfo, list[str]]] = {}
+    for info in cases:
+        base, _, param = info.id.partition("[")
+        if base not in rows:
+            rows[base] = (info, [])
+        if param:
+            rows[base][1].append(param.rstrip("]"))
+    families = {"F": "Frame", "B": "Data blocks", "A": "Actions and answers", "S": "State and sequences",
+                "T": "Timing", "R": "Robustness", "E": "Extension (program index, vision result)"}
+    out = ["# Case catalogue", "",
+           "Generated by `isight-conformance run --list --list-format markdown` from the cases themselves; "
+           "do not edit by hand. Levels: a MUST broken is FAIL, a SHOULD broken NON-STRICT, a MAY is INFORMATIONAL.",
+           "", f"{len(rows)} cases ({len(cases)} with every parameter).", ""]
+    by_family: dict[str, list[tuple[str, CaseInfo, list[str]]]] = {}
+    for base, (info, params) in rows.items():
+        family = base[0] if base[0] in families else "other"
+        by_family.setdefault(family, []).append((base, info, params))
+    for family in [*families, "other"]:
+        if family not in by_family:
+            continue
+        out += [f"## {families.get(family, 'Discovery, sequences and other cases')}", "",
+                "| ID | Clauses | Level | Case | Acceptable outcomes |", "|---|---|---|---|---|"]
+        for base, info, params in sorted(by_family[family], key=lambda row: row[0]):
+            variants = f" ({len(params)} variants: {', '.join(params[:6])}{', …' if len(params) > 6 else ''})" if params else ""
+            cell = (info.title + variants).replace("|", "\\|")
+            out.append(f"| {base} | {', '.join(info.clauses)} | {info.level.value} | {cell} | "
+                       f"{info.expect.replace('|', '/')} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def list_cases(settings: SuiteSettings, fmt: str = "text") -> int:
+    cases = collect(settings)
+    if cases is None:
+        print("isight-conformance run: the case catalogue failed to load", file=sys.stderr)
+        return EXIT_USAGE
+    if fmt == "markdown":
+        print(catalogue_markdown(cases))
+    elif fmt == "json":
+        print(json.dumps([{"id": c.id, "clauses": list(c.clauses), "level": c.level.value, "title": c.title,
+                           "expect": c.expect} for c in cases], indent=1))
+    else:
+        for info in cases:
+            print(f"{info.id:<34} {','.join(info.clauses):<14} {info.level.value:<7} {info.title}")
+        print(f"{len(cases)} cases")
+    return EXIT_OK
+
+
+def main_run(args: argparse.Namespace) -> int:
+    try:
+        settings = SuiteSettings.resolve(lambda dest: getattr(args, dest, None))
+        expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
+    except (ValueError, OSError) as exc:
+        print(f"isight-conformance run: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.list:
+        return list_cases(settings, args.list_format)
+
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    settings = replace(
+        settings,
+        report_dir=settings.report_dir or Path("reports") / stamp,
+        pcap_dir=None if settings.capture == "off" else (settings.pcap_dir or Path("pcaps") / stamp),
+    )
+    embedded = None
+    if settings.target is None:
+        from .endpoints.behaviour import BoxConfig
+        from .endpoints.box import BoxThread
+
+        embedded = BoxThread(BoxConfig(profile=settings.profile), host="127.0.0.1", port=0).start()
+        udp = Target("127.0.0.1", embedded.udp_port) if embedded.udp_port else None
+        settings = replace(
+            settings,
+            target=Target("127.0.0.1", embedded.tcp_port),
+            udp_target=settings.udp_target or udp,
+            target_label=settings.target_label or f"bundled reference box at 127.0.0.1:{embedded.tcp_port}",
+        )
+    else:
+        problem = check_reachable(settings.target, settings.time_out_s)
+        if problem:
+            print(f"isight-conformance run: {problem}", file=sys.stderr)
+            return EXIT_USAGE
+    try:
+        return _run(settings, expected, quiet=args.quiet)
+    finally:
+        if embedded is not None:
+            embedded.stop()
+
+
+def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool) -> int:
+    from rich.console import Console
+
+    from .report.terminal import Progress, print_final_table
+
+    console = Console(stderr=False)
+    progress = Progress(console=console, quiet=quiet)
+    plugin = _RunPlugin(settings, progress)
+    try:
+        code = pytest.main(_pytest_args(settings), plugins=[plugin])
+    finally:
+        progress.stop()
+    if plugin.collect_errors:
+        for err in plugin.collect_errors:
+            print(f"isight-conformance run: {err}", file=sys.stderr)
+        return EXIT_USAGE
+    assert plugin.config is not None
+    cases = results(plugin.config)
+    report_dir = settings.report_dir
+    assert report_dir is not None
+    failing = {c.id for c in cases if c.verdict.failing}
+    if expected is not None:
+        _write_lines(report_dir / "failing_cases.txt", sorted(failing))
+        _write_lines(report_dir / "unexpectedly_passing.txt", sorted(expected - failing))
+    info = suite_info(plugin.config)
+    reports: dict[str, Any] = {
+        "HTML report": report_dir / "report.html",
+        "JSON summary": report_dir / "summary.json",
+        "JUnit": report_dir / "junit.xml",
+    }
+    if settings.pcap_dir is not None:
+        reports["pcaps"] = settings.pcap_dir
+    print_final_table(info, cases, console, reports=reports)
+    if code == pytest.ExitCode.INTERRUPTED:
+        print("isight-conformance run: interrupted; the reports cover the cases that finished", file=sys.stderr)
+        return EXIT_FAILED
+    if code in (pytest.ExitCode.USAGE_ERROR, pytest.ExitCode.INTERNAL_ERROR):
+        print(f"isight-conformance run: pytest stopped with exit code {int(code)}", file=sys.stderr)
+        return EXIT_USAGE
+    if expected is not None:
+        if failing == expected:
+            return EXIT_OK
+        print(_expected_mismatch(failing, expected), file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_FAILED if failing else EXIT_OK
+
+
+def _expected_mismatch(failing: set[str], expected: set[str]) -> str:
+    parts = []
+    if failing - expected:
+        parts.append("unexpected failures: " + ", ".join(sorted(failing - expected)))
+    if expected - failing:
+        parts.append("expected to fail but did not: " + ", ".join(sorted(expected - failing)))
+    return "isight-conformance run: the failing set differs from the expected-failures list; " + "; ".join(parts)
+
+
+def _write_lines(path: Path, lines: list[str]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text("".join(f"{line}\n" for line in lines), encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def verdict_counts(cases: list[CaseResult]) -> dict[str, int]:
+    return {v.value: sum(1 for c in cases if c.verdict is v) for v in Verdict}

@@ -1,0 +1,131 @@
+"""Suite settings: every option defined once, resolved in one place.
+
+The pytest plugin adds these options to its ``isight`` group and ``isight-conformance
+run`` adds the same ones to argparse; :meth:`SuiteSettings.resolve` is the only code
+that turns option values into settings (and the only place defaults live).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import fnmatch
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ..harness.target import Target
+from ..options import add_profile_options, profile_from_options
+from ..protocol import DEFAULT_PORT, Profile
+
+#: (flag, argparse/pytest keyword arguments); dests all start with "isight_".
+SUITE_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
+    ("--target", {"dest": "isight_target", "metavar": "HOST:PORT", "default": None,
+                  "help": "the AI Box to test over TCP (default: start the bundled reference box)"}),
+    ("--udp-target", {"dest": "isight_udp_target", "metavar": "HOST:PORT", "default": None,
+                      "help": "the box's UDP endpoint; UDP cases are SKIP without it"}),
+    ("--stream-target", {"dest": "isight_stream_target", "metavar": "HOST:PORT", "default": None,
+                         "help": "where the pose stream connects (default: same as --target)"}),
+    ("--extension", {"dest": "isight_extension", "choices": ["auto", "on", "off"], "default": None,
+                     "help": "extension E (actions 26/27): detect once (auto, default), force on, or skip"}),
+    ("--report-dir", {"dest": "isight_report_dir", "metavar": "DIR", "default": None,
+                      "help": "write summary.json, junit.xml and report.html here"}),
+    ("--pcap-dir", {"dest": "isight_pcap_dir", "metavar": "DIR", "default": None,
+                    "help": "write one pcapng per case here"}),
+    ("--capture", {"dest": "isight_capture", "choices": ["synth", "live", "off"], "default": None,
+                   "help": "pcaps synthesised from the socket transcript (synth, default), captured "
+                           "from the interface (live, needs root), or none (off)"}),
+    ("--stream-seconds", {"dest": "isight_stream_seconds", "type": float, "metavar": "S", "default": None,
+                          "help": "how long the timing cases stream poses (default 3)"}),
+    ("--settle-ms", {"dest": "isight_settle_ms", "type": int, "metavar": "MS", "default": None,
+                     "help": "after a probe's answer, how long to watch for late extra answers (default 50)"}),
+    ("--sequence", {"dest": "isight_sequences", "action": "append", "metavar": "FILE", "default": None,
+                    "help": "also run this scripted sequence file (repeatable)"}),
+    ("--cases", {"dest": "isight_cases", "action": "append", "metavar": "GLOB", "default": None,
+                 "help": "run only cases whose ID matches GLOB (repeatable), e.g. 'F*' or 'A3-*'"}),
+    ("--exclude", {"dest": "isight_exclude", "action": "append", "metavar": "GLOB", "default": None,
+                   "help": "leave out cases whose ID matches GLOB (repeatable)"}),
+    ("--target-label", {"dest": "isight_target_label", "metavar": "LABEL", "default": None,
+                        "help": "how reports name the target"}),
+)
+
+
+@dataclasses.dataclass(frozen=True)
+class SuiteSettings:
+    target: Target | None = None  # None: start the bundled reference box
+    udp_target: Target | None = None
+    stream_target: Target | None = None
+    profile: Profile = dataclasses.field(default_factory=Profile)
+    extension: str = "auto"
+    report_dir: Path | None = None
+    pcap_dir: Path | None = None
+    capture: str = "synth"
+    stream_seconds: float = 3.0
+    settle_s: float = 0.05
+    sequences: tuple[Path, ...] = ()
+    target_label: str = ""
+    cases: tuple[str, ...] = ()
+    exclude: tuple[str, ...] = ()
+
+    def selects(self, case_id: str) -> bool:
+        """--cases / --exclude, by glob on the case ID (a parametrised ID also matches its base)."""
+        base = case_id.split("[", 1)[0]
+        names = (case_id, base)
+
+        def hit(glob: str) -> bool:  # an exact ID (brackets and all) or a glob
+            return glob in names or any(fnmatch.fnmatchcase(n, glob) for n in names)
+
+        if self.cases and not any(hit(g) for g in self.cases):
+            return False
+        return not any(hit(g) for g in self.exclude)
+
+    @property
+    def time_out_s(self) -> float:
+        return self.profile.time_out_ms / 1000
+
+    @classmethod
+    def resolve(cls, get: Callable[[str], Any]) -> SuiteSettings:
+        """Settings from option values (``get(dest)``); raises ValueError with a clear message."""
+
+        def target(dest: str) -> Target | None:
+            text = get(dest)
+            return Target.parse(text, DEFAULT_PORT) if text else None
+
+        stream_seconds = get("isight_stream_seconds")
+        settle = get("isight_settle_ms")
+        if stream_seconds is not None and not 0.2 <= stream_seconds <= 3600:
+            raise ValueError("--stream-seconds must be between 0.2 and 3600")
+        if settle is not None and not 0 <= settle <= 10_000:
+            raise ValueError("--settle-ms must be between 0 and 10000")
+        sequences = tuple(Path(p) for p in (get("isight_sequences") or ()))
+        for path in sequences:
+            if not path.is_file():
+                raise ValueError(f"--sequence {path}: no such file")
+        report_dir, pcap_dir = get("isight_report_dir"), get("isight_pcap_dir")
+        return cls(
+            target=target("isight_target"),
+            udp_target=target("isight_udp_target"),
+            stream_target=target("isight_stream_target"),
+            profile=profile_from_options(get),
+            extension=get("isight_extension") or "auto",
+            report_dir=Path(report_dir) if report_dir else None,
+            pcap_dir=Path(pcap_dir) if pcap_dir else None,
+            capture=get("isight_capture") or "synth",
+            stream_seconds=stream_seconds if stream_seconds is not None else 3.0,
+            settle_s=(settle if settle is not None else 50) / 1000,
+            sequences=sequences,
+            target_label=get("isight_target_label") or "",
+            cases=tuple(get("isight_cases") or ()),
+            exclude=tuple(get("isight_exclude") or ()),
+        )
+
+
+#: pytest owns these flags; under pytest the suite's options take another name.
+PYTEST_RENAMES = {"--capture": "--isight-capture"}
+
+
+def add_suite_options(add: Callable[..., Any], pytest: bool = False) -> None:
+    """Register the suite options and the profile options (argparse's add_argument,
+    or pytest's addoption with ``pytest=True``)."""
+    for flag, kwargs in SUITE_OPTIONS:
+        add(PYTEST_RENAMES.get(flag, flag) if pytest else flag, **kwargs)
+    add_profile_options(add)
