@@ -1,0 +1,228 @@
+"""R: robustness (garbage, split and coalesced delivery, bounded resources, resynchronisation).
+
+R1 is covered by the vector replay and R7 (UDP) by the UDP cases.
+"""
+
+from __future__ import annotations
+
+import random
+import time
+
+import pytest
+
+from conformance.harness.client import Answer, Closed, TcpConnection
+from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
+from conformance.suite.catalogue import case
+from conformance.suite.context import CaseContext
+from conformance.suite.judge import CLOSED, NOT_OK, Inconclusive, answered, check, fail
+from conformance.suite.sequence import DEFAULT_POSE, latency_figures, pieces_of
+from conformance.suite.verdicts import Level
+
+R2 = "R2: whatever bytes one connection sends, the box keeps accepting and answering new connections"
+
+
+def _frames(isight: CaseContext) -> dict[str, Frame]:
+    first = isight.profile.first_index
+    return {
+        "none": request(Action.NONE),
+        "pose": request(Action.POSE, pose_blocks([DEFAULT_POSE], first)),
+        "tolerance": request(Action.TOLERANCE, tolerance_blocks([1.5, 2.5], first)),
+        "register-pose": request(Action.REGISTER_POSE, pose_blocks([DEFAULT_POSE, (1, 2, 3, 4, 5, 6)], first)),
+    }
+
+
+def _alive(isight: CaseContext, after: str) -> None:
+    outcome = isight.check_alive()
+    check(outcome, answered(Action.NONE, [0]), Level.MUST, f"{R2} (after {after})", sent=isight.last_sent)
+
+
+def _no_fe(data: bytes) -> bytes:
+    return data.replace(b"\xfe", b"\x00")
+
+
+# -- R2 ---------------------------------------------------------------------------------------------------
+
+GARBAGE = {
+    "random-bytes": _no_fe(random.Random(2024).randbytes(4096)),
+    "64k-of-fe": b"\xfe" * 65536,
+}
+
+
+@case("R2-01", ["R2", "A5"], Level.MUST, "After garbage, new connections are still accepted and answered",
+      "the garbage is not answered 0000, and a fresh connection gets NONE answered 0000")
+@pytest.mark.parametrize("kind", list(GARBAGE))
+def test_garbage_then_fresh_connection(isight: CaseContext, kind: str) -> None:
+    bad = GARBAGE[kind]
+    outcome = isight.send_malformed(bad, f"{kind}: {len(bad)} bytes that are not a frame")
+    check(outcome, NOT_OK, Level.MUST, "A5: bytes that are not a request MUST NOT be answered 0000", sent=bad[:64])
+    _alive(isight, kind)
+
+
+@case("R2-02", ["R2"], Level.MUST, "A header then a reset leaves the box answering new connections",
+      "after a connection sends a pose header (12 bytes) and resets, a fresh connection gets NONE answered 0000")
+def test_header_then_reset(isight: CaseContext) -> None:
+    conn = isight.connect("abuser")
+    header = conn.codec.encode(_frames(isight)["pose"])[:12]
+    isight.last_sent = header
+    conn.send(header, "a pose header, no body")
+    conn.abort("reset with the frame unfinished")
+    _alive(isight, "a header then RST")
+
+
+# -- R3 / R4 ----------------------------------------------------------------------------------------------
+
+
+def _like_whole(isight: CaseContext, frame: Frame) -> Answer:
+    outcome = isight.exchange(frame, f"{frame.action.name} request, whole (reference)")
+    if not isinstance(outcome, Answer):
+        raise Inconclusive(f"the whole {frame.action.name} request was not answered ({outcome.describe()}): "
+                           "nothing to compare the split delivery with")
+    return outcome
+
+
+@case("R3-01", ["R3", "A1"], Level.MUST, "A frame sent one byte per segment is answered like the whole frame",
+      "the same action and error code as for the whole frame, within time_out")
+@pytest.mark.parametrize("name", ["none", "pose", "tolerance"])
+def test_one_byte_segments(isight: CaseContext, name: str) -> None:
+    frame = _frames(isight)[name]
+    whole = _like_whole(isight, frame)
+    conn = isight.connect()
+    data = conn.codec.encode(frame)
+    start = time.monotonic()
+    conn.send_pieces(pieces_of(data, {"pieces": "bytes"}), 0.001, "one byte per segment")
+    outcome = conn.next_outcome(since=start)
+    check(outcome, answered(frame.action, [whole.frame.error_code]), Level.MUST,
+          "R3: a frame split down to one byte per segment is handled like the whole frame", sent=data)
+
+
+@case("R3-02", ["R3", "A1"], Level.MUST, "Frames cut at random points over time are each answered like whole frames",
+      "four requests sent as one byte stream cut into random 1-8 byte pieces (2 ms apart) get four answers in order, "
+      "each like the whole request's")
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_splits(isight: CaseContext, seed: int) -> None:
+    frames = list(_frames(isight).values())
+    expected = [_like_whole(isight, f).frame.error_code for f in frames]
+    conn = isight.connect()
+    data = b"".join(conn.codec.encode(f) for f in frames)
+    isight.last_sent = data
+    start = time.monotonic()
+    conn.send_pieces(pieces_of(data, {"pieces": "random", "seed": seed}), 0.002, f"random split (seed {seed})")
+    for i, (frame, code) in enumerate(zip(frames, expected)):
+        check(conn.next_outcome(since=start), answered(frame.action, [code]), Level.MUST,
+              f"R3: request {i + 1} of a randomly split stream is answered like the whole", sent=data)
+
+
+@case("R4-01", ["R4", "A1"], Level.MUST, "Ten frames in one segment are each answered, in order",
+      "ten answers, echoing each request's action in order, each 0000")
+def test_coalesced(isight: CaseContext) -> None:
+    frames = list(_frames(isight).values())
+    batch = [frames[i % len(frames)] for i in range(10)]
+    conn = isight.connect()
+    data = b"".join(conn.codec.encode(f) for f in batch)
+    isight.last_sent = data
+    start = time.monotonic()
+    conn.send(data, "10 requests in one segment")
+    for i, frame in enumerate(batch):
+        outcome = conn.next_outcome(since=start)
+        if isinstance(outcome, Answer):
+            isight.latencies_ms.append(outcome.latency_s * 1000)
+        check(outcome, answered(frame.action, [0]), Level.MUST,
+              f"R4: request {i + 1} of 10 in one segment is answered, in order", sent=data)
+
+
+# -- R5 ---------------------------------------------------------------------------------------------------
+
+
+def _hold(isight: CaseContext, label: str, count: int, data: bytes, deadline: float) -> list[TcpConnection]:
+    """Open up to ``count`` connections (each sends ``data``); stop at the first refusal or the deadline."""
+    out = []
+    for i in range(count):
+        left = deadline - time.monotonic()
+        if left <= 0:
+            break
+        conn = isight.try_connect(f"{label} {i + 1}", time_out_s=min(isight.time_out_s, left))
+        if conn is None:
+            break
+        if data:
+            conn.send(data, f"{label}: {len(data)} bytes, then nothing")
+        out.append(conn)
+    return out
+
+
+def _fresh_answered(isight: CaseContext, when: str) -> None:
+    """A fresh connection gets NONE and a pose answered 0000 within time_out. A box may make room by
+    evicting a stale connection: a fresh connection it resets is retried until time_out has passed."""
+    requirement = f"R5: partial frames, a 255×65535 header and idle connections do not stop the box answering others ({when})"
+    deadline = time.monotonic() + isight.time_out_s
+    attempts = 0
+    while True:
+        attempts += 1
+        left = deadline - time.monotonic()
+        conn = isight.try_connect(f"fresh ({when}, attempt {attempts})", time_out_s=max(0.05, left))
+        if conn is None:
+            raise fail(Level.MUST, requirement, "a fresh connection is accepted within time_out",
+                       f"connection attempt {attempts} was not accepted")
+        outcome = conn.request(request(Action.NONE), f"NONE on a fresh connection ({when})", timeout_s=max(0.05, left))
+        if isinstance(outcome, Closed) and time.monotonic() + 0.1 < deadline:
+            conn.close()
+            time.sleep(0.1)
+            continue
+        break
+    isight.details.setdefault("fresh_attempts", {})[when] = attempts
+    for frame in (None, _frames(isight)["pose"]):
+        if frame is not None:
+            outcome = conn.request(frame, f"POSE on a fresh connection ({when})")
+        action = Action.NONE if frame is None else frame.action
+        if isinstance(outcome, Answer):
+            isight.latencies_ms.append(outcome.latency_s * 1000)
+        check(outcome, answered(action, [0]), Level.MUST, requirement,
+              sent=conn.codec.encode(frame or request(Action.NONE)))
+    conn.close()
+
+
+@case("R5-01", ["R5", "T1"], Level.MUST, "Partial frames, a 255×65535 announcement and 300 idle connections "
+      "do not stop the box answering others",
+      "while 200 connections hold half a frame, one announces 255×65535 bytes and 300 are idle, a fresh connection "
+      "gets NONE and a pose answered 0000 within time_out; again after they are released")
+def test_bounded_resources(isight: CaseContext) -> None:
+    deadline = time.monotonic() + 10 + 2 * isight.time_out_s
+    pose = encode_raw(Header(action=Action.POSE, block_type=1, block_count=1, block_length=25))
+    huge = encode_raw(Header(action=Action.POSE, block_type=1, block_count=255, block_length=65535))[:12]
+    isight.last_sent = huge
+    held = {
+        "partial": _hold(isight, "partial frame", 200, pose[:19], deadline),
+        "huge": _hold(isight, "255×65535 header", 1, huge, deadline),
+        "idle": _hold(isight, "idle", 300, b"", deadline),
+    }
+    isight.details["opened"] = {k: len(v) for k, v in held.items()}
+    _fresh_answered(isight, "while they are held")
+    for conns in held.values():
+        for conn in conns:
+            conn.close("release")
+    _fresh_answered(isight, "after they are released")
+    isight.details["latency"] = latency_figures(isight.latencies_ms)
+
+
+# -- R6 ---------------------------------------------------------------------------------------------------
+
+RESYNC_GARBAGE = {
+    "ascii": b"hello iSight\r\n",
+    "zeros": b"\x00" * 32,
+    "bad-start-word": b"\xfe\xff\x00\x01\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00",
+    "bad-version": b"\xfe\xfe\x00\x02\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00",
+}
+
+
+@case("R6-01", ["R6"], Level.SHOULD, "After garbage the box resynchronises on the next valid frame, or closes",
+      "the valid request right after the garbage, on the same connection, is answered 0000, or the connection is "
+      "closed; staying silent is NON-STRICT")
+@pytest.mark.parametrize("kind", list(RESYNC_GARBAGE))
+def test_resynchronise(isight: CaseContext, kind: str) -> None:
+    bad = RESYNC_GARBAGE[kind]
+    isight.send_malformed(bad, f"garbage ({kind}) then a valid request on the same connection")
+    probe = isight.last_probe
+    if probe is None:
+        raise Inconclusive("no probe outcome recorded")
+    action = Action.POSE if len(bad) > 5 and bad[5] == Action.NONE else Action.NONE
+    check(probe, answered(action, [0]) | CLOSED, Level.SHOULD,
+          "R6: after garbage the box SHOULD resynchronise on the next valid header or close the connection", sent=bad)
