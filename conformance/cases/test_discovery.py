@@ -1,0 +1,309 @@
+"""Profile discovery (PROFILE-01) and F4, the byte order of the box's answers.
+
+PROFILE-01 never judges: it tells which reading of each **[decision]** the box
+appears to use and prints the flags to rerun the suite with:
+
+* F4 header byte order: a NONE request with big-endian and with little-endian
+  header fields (the version field is the difference: 00 01 / 01 00), which one is
+  answered 0000;
+* B3 first block index: a one-pose request with index 0 and with index 1, which
+  one is answered 0000;
+* F7 UDP CRC: a NONE datagram with the CRC of every crcmod 16-bit algorithm in both
+  byte orders (common ones first, a short wait per try, stop at the first that is
+  answered 0000, confirmed by sending it again).
+
+Every TCP try is bounded by an in-order probe (answers come in order, A1), so a box
+that stays silent to the wrong reading costs nothing but the probe's round trip.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
+from conformance.harness.target import Unreachable
+from conformance.options import profile_flags
+from conformance.protocol import (
+    Action,
+    Frame,
+    PoseBlock,
+    Profile,
+    TransferType,
+    crc16_names,
+    crc_function,
+    encode,
+    encode_body,
+    pose_blocks,
+    request,
+    value_blocks,
+)
+from conformance.suite.catalogue import case
+from conformance.suite.context import CaseContext
+from conformance.suite.judge import Inconclusive, Skip, fail
+from conformance.suite.verdicts import Level
+
+ORDERS = ("big", "little")
+POSE = (640.0, -12.5, 280.0, 180.0, 0.0, 90.0)
+#: Tried first (the rest of crcmod's 16-bit algorithms follow in crcmod's order).
+COMMON_CRCS = ("modbus", "xmodem", "kermit", "crc-ccitt-false", "x-25", "crc-16", "crc-16-usb", "crc-16-maxim")
+#: Per-try wait for a UDP answer while scanning CRCs; a hit is confirmed with a longer wait.
+SCAN_WAIT_S = 0.1
+CONFIRM_WAIT_S = 1.0
+
+
+def _raw(outcome: Outcome) -> bytes:
+    if isinstance(outcome, Answer):
+        return outcome.raw
+    if isinstance(outcome, Malformed):
+        return outcome.error.raw
+    return b""
+
+
+def fields(outcome: Outcome) -> tuple[str, int, int] | None:
+    """(byte order, action, error code) of an answer, read in the order in which its version is 1."""
+    raw = _raw(outcome)
+    if len(raw) < 12 or raw[:2] != b"\xfe\xfe":
+        return None
+    for order in ORDERS:
+        if int.from_bytes(raw[2:4], order) == 1:  # type: ignore[arg-type]
+            return order, raw[5], int.from_bytes(raw[10:12], order)  # type: ignore[arg-type]
+    return None
+
+
+def _action(outcome: Outcome) -> int | None:
+    f = fields(outcome)
+    return None if f is None else f[1]
+
+
+def _ok(outcome: Outcome, action: int) -> bool:
+    f = fields(outcome)
+    return f is not None and f[1] == action and f[2] == 0
+
+
+def _describe(outcome: Outcome | None) -> str:
+    if outcome is None:
+        return "no answer"
+    f = fields(outcome)
+    if f is not None:
+        return f"answered error 0x{f[2]:04X} ({f[0]}-endian)"
+    return outcome.describe()
+
+
+def _until(conn: TcpConnection, start: float, done: Any, time_out_s: float) -> list[Outcome]:
+    """Outcomes until ``done(outcome)`` (included), silence, or a close; bounded by time_out."""
+    out: list[Outcome] = []
+    deadline = start + time_out_s
+    while True:
+        outcome = conn.next_outcome(max(0.0, deadline - time.monotonic()), since=start)
+        out.append(outcome)
+        if isinstance(outcome, (Silence, Closed)) or done(outcome):
+            return out
+
+
+# -- F4: header byte order ------------------------------------------------------------------
+
+
+def discover_byte_order(isight: CaseContext) -> tuple[dict[str, bool], dict[str, str]]:
+    """Which header byte orders the box answers NONE 0000 in (and what it did with each)."""
+    mine = isight.profile.byte_order
+    other = "little" if mine == "big" else "big"
+    none = {o: encode(request(Action.NONE), isight.profile.replace(byte_order=o)) for o in ORDERS}
+    accepted: dict[str, bool] = {}
+    seen: dict[str, str] = {}
+    conn = isight.connect("discovery: byte order")
+    # explicit waits: silence to the other reading is an answer here, not a box gone dead
+    outcome = conn.request(none[mine], f"NONE, {mine}-endian header fields", timeout_s=isight.time_out_s)
+    accepted[mine], seen[mine] = _ok(outcome, Action.NONE), _describe(outcome)
+    conn.close()
+    conn = isight.connect("discovery: byte order")
+    if accepted[mine]:
+        # the other order, then a NONE in ours: one NONE 0000 answer is the probe's, two mean both
+        start = time.monotonic()
+        conn.send(none[other], f"NONE, {other}-endian header fields")
+        conn.send(none[mine], f"probe: NONE, {mine}-endian; its answer bounds the wait")
+        outs = _until(conn, start, lambda o: _ok(o, Action.NONE), isight.time_out_s)
+        outs += conn.drain(isight.settings.settle_s)
+        oks = [o for o in outs if _ok(o, Action.NONE)]
+        replies = [o for o in outs if fields(o) is not None and not _ok(o, Action.NONE)]
+        accepted[other] = len(oks) >= 2
+        seen[other] = _describe(oks[0]) if accepted[other] else (_describe(replies[0]) if replies else "no answer")
+    else:
+        outcome = conn.request(none[other], f"NONE, {other}-endian header fields", timeout_s=isight.time_out_s)
+        accepted[other], seen[other] = _ok(outcome, Action.NONE), _describe(outcome)
+    conn.close()
+    return accepted, seen
+
+
+# -- B3: first block index ------------------------------------------------------------------
+
+
+def discover_first_index(isight: CaseContext, profile: Profile) -> tuple[dict[int, bool], dict[int, str]]:
+    """Which first index (0 or 1) a one-pose request is answered 0000 with."""
+    accepted: dict[int, bool] = {}
+    seen: dict[int, str] = {}
+    probe = encode(request(Action.NONE), profile)
+    for index in (0, 1):
+        conn = isight.connect(f"discovery: first index {index}")
+        start = time.monotonic()
+        conn.send(encode(request(Action.POSE, pose_blocks([POSE], index)), profile), f"one pose with index {index}")
+        conn.send(probe, "probe: NONE; its answer bounds the wait")
+        outs = _until(conn, start, lambda o: _action(o) == Action.NONE, isight.time_out_s)
+        poses = [o for o in outs if _action(o) == Action.POSE]
+        accepted[index] = bool(poses) and _ok(poses[0], Action.POSE)
+        seen[index] = _describe(poses[0]) if poses else "no answer"
+        conn.close()
+    return accepted, seen
+
+
+# -- F7: UDP CRC ------------------------------------------------------------------------------
+
+
+def _crc_candidates(profile: Profile) -> list[tuple[str, str]]:
+    names = [profile.crc, *COMMON_CRCS, *crc16_names()]
+    pairs = [(profile.crc, profile.crc_byte_order)]
+    for name in dict.fromkeys(n for n in names if n in crc16_names()):
+        pairs += [(name, order) for order in ORDERS]
+    return list(dict.fromkeys(pairs))
+
+
+def _udp_try(ch: UdpChannel, data: bytes, wait_s: float, note: str) -> bool:
+    start = time.monotonic()
+    ch.send(data, note)
+    while True:
+        outcome = ch.next_outcome(max(0.0, start + wait_s - time.monotonic()), since=start)
+        if isinstance(outcome, Silence):
+            return False
+        if isinstance(outcome, Closed):
+            raise Unreachable("ICMP port unreachable")
+        if _ok(outcome, Action.NONE):
+            return True
+
+
+def discover_crc(isight: CaseContext, byte_order: str) -> dict[str, Any]:
+    """The first (algorithm, byte order) whose NONE datagram is answered 0000, confirmed by a resend."""
+    try:
+        ch = isight.udp("discovery: CRC")
+    except (Skip, Unreachable) as exc:
+        return {"found": None, "note": f"not discovered: {getattr(exc, 'message', exc)}"}
+    body = encode_body(request(Action.NONE), isight.profile.replace(byte_order=byte_order))
+    tried: dict[bytes, tuple[str, str]] = {}
+    previous: tuple[bytes, tuple[str, str]] | None = None
+    try:
+        for pair in _crc_candidates(isight.profile):
+            check = crc_function(pair[0])(body).to_bytes(2, pair[1])  # type: ignore[arg-type]
+            if check in tried:
+                continue
+            tried[check] = pair
+            if _udp_try(ch, body + check, SCAN_WAIT_S, f"NONE datagram, CRC {pair[0]} {pair[1]}-endian"):
+                # a slow box's answer may belong to the previous try: confirm this one, then that one
+                for cand_check, cand in [(check, pair), *([previous] if previous else [])]:
+                    if _udp_try(ch, body + cand_check, min(CONFIRM_WAIT_S, isight.time_out_s),
+                                f"confirm: NONE datagram, CRC {cand[0]} {cand[1]}-endian"):
+                        return {"found": cand, "tries": len(tried),
+                                "note": f"{cand[0]}, {cand[1]}-endian (NONE answered 0000 at try {len(tried)} of "
+                                        f"{len(_crc_candidates(isight.profile))})"}
+            previous = (check, pair)
+    except Unreachable:
+        return {"found": None, "note": f"the UDP target {ch.target} refused datagrams (ICMP port unreachable)"}
+    return {"found": None, "tries": len(tried),
+            "note": f"no NONE datagram was answered 0000 under any of {len(tried)} CRC/byte-order combinations"}
+
+
+@case("PROFILE-01", ["B3", "F7", "F4"], Level.MAY, "Profile discovery: first index, UDP CRC, header byte order",
+      "INFORMATIONAL: which first block index, UDP CRC algorithm and byte order, and header byte order the box "
+      "answers 0000, and the flags to rerun the suite with", needs=("any-profile",))
+def test_profile_discovery(isight: CaseContext) -> None:
+    profile = isight.profile
+    changes: dict[str, Any] = {}
+    orders, order_seen = discover_byte_order(isight)
+    accepted_orders = [o for o in ORDERS if orders[o]]
+    report = {"byte_order": {o: order_seen[o] for o in ORDERS}}
+    if len(accepted_orders) == 1:
+        changes["byte_order"] = accepted_orders[0]
+    order_text = (f"header fields {accepted_orders[0]}-endian" if len(accepted_orders) == 1
+                  else "header fields in either byte order" if accepted_orders else
+                  "NONE answered 0000 in neither byte order")
+    box_order = changes.get("byte_order", profile.byte_order)
+    index_text = "first index not discovered (no byte order answered)"
+    if accepted_orders:
+        indexes, index_seen = discover_first_index(isight, profile.replace(byte_order=box_order))
+        report["first_index"] = {str(i): index_seen[i] for i in (0, 1)}
+        good = [i for i in (0, 1) if indexes[i]]
+        if len(good) == 1:
+            changes["first_index"] = good[0]
+        index_text = (f"first block index {good[0]}" if len(good) == 1 else
+                      "first block index 0 or 1 (both answered 0000)" if good else
+                      "first block index: neither 0 nor 1 answered 0000")
+    crc = discover_crc(isight, box_order)
+    report["udp_crc"] = crc["note"]
+    if crc["found"]:
+        changes["crc"], changes["crc_byte_order"] = crc["found"]
+    found = profile.replace(**changes)
+    flags = profile_flags(found)
+    isight.details.update(report)
+    isight.details["discovered"] = changes
+    isight.details["suggested_flags"] = flags
+    advice = (f"rerun with: {' '.join(flags)}" if found != profile
+              else f"the profile in use fits ({' '.join(flags) or 'PROTOCOL.md defaults, no flags'})")
+    isight.inform(f"{order_text}; {index_text}; UDP CRC: {crc['note']}; {advice}")
+
+
+# -- F4 --------------------------------------------------------------------------------------
+
+
+def _answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
+    """NONE in the profile's byte order got no answer: FAIL if the other byte order is answered 0000."""
+    other = "little" if isight.profile.byte_order == "big" else "big"
+    data = encode(request(Action.NONE), isight.profile.replace(byte_order=other))
+    outcome = isight.exchange(data, f"NONE with {other}-endian header fields (the {isight.profile.byte_order}-endian "
+                                    "one got no answer)")
+    if _ok(outcome, Action.NONE):
+        raise fail(Level.MUST, f"F4: multi-byte header fields are {isight.profile.byte_order}-endian",
+                   f"NONE with {isight.profile.byte_order}-endian fields answered 0000",
+                   f"only NONE with {other}-endian fields (version {data[2:4].hex(' ')}) is answered 0000 "
+                   f"(rerun with --byte-order={other} to test the rest)", sent=sent, received=_raw(outcome))
+    raise Inconclusive("the box answered NONE in neither byte order: nothing to read (A4/T1 judge the silence)")
+
+
+@case("F4-01", ["F4"], Level.MUST, "Answers' multi-byte fields are in the profile's byte order (big-endian)",
+      "the version reads 00 01, the error code of an answer to a malformed pose reads 10 01 (not 01 10), the "
+      "block length of a ProgIdx answer reads 00 05 (extension only); little-endian under --byte-order=little")
+def test_answer_byte_order(isight: CaseContext) -> None:
+    order = isight.profile.byte_order
+    judged: list[str] = []
+
+    def expect(raw: bytes, offset: int, value: int, what: str, sent: bytes) -> None:
+        want = value.to_bytes(2, order)  # type: ignore[arg-type]
+        got = raw[offset:offset + 2]
+        if got == want:
+            judged.append(what)
+            return
+        if got != want[::-1]:
+            isight.details.setdefault("not_judged", []).append(f"{what}: read {got.hex(' ')} (not F4's business)")
+            return
+        raise fail(Level.MUST, f"F4: multi-byte fields are {order}-endian ({what})", want.hex(" "),
+                   f"{got.hex(' ')}: {what} in the other byte order", sent=sent, received=raw)
+
+    conn = isight.connect()
+    sent = encode(request(Action.NONE), isight.profile)
+    raw = _raw(conn.request(sent, "NONE request"))
+    if len(raw) < 12:
+        _answers_other_order_only(isight, sent)
+    expect(raw, 2, 1, "version 00 01", sent)
+    first = isight.profile.first_index
+    gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(first, POSE), PoseBlock(first + 2, POSE)))
+    bad = encode(gap, isight.profile)
+    raw = _raw(isight.send_malformed(bad, "two poses with indexes first, first+2 (B3 gap): answered 1001?"))
+    if len(raw) >= 12 and raw[10:12] in (b"\x10\x01", b"\x01\x10"):
+        expect(raw, 10, 0x1001, "error code 1001", bad)
+    if isight.session.detect_extension(isight.transcript):
+        sent = encode(request(Action.PROG_IDX, value_blocks([5], first)), isight.profile)
+        conn = isight.connect()
+        conn.request(sent, "ProgIdx 5: block length reads 5?")
+        raw = isight.transcript.received(conn.conn_id)  # the wire bytes: a swapped L would derail the decoder
+        if len(raw) >= 12 and raw[6] == 0x03:
+            expect(raw, 8, 5, "block length 5", sent)
+    isight.details["checked"] = judged
+    if not judged:
+        raise Inconclusive("the box sent no answer whose multi-byte fields could be read")

@@ -1,0 +1,264 @@
+"""E: the optional extension (program index 26, vision result 27, type-03 blocks).
+
+Every case first calls ``isight.require_extension()``: a box without 26/27 SKIPs
+them (detected once per session, or forced by ``--extension on|off``). E3 alone
+also judges a box whose answer to a result request is *malformed* (e.g. result
+code 404): the session's detection counts only well-formed answers, and such a
+box clearly implements 27, badly.
+
+Profile settings honoured: ``progidx_conflict`` (E2: a 409 travels in the block
+with error 0000, or in the error field), ``vision_time_out_ms`` (E3, E4) and
+``time_out_ms`` (E5), ``first_index`` (B3, the type-03 block's index).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import pytest
+
+from conformance.endpoints.trajectory import PrimerTrajectory
+from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from conformance.protocol import (
+    Action,
+    ErrorCode,
+    Frame,
+    ResultCode,
+    ValueBlock,
+    pose_blocks,
+    request,
+    tolerance_blocks,
+    value_blocks,
+)
+from conformance.suite.catalogue import case
+from conformance.suite.context import CaseContext
+from conformance.suite.judge import Inconclusive, answered, check, fail
+from conformance.suite.verdicts import Level
+
+#: E3: the result codes a box may send (0 and 404 are the robot's own values).
+SENDABLE_RESULTS = (1, 2, 10, 20, 202, 400, 409)
+CONFLICT = int(ResultCode.CONFLICT)
+#: E2 with ``progidx_conflict = "error-code"``: "409" in the error field, read as the
+#: number 409 (0x0199) or written like the document's other codes ("10 01") as 04 09.
+CONFLICT_ERRORS = (CONFLICT, 0x0409)
+POSE = (800.0, 0.0, 300.0, 180.0, 0.0, 90.0)
+
+
+def _prog_idx(isight: CaseContext, value: int) -> Frame:
+    return request(Action.PROG_IDX, value_blocks([value], isight.profile.first_index))
+
+
+def _err(code: int) -> str:
+    return f"0x{code:04X}"
+
+
+def judge_prog_idx(isight: CaseContext, outcome: Outcome, value: int, sent: bytes, clause: str = "E2") -> bool:
+    """E2: the answer to ProgIdx(``value``) is one type-03 block with the same index, or 409.
+
+    Honours ``profile.progidx_conflict``: "block" (409 in the block, error 0000) or
+    "error-code" (409 in the error field). Returns True when the box reported a conflict.
+    """
+    check(outcome, answered(Action.PROG_IDX), Level.MUST,
+          f"{clause}: ProgIdx (26) is answered with one type-03 block (index + int32, L = 5)", sent=sent)
+    assert isinstance(outcome, Answer)
+    frame = outcome.frame
+    got = frame.blocks[0].value if frame.blocks and isinstance(frame.blocks[0], ValueBlock) else None
+    code = frame.error_code
+    mode = isight.profile.progidx_conflict
+    isight.details.setdefault("prog_idx_answers", []).append({"sent": value, "value": got, "error": _err(code)})
+    if mode == "block":
+        if code == 0 and got in (value, CONFLICT):
+            return got == CONFLICT and value != CONFLICT
+        hint = " (the box puts 409 in the error field: rerun with --progidx-conflict=error-code)" \
+            if code in CONFLICT_ERRORS else ""
+        raise fail(Level.MUST,
+                   f"{clause}: ProgIdx is answered with the same index ({value}) or 409 in the block; "
+                   "the error field stays 0000 (profile progidx_conflict=block)",
+                   f"error 0x0000 and block value {value} or 409",
+                   f"error {_err(code)} and block value {got}{hint}", sent=sent, received=outcome.raw)
+    if code == 0 and got == value:
+        return False
+    if code in CONFLICT_ERRORS:
+        isight.details["conflict_error_code"] = _err(code)
+        return True
+    hint = " (409 travels in the block: rerun with --progidx-conflict=block)" if code == 0 and got == CONFLICT else ""
+    raise fail(Level.MUST,
+               f"{clause}: ProgIdx is answered with the same index ({value}) and error 0000, or with 409 in the "
+               "error field (profile progidx_conflict=error-code)",
+               f"error 0x0000 with block value {value}, or error 409 (0x0199 or 0x0409)",
+               f"error {_err(code)} and block value {got}{hint}", sent=sent, received=outcome.raw)
+
+
+# -- E1 ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("value", [-1, -(2**31), 2**31 - 1, 0x01020304], ids=["negative", "int32-min", "int32-max", "bytes"])
+@case("E1-01", ["E1", "E2"], Level.MUST, "A ProgIdx block holds any signed big-endian int32",
+      "a ProgIdx with a negative or large int32 is well-formed: answered with one type-03 block holding the "
+      "same value (or 409 per the profile's progidx_conflict)")
+def test_prog_idx_int32_range(isight: CaseContext, value: int) -> None:
+    isight.require_extension()
+    frame = _prog_idx(isight, value)
+    outcome = isight.exchange(frame, f"ProgIdx with int32 {value} ({value & 0xFFFFFFFF:08x})")
+    if judge_prog_idx(isight, outcome, value, isight.last_sent, clause="E1/E2"):
+        isight.inform(f"the box answered ProgIdx {value} with 409 (conflict); the int32 echo was not seen")
+
+
+# -- E2 ------------------------------------------------------------------------------------
+
+
+@case("E2-01", ["E2", "E1"], Level.MUST, "ProgIdx is answered with the same index or 409",
+      "one type-03 block holding the index sent, or 409 (in the block with error 0000, or in the error "
+      "field when the profile's progidx_conflict is error-code)")
+def test_prog_idx_answer(isight: CaseContext) -> None:
+    isight.require_extension()
+    outcome = isight.exchange(_prog_idx(isight, 7), "ProgIdx: program index 7")
+    if judge_prog_idx(isight, outcome, 7, isight.last_sent):
+        isight.inform("the box answered ProgIdx with 409 (resource conflict / not ready)")
+
+
+# -- E3 ------------------------------------------------------------------------------------
+
+
+def _require_27(isight: CaseContext) -> None:
+    """Skip unless the box implements 27 (detected, forced, or it answers 27 malformed)."""
+    if isight.settings.extension != "auto" or isight.session.detect_extension(isight.transcript):
+        isight.require_extension()
+        return
+    conn = isight.connect("extension check")
+    start = time.monotonic()
+    conn.send(request(Action.VISION_RESULT), "result request (27): does the box answer it at all?")
+    conn.send(request(Action.NONE), "probe: NONE; its answer bounds the wait")
+    first = conn.next_outcome(since=start)
+    conn.close()
+    header = first.error.header if isinstance(first, Malformed) else None
+    if header is not None and header.action == Action.VISION_RESULT and header.transfer_type == 0x10:
+        isight.transcript.note("the box answers 27 with a malformed frame: E3 is judged")
+        return
+    isight.require_extension()
+
+
+@case("E3-01", ["E3", "E1"], Level.MUST, "A result request is answered with a ResultCode within vision_time_out",
+      "one type-03 block holding 1, 2, 10, 20, 202, 400 or 409 (never 0 or 404), within vision_time_out")
+def test_vision_result(isight: CaseContext) -> None:
+    _require_27(isight)
+    vision_s = isight.profile.vision_time_out_ms / 1000
+    conn = isight.connect()
+    frame = request(Action.VISION_RESULT)
+    outcome = conn.request(frame, "result request (27)", timeout_s=vision_s)
+    sent = isight.transcript.sent(conn.conn_id)
+    check(outcome, answered(Action.VISION_RESULT, values=SENDABLE_RESULTS), Level.MUST,
+          f"E3: a result request is answered within vision_time_out ({vision_s * 1000:.0f} ms) with one type-03 "
+          "block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; never 0 or 404)", sent=sent)
+    assert isinstance(outcome, Answer)
+    isight.latencies_ms.append(outcome.latency_s * 1000)
+    isight.details["result_code"] = outcome.frame.blocks[0].value  # type: ignore[union-attr]
+    isight.details["error_code"] = _err(outcome.frame.error_code)
+
+
+# -- E4 ------------------------------------------------------------------------------------
+
+
+def _stream_poses(isight: CaseContext, stream: TcpConnection, poses: Sequence[Sequence[float]], phase: str) -> None:
+    """Send poses at the profile's rate, each answered 0000 (S3, S6) within time_out."""
+    period = 1.0 / isight.profile.pose_rate_hz
+    first = isight.profile.first_index
+    for i, pose in enumerate(poses):
+        start = time.monotonic()
+        frame = request(Action.POSE, pose_blocks([pose], first))
+        outcome = stream.request(frame, f"{phase}: pose {i + 1}/{len(poses)}")
+        check(outcome, answered(Action.POSE, [0]), Level.MUST,
+              f"E4/S3: every pose of the stream is answered 0000 ({phase})", sent=stream.codec.encode(frame))
+        assert isinstance(outcome, Answer)
+        isight.latencies_ms.append(outcome.latency_s * 1000)
+        time.sleep(max(0.0, period - (time.monotonic() - start)))
+
+
+def _request_result(isight: CaseContext, conn: TcpConnection) -> int:
+    """27 within vision_time_out; 202 (busy) is retried until vision_time_out has passed."""
+    vision_s = isight.profile.vision_time_out_ms / 1000
+    deadline = time.monotonic() + vision_s
+    retry_gap = min(0.2, vision_s / 10)
+    tries = 0
+    while True:
+        tries += 1
+        outcome = conn.request(request(Action.VISION_RESULT), f"result request (27), try {tries}",
+                               timeout_s=max(0.001, deadline - time.monotonic()))
+        check(outcome, answered(Action.VISION_RESULT, values=SENDABLE_RESULTS), Level.MUST,
+              "E4/E3: the result request is answered within vision_time_out with a ResultCode "
+              "(1, 2, 10, 20, 202, 400, 409)", sent=isight.transcript.sent(conn.conn_id)[-14:])
+        assert isinstance(outcome, Answer)
+        value = outcome.frame.blocks[0].value  # type: ignore[union-attr]
+        isight.details["result_tries"] = tries
+        if value != ResultCode.BUSY:
+            return int(value)
+        if time.monotonic() + retry_gap >= deadline:
+            isight.inform(f"the box stayed busy (202) for vision_time_out ({vision_s * 1000:.0f} ms, {tries} tries)")
+            return int(value)
+        time.sleep(retry_gap)
+
+
+@case("E4-01", ["E4", "E2", "E3", "S1"], Level.MUST, "The extended canonical session completes",
+      "ProgIdx → stream on → CycleOn → trajectory → CycleOff → stream off → 1 s → result request: ProgIdx "
+      "echoed, every other answer 0000, a ResultCode within vision_time_out (202 retried; still busy is "
+      "INFORMATIONAL; ProgIdx 409, CycleOn 0001 or CycleOff 0002 make the rest INCONCLUSIVE)")
+def test_extended_session(isight: CaseContext) -> None:
+    isight.require_extension()
+    conn = isight.connect("command")
+    outcome = conn.request(_prog_idx(isight, 3), "ProgIdx: program index 3")
+    if judge_prog_idx(isight, outcome, 3, isight.transcript.sent(conn.conn_id), clause="E4/E2"):
+        raise Inconclusive("ProgIdx answered 409 (conflict / not ready): the session cannot go on (E2)")
+    stream = isight.connect("stream", target=isight.session.stream_target())
+    path = PrimerTrajectory(duration=0.3)
+    rate = isight.profile.pose_rate_hz
+    samples = [pose for _, pose in path.samples(rate)]
+    _stream_poses(isight, stream, [path.home] * 3, "stream on, before CycleOn")
+    outcome = conn.request(request(Action.CYCLE_ON), "CycleOn")
+    if isinstance(outcome, Answer) and outcome.frame.action == Action.CYCLE_ON \
+            and outcome.frame.error_code == ErrorCode.NOT_READY:
+        stream.close()
+        raise Inconclusive("CycleOn answered 0001 (box not ready): the rest of the session is not judged (S2)")
+    check(outcome, answered(Action.CYCLE_ON, [0]), Level.MUST, "E4/S2: CycleOn is answered 0000 (or 0001)")
+    _stream_poses(isight, stream, samples, "trajectory")
+    outcome = conn.request(request(Action.CYCLE_OFF), "CycleOff")
+    if isinstance(outcome, Answer) and outcome.frame.action == Action.CYCLE_OFF \
+            and outcome.frame.error_code == ErrorCode.CYCLE_OFF_FAILED:
+        stream.close()
+        raise Inconclusive("CycleOff answered 0002 (detection not closed): the result is not judged (A3)")
+    check(outcome, answered(Action.CYCLE_OFF, [0]), Level.MUST, "E4/S1: CycleOff is answered 0000")
+    stream.close("Send_Pos_Off")
+    time.sleep(1.0)  # E4: the robot waits 1 s before it asks for the result
+    isight.details["result_code"] = _request_result(isight, conn)
+    conn.close()
+
+
+# -- E5 ------------------------------------------------------------------------------------
+
+
+@case("E5-01", ["E5", "T1"], Level.MUST, "time_out bounds every action except 27",
+      "ProgIdx and every core action (00, 01, 23, 24, 25, 02) are answered within time_out")
+def test_time_out_bounds_actions(isight: CaseContext) -> None:
+    isight.require_extension()
+    first = isight.profile.first_index
+    steps: list[tuple[str, Frame]] = [
+        ("NONE", request(Action.NONE)),
+        ("PROG_IDX", _prog_idx(isight, 1)),
+        ("CYCLE_ON", request(Action.CYCLE_ON)),
+        ("POSE", request(Action.POSE, pose_blocks([POSE], first))),
+        ("REGISTER_POSE", request(Action.REGISTER_POSE, pose_blocks([POSE], first))),
+        ("TOLERANCE", request(Action.TOLERANCE, tolerance_blocks([0.5], first))),
+        ("CYCLE_OFF", request(Action.CYCLE_OFF)),
+    ]
+    conn = isight.connect()
+    latencies: dict[str, float] = {}
+    for name, frame in steps:
+        outcome = conn.request(frame, f"{name} request (E5: bounded by time_out)")
+        if isinstance(outcome, (Silence, Closed)):
+            raise fail(Level.MUST, f"E5/T1: time_out ({isight.time_out_s * 1000:.0f} ms) bounds {name}: it is answered "
+                       "within time_out", f"an answer to {name} within time_out", outcome.describe(),
+                       sent=conn.codec.encode(frame))
+        latency = outcome.latency_s
+        latencies[name] = round(latency * 1000, 3)
+        isight.latencies_ms.append(latency * 1000)
+    isight.details["latency_ms"] = latencies

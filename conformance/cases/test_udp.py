@@ -1,0 +1,253 @@
+"""F7 and R7: the UDP transport (one datagram, one frame, CRC-16 in the check field).
+
+``isight.udp()`` SKIPs without a UDP target (with no --target the bundled box's UDP
+port is used). The CRC algorithm and its byte order are the profile's (``--crc``,
+``--crc-byte-order``); PROFILE-01 tells which ones a box appears to use.
+
+Silence over UDP has no connection to bound it, so the R7 cases send the bad
+datagram and then a valid NONE probe datagram: a box that handles datagrams in
+order answers the bad one first, if at all; after the probe's answer the case
+watches ``settle`` for late extras. Only a box that answers no valid datagram at
+all costs a full time_out (and its R7 cases end INCONCLUSIVE: F7-01 judges it).
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, UdpChannel
+from conformance.protocol import (
+    Action,
+    Frame,
+    Profile,
+    Transport,
+    crc16_names,
+    crc_function,
+    encode,
+    pose_blocks,
+    request,
+    tolerance_blocks,
+)
+from conformance.suite.catalogue import case
+from conformance.suite.context import CaseContext
+from conformance.suite.judge import Inconclusive, answered, check, fail
+from conformance.suite.verdicts import Level
+
+POSE = (500.0, -20.0, 300.0, 180.0, 0.0, 90.0)
+#: sessions whose UDP target answered no valid datagram (R7 cases end at once)
+_UDP_MUTE: dict[int, str] = {}
+
+
+def udp_bytes(isight: CaseContext, frame: Frame) -> bytes:
+    return encode(frame, isight.profile, Transport.UDP)
+
+
+def pose_request(isight: CaseContext, action: Action = Action.POSE) -> Frame:
+    return request(action, pose_blocks([POSE], isight.profile.first_index))
+
+
+def raw_of(outcome: Outcome) -> bytes:
+    if isinstance(outcome, Answer):
+        return outcome.raw
+    if isinstance(outcome, Malformed):
+        return outcome.error.raw
+    return b""
+
+
+def header_field(data: bytes, offset: int, profile: Profile) -> int | None:
+    """A 2-byte header field of a datagram, read in the profile's byte order (None if too short)."""
+    if len(data) < offset + 2:
+        return None
+    return int.from_bytes(data[offset:offset + 2], profile.byte_order)  # type: ignore[arg-type]
+
+
+def action_of(outcome: Outcome) -> int | None:
+    raw = raw_of(outcome)
+    return raw[5] if len(raw) >= 6 else None
+
+
+def crc_matches(body: bytes, check: bytes) -> list[str]:
+    """Every (crcmod algorithm, byte order) whose CRC of ``body`` is ``check``."""
+    out = []
+    for name in crc16_names():
+        value = crc_function(name)(body)
+        for order in ("big", "little"):
+            if value.to_bytes(2, order) == check:
+                out.append(f"--crc={name} --crc-byte-order={order}")
+    return out
+
+
+# -- F7 ------------------------------------------------------------------------------------
+
+
+def _valid_requests(isight: CaseContext) -> list[tuple[str, Frame]]:
+    return [("NONE", request(Action.NONE)), ("POSE", pose_request(isight))]
+
+
+@case("F7-01", ["F7", "A1"], Level.MUST, "A UDP request with the correct CRC is answered",
+      "a NONE and a pose datagram carrying the profile's CRC each get an answer datagram")
+def test_udp_request_answered(isight: CaseContext) -> None:
+    ch = isight.udp()
+    for name, frame in _valid_requests(isight):
+        data = udp_bytes(isight, frame)
+        outcome = ch.request(data, f"{name} datagram with {isight.profile.crc} CRC ({isight.profile.crc_byte_order})")
+        if isinstance(outcome, Closed):
+            raise Inconclusive(f"the UDP target {ch.target} refused the datagram (ICMP port unreachable)")
+        if isinstance(outcome, Silence):
+            raise fail(Level.MUST, "F7/A1: a datagram with exactly one frame and the correct CRC is answered",
+                       f"an answer to the {name} datagram within time_out", outcome.describe() +
+                       " (if the box uses another CRC or byte order, PROFILE-01 tells which)", sent=data)
+        if isinstance(outcome, Answer):
+            isight.latencies_ms.append(outcome.latency_s * 1000)
+
+
+@case("F7-02", ["F7"], Level.MUST, "UDP answers are one frame with the profile's CRC",
+      "every answer datagram is exactly 12+N×L+2 bytes and its check field is the CRC-16 of bytes 0..12+N×L-1 "
+      "under the profile's algorithm and byte order")
+def test_udp_answer_crc(isight: CaseContext) -> None:
+    ch = isight.udp()
+    profile = isight.profile
+    judged = 0
+    for name, frame in _valid_requests(isight):
+        data = udp_bytes(isight, frame)
+        outcome = ch.request(data, f"{name} datagram")
+        raw = raw_of(outcome)
+        if not raw:
+            continue
+        judged += 1
+        count, length = (raw[7], header_field(raw, 8, profile)) if len(raw) >= 12 else (0, None)
+        if length is None:
+            raise fail(Level.MUST, "F7: a datagram carries exactly one frame", "at least a 12-byte header",
+                       f"{len(raw)} bytes", sent=data, received=raw)
+        end = 12 + count * length
+        if len(raw) != end + 2:
+            raise fail(Level.MUST, "F7: one datagram carries exactly one frame (12+N×L+2 bytes)",
+                       f"{end + 2} bytes (N={count}, L={length})", f"{len(raw)} bytes", sent=data, received=raw)
+        want = profile.check_bytes(raw[:end])
+        if raw[end:] != want:
+            seen = crc_matches(raw[:end], raw[end:])
+            hint = f"; it matches {' or '.join(seen)}" if seen else "; it matches no crcmod 16-bit algorithm"
+            raise fail(Level.MUST,
+                       f"F7: the check field is the CRC-16 ({profile.crc}, {profile.crc_byte_order}-endian) of the frame",
+                       want.hex(" "), raw[end:].hex(" ") + hint, sent=data, received=raw)
+    if not judged:
+        raise Inconclusive("the box answered no UDP request: nothing to judge (F7-01 judges the silence)")
+
+
+@case("F7-03", ["F7", "A4"], Level.MUST, "NONE over UDP is answered NONE 0000",
+      "the answer datagram echoes action 00 with error 0000")
+def test_udp_none(isight: CaseContext) -> None:
+    ch = isight.udp()
+    data = udp_bytes(isight, request(Action.NONE))
+    outcome = ch.request(data, "NONE datagram")
+    check(outcome, answered(Action.NONE, [0]), Level.MUST, "A4: action 00 is answered with action 00 and 0000 (over UDP)",
+          sent=data)
+
+
+@case("F7-04", ["F7", "A2", "S3"], Level.MUST, "Poses and tolerances over UDP are answered 0000 with no blocks",
+      "23, 24 and 25 datagrams are each answered with their action, error 0000, no blocks")
+def test_udp_pose_answers(isight: CaseContext) -> None:
+    ch = isight.udp()
+    first = isight.profile.first_index
+    for frame in (pose_request(isight), pose_request(isight, Action.REGISTER_POSE),
+                  request(Action.TOLERANCE, tolerance_blocks([0.25], first))):
+        data = udp_bytes(isight, frame)
+        outcome = ch.request(data, f"{frame.action.name} datagram")
+        check(outcome, answered(frame.action, [0]), Level.MUST,
+              f"A2/S3: a well-formed {frame.action.name} is answered 0000 with no blocks (over UDP)", sent=data)
+        assert isinstance(outcome, Answer)
+        isight.latencies_ms.append(outcome.latency_s * 1000)
+
+
+# -- R7 ------------------------------------------------------------------------------------
+
+
+def _bad_datagram(isight: CaseContext, kind: str) -> bytes:
+    good = udp_bytes(isight, pose_request(isight))
+    if kind == "wrong-crc":
+        return good[:-2] + bytes([good[-2] ^ 0x5A, good[-1] ^ 0xA5])
+    if kind == "truncated":
+        return good[:-6]
+    if kind == "trailing-bytes":
+        return good + b"\x00\x00"
+    if kind == "two-frames":
+        return good + udp_bytes(isight, pose_request(isight, Action.REGISTER_POSE))
+    raise ValueError(kind)
+
+
+def _is_probe(outcome: Outcome) -> bool:
+    return isinstance(outcome, (Answer, Malformed)) and action_of(outcome) == Action.NONE
+
+
+def _await_probe(isight: CaseContext, ch: UdpChannel, start: float) -> tuple[list[Outcome], Outcome | None]:
+    """Datagrams received until the probe's answer (bounded by time_out), then ``settle`` for late extras."""
+    extras: list[Outcome] = []
+    probe: Outcome | None = None
+    deadline = start + isight.time_out_s
+    while probe is None:
+        remaining = deadline - time.monotonic()
+        outcome = ch.next_outcome(max(0.0, remaining), since=start)
+        if isinstance(outcome, Silence):
+            break
+        if isinstance(outcome, Closed):
+            raise Inconclusive(f"the UDP target {ch.target} refused datagrams (ICMP port unreachable)")
+        if _is_probe(outcome):
+            probe = outcome
+        else:
+            extras.append(outcome)
+    if probe is not None:
+        while True:
+            outcome = ch.next_outcome(isight.settings.settle_s)
+            if isinstance(outcome, (Silence, Closed)):
+                break
+            extras.append(outcome)
+    return extras, probe
+
+
+def _require_udp_answers(isight: CaseContext, ch: UdpChannel) -> bytes:
+    """A valid NONE datagram is answered (else R7 cannot be judged); returns the probe bytes."""
+    probe = udp_bytes(isight, request(Action.NONE))
+    mute = _UDP_MUTE.get(id(isight.session))
+    if mute:
+        raise Inconclusive(mute)
+    _extras, answer = _await_probe(isight, ch, _send(ch, probe, "NONE datagram: the box answers valid datagrams?"))
+    if answer is None:
+        _UDP_MUTE[id(isight.session)] = reason = (
+            f"the box answered no valid NONE datagram within time_out ({isight.time_out_s * 1000:.0f} ms): R7 cannot "
+            "be judged (F7-01 judges the silence)")
+        raise Inconclusive(reason)
+    return probe
+
+
+def _send(ch: UdpChannel, data: bytes, note: str) -> float:
+    start = time.monotonic()
+    ch.send(data, note)
+    return start
+
+
+@pytest.mark.parametrize("kind", ["wrong-crc", "truncated", "trailing-bytes", "two-frames"])
+@case("R7-01", ["R7", "R1", "F7"], Level.MUST, "A bad datagram is never answered 0000 and is dropped silently",
+      "a datagram with a wrong CRC or not exactly one frame long is never answered 0000 (MUST) and gets no "
+      "answer at all (SHOULD: an answer with a non-zero error is NON-STRICT)")
+def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
+    ch = isight.udp()
+    probe = _require_udp_answers(isight, ch)
+    bad = _bad_datagram(isight, kind)
+    isight.last_sent = bad
+    start = _send(ch, bad, f"bad datagram: pose {kind}")
+    ch.send(probe, "probe: a valid NONE datagram; its answer bounds the wait")
+    extras, answer = _await_probe(isight, ch, start)
+    replies = [o for o in extras if isinstance(o, (Answer, Malformed))]
+    isight.details["replies_to_bad"] = [raw_of(o).hex(" ") for o in replies]
+    if answer is None:
+        isight.details["probe"] = "not answered within time_out"
+    ok = [o for o in replies if header_field(raw_of(o), 10, isight.profile) == 0]
+    if ok:
+        raise fail(Level.MUST, "R7: a datagram with a wrong CRC or not exactly one frame MUST NOT be answered 0000",
+                   "silence (or a non-zero error)", f"{len(replies)} answer(s), {ok[0].describe()}",
+                   sent=bad, received=raw_of(ok[0]))
+    if replies:
+        raise fail(Level.SHOULD, "R7: a datagram with a wrong CRC or not exactly one frame SHOULD be dropped silently",
+                   "silence", "; ".join(o.describe() for o in replies), sent=bad, received=raw_of(replies[0]))
