@@ -29,6 +29,7 @@ from conformance.protocol import (
     StreamDecoder,
     TransferType,
     Transport,
+    answer,
     codec_for,
     encode,
     encode_raw,
@@ -487,3 +488,16 @@ def test_serve_bad_values_exit_2(args, capsys):
     assert main(["serve", *args]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and err.startswith("isight-conformance serve:")
+
+
+def test_half_close_with_latency_still_delivers_held_answers() -> None:
+    """A1/S5: with --latency-ms, a request followed by the robot's FIN is still answered, then closed."""
+    with BoxThread(BoxConfig(latency_ms=50)) as box:
+        s = socket.create_connection(("127.0.0.1", box.tcp_port), timeout=5)
+        s.sendall(encode(request(Action.NONE)))
+        s.shutdown(socket.SHUT_WR)
+        got = b""
+        while chunk := s.recv(100):
+            got += chunk
+        s.close()
+    assert got == encode(answer(Action.NONE))

@@ -120,7 +120,7 @@ class _TcpConnection(asyncio.BufferedProtocol):
     __slots__ = (
         "box", "id", "transport", "conn", "receive", "rx", "ans", "rx_seen", "ans_seen", "last_rx",
         "last_progress", "delay", "queue", "queued", "timer", "write_paused", "read_paused", "peer", "closed",
-        "close_logged", "buffer", "view",
+        "close_logged", "buffer", "view", "eof",
     )
 
     def __init__(self, box: ReferenceBox) -> None:
@@ -133,7 +133,7 @@ class _TcpConnection(asyncio.BufferedProtocol):
         self.queue: deque[tuple[float, bytes]] = deque()
         self.queued = 0
         self.timer: asyncio.TimerHandle | None = None
-        self.write_paused = self.read_paused = self.closed = self.close_logged = False
+        self.write_paused = self.read_paused = self.closed = self.close_logged = self.eof = False
         self.peer = ""
         self.buffer, self.view = box._read_buffer, box._read_view
 
@@ -187,7 +187,12 @@ class _TcpConnection(asyncio.BufferedProtocol):
             self._close(self.conn.close_reason)
 
     def eof_received(self) -> bool:
-        return False  # S5: close our side too (after the answers already written)
+        # S5: close our side too, after the answers already written; answers still held
+        # back by --latency-ms are sent first (A1), then _release closes
+        if self.queue:
+            self.eof = True
+            return True  # keep the transport half-open until the queue drains
+        return False
 
     def connection_lost(self, exc: Exception | None) -> None:
         self.closed = True
@@ -240,6 +245,9 @@ class _TcpConnection(asyncio.BufferedProtocol):
             self.transport.write(data)  # type: ignore[union-attr]
         if queue:
             self.timer = self.box.loop.call_at(queue[0][0], self._release)
+        elif self.eof:
+            self._close("peer closed its side; held answers sent")
+            return
         self._update_reading()
 
     def _close(self, reason: str, abort: bool = False) -> None:
