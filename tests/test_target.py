@@ -24,7 +24,8 @@ def test_default_port_and_printing() -> None:
 @pytest.mark.parametrize(
     ("text", "message"),
     [("", "empty"), ("box:x", "not a number"), ("box:0", "out of range"), ("box:70000", "out of range"),
-     ("::1:9004", "IPv6"), ("[::1:9004", "missing"), (":9004", "no host"), ("box", "expected HOST:PORT")],
+     ("::1:9004", "IPv6"), ("[::1:9004", "missing"), (":9004", "no host"), ("box", "expected HOST:PORT"),
+     ("box:", "no port"), ("[::1]:", "no port"), ("[::1]x", "IPv6")],
 )
 def test_bad_targets_say_why(text: str, message: str) -> None:
     with pytest.raises(ValueError, match=message):

@@ -12,8 +12,8 @@ loop, for synchronous code)::
 
 Design (the box's hot path is one pose in, one cached answer out):
 
-* ``asyncio.Protocol`` per connection; everything one ``data_received`` completes
-  is answered with one ``transport.write``.
+* ``asyncio.BufferedProtocol`` per connection, reading into one shared buffer;
+  everything one read completes is answered with one ``transport.write``.
 * Bounded: a connection holds at most one partial frame (the decoder never waits
   for more than 6389 bytes); at most ``max_connections`` connections, a new one
   past the limit evicts the connection that has gone longest without an answer if
@@ -162,21 +162,9 @@ class _TcpConnection(asyncio.BufferedProtocol):
     def get_buffer(self, sizehint: int) -> memoryview:
         return self.view
 
-    def buffer_updated(self, nbytes: int) -> None:  # the hot path: data_received inlined
+    def buffer_updated(self, nbytes: int) -> None:  # the hot path
         self.rx += 1
         out = self.receive(self.view[:nbytes].tobytes())
-        if out:
-            self.ans += 1
-            if self.delay:
-                self._hold(out)
-            else:
-                self.transport.write(out)  # type: ignore[union-attr]
-        if self.conn.should_close:
-            self._close(self.conn.close_reason)
-
-    def data_received(self, data: bytes) -> None:
-        self.rx += 1
-        out = self.receive(data)
         if out:
             self.ans += 1
             if self.delay:

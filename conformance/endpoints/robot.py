@@ -34,6 +34,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+from ..harness.target import Target
 from ..protocol import (
     DEFAULT_PORT,
     DEFAULT_PROFILE,
@@ -75,30 +76,8 @@ perf = time.perf_counter
 
 def parse_target(text: str, default_port: int = DEFAULT_PORT) -> tuple[str, int]:
     """``HOST:PORT``, ``[V6]:PORT`` or ``HOST`` → (host, port); ValueError if malformed."""
-    text = text.strip()
-    if not text:
-        raise ValueError("empty target; expected HOST:PORT")
-    if text.startswith("["):
-        host, sep, rest = text[1:].partition("]")
-        if not sep or (rest and not rest.startswith(":")):
-            raise ValueError(f"bad target {text!r}; expected [IPv6]:PORT")
-        has_port, port_text = bool(rest), rest[1:]
-    elif text.count(":") == 1:
-        host, port_text = text.split(":")
-        has_port = True
-    else:
-        host, port_text, has_port = text, "", False
-    if not host:
-        raise ValueError(f"bad target {text!r}: no host")
-    if not has_port:
-        return host, default_port
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise ValueError(f"bad port in target {text!r}") from None
-    if not 0 < port < 65536:
-        raise ValueError(f"port out of range in target {text!r}")
-    return host, port
+    target = Target.parse(text, default_port)
+    return target.host, target.port
 
 
 @dataclass(frozen=True)

@@ -20,18 +20,23 @@ class Target:
         text = text.strip()
         if not text:
             raise ValueError("empty target; expected HOST:PORT")
+        has_port = True
         if text.startswith("["):
             host, sep, rest = text[1:].partition("]")
             if not sep:
                 raise ValueError(f"bad target {text!r}: missing ']'")
-            port_text = rest[1:] if rest.startswith(":") else ""
+            if rest and not rest.startswith(":"):
+                raise ValueError(f"bad target {text!r}: expected [IPv6]:PORT")
+            has_port, port_text = bool(rest), rest[1:]
         elif text.count(":") == 1:
             host, _, port_text = text.partition(":")
         elif text.count(":") > 1:
             raise ValueError(f"bad target {text!r}: write IPv6 addresses as [ADDR]:PORT")
         else:
-            host, port_text = text, ""
-        if not port_text:
+            host, port_text, has_port = text, "", False
+        if has_port and not port_text:
+            raise ValueError(f"bad target {text!r}: no port after ':'")
+        if not has_port:
             if default_port is None:
                 raise ValueError(f"bad target {text!r}: expected HOST:PORT")
             return cls(host, default_port)
