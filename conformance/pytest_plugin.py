@@ -258,8 +258,12 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         return rep
     ctx = item.stash.get(CTX, None)
     verdict, fields = _classify(call.excinfo, info, ctx)
-    if ctx is not None and not fields.get("sent_hex") and ctx.last_sent and verdict is not Verdict.PASS:
-        fields["sent_hex"] = ctx.last_sent.hex(" ")
+    if verdict is not Verdict.PASS:
+        # every non-PASS verdict carries the requirement and the bytes (defaults from the case)
+        fields["requirement"] = fields.get("requirement") or f"{', '.join(info.clauses)} ({info.level.value}): {info.title}"
+        if ctx is not None and not fields.get("sent_hex") and ctx.last_sent:
+            fields["sent_hex"] = ctx.last_sent.hex(" ")
+
     start = item.stash.get(CASE_START, None)
     result = CaseResult(
         id=info.id, title=info.title, clauses=info.clauses, level=info.level, verdict=verdict,
