@@ -1,6 +1,7 @@
-"""Scripted sequences and the S/T/R cases: loader errors, the runner and the pose stream against the
-bundled box, and deliberately broken boxes (tiny threaded servers) proving the MUST cases can fail —
-every suite run in a subprocess with a timeout, so a hang fails the test instead of blocking it."""
+"""Scripted sequences and the S/T/R cases: the runner against the bundled box, and deliberately broken
+boxes (tiny threaded servers) proving the MUST cases can fail — every suite run in a subprocess with a
+timeout, so a hang fails the test instead of blocking it. The loader is tested in test_sequence_format.py,
+the pose stream in test_pose_stream.py."""
 
 from __future__ import annotations
 
@@ -14,13 +15,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-import jsonschema
 import pytest
 
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.box import BoxThread
-from conformance.harness.client import TcpConnection
-from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, ProtocolError, StreamDecoder, answer, encode
 from conformance.suite.catalogue import CaseInfo
@@ -28,90 +26,18 @@ from conformance.suite.context import CaseContext, SessionState
 from conformance.suite.judge import CaseVerdict, Inconclusive
 from conformance.suite.sequence import (
     SHIPPED_DIR,
-    PoseStream,
-    SequenceError,
     StreamResult,
     load,
     percentile,
     pieces_of,
     run_sequence,
-    shipped,
 )
 from conformance.suite.settings import SuiteSettings
 from conformance.suite.verdicts import Level, Verdict
 
+from .test_sequence_format import _write
+
 ROOT = Path(__file__).resolve().parent.parent
-SCHEMA = json.loads((SHIPPED_DIR / "isight-sequence-1.schema.json").read_text())
-HEAD = {"format": "isight-sequence-1", "id": "SEQ-T-1", "title": "t", "clauses": ["S1"], "level": "MUST"}
-
-
-def _write(tmp_path: Path, steps: Any, name: str = "seq.json", **head: Any) -> Path:
-    path = tmp_path / name
-    path.write_text(json.dumps({**HEAD, **head, "steps": steps}))
-    return path
-
-
-# -- loader ---------------------------------------------------------------------------------------------
-
-BAD = [
-    ([{"open": "command"}, {"request": "CycleOnn"}], "steps[1] (request): field 'request': unknown action 'CycleOnn'"),
-    ([{"open": "command"}, {"repeat": 2}], "steps[1] (repeat): missing field 'steps'"),
-    ([{"open": "command"}, {"reqest": "NONE"}], "steps[1]: no verb"),
-    ([{"open": "command"}, {"request": "NONE", "raw": "00"}], "steps[1]: several verbs"),
-    ([{"open": "command"}, {"request": "NONE", "expect": {"errors": [1001]}}], "4 hex digits"),
-    ([{"open": "command"}, {"request": "NONE", "expct": "ok"}], "unknown field 'expct'"),
-    ([{"request": "NONE"}], "steps[0] (request): connection 'command' is not opened"),
-    ([{"open": "command"}, {"repeat": 3, "steps": [{"request": "Pose", "on": "strem"}]}],
-     "steps[1] (repeat).steps[0] (request): connection 'strem' is not opened"),
-    ([{"open": "c"}, {"raw": "fe f"}], "steps[1] (raw): field 'raw': not hex bytes"),
-    ([{"open": "c"}, {"request": "NONE", "on": "c", "poses": [[1, 2, 3, 4, 5, 6]]}], "'poses' go with Pose"),
-    ([{"open": "s"}, {"stream": "s", "rate": "fast"}], "field 'rate': expected a number in [0.1, 10000] or one of profile"),
-    ([{"open": "s"}, {"stop": "s"}], "no stream runs on 's'"),
-    ([], "steps: expected a non-empty list of steps"),
-    ([{"open": "c"}, {"raw": "fe fe 00 01 01 23 01 01 00 19 00 00", "on": "c", "probe": True}], "incomplete frame"),
-]
-
-
-@pytest.mark.parametrize(("steps", "message"), BAD, ids=[m[:30] for _, m in BAD])
-def test_loader_names_file_and_step(tmp_path: Path, steps: Any, message: str) -> None:
-    path = _write(tmp_path, steps)
-    with pytest.raises(SequenceError) as exc:
-        load(path)
-    assert str(path) in str(exc.value) and message in str(exc.value), str(exc.value)
-
-
-@pytest.mark.parametrize(("head", "message"), [
-    ({"id": "S1-01"}, "must look like 'SEQ-S1'"), ({"clauses": ["S9"]}, "unknown clause IDs ['S9']"),
-    ({"level": "MAY"}, "field 'level'"), ({"format": "v2"}, "field 'format'"), ({"extra": 1}, "unknown field 'extra'"),
-])
-def test_loader_header_errors(tmp_path: Path, head: dict[str, Any], message: str) -> None:
-    with pytest.raises(SequenceError, match="header") as exc:
-        load(_write(tmp_path, [{"open": "command"}], **head))
-    assert message in str(exc.value)
-
-
-def test_loader_not_json(tmp_path: Path) -> None:
-    path = tmp_path / "x.json"
-    path.write_text("{")
-    with pytest.raises(SequenceError, match="not JSON"):
-        load(path)
-
-
-def test_schema_agrees_with_loader(tmp_path: Path) -> None:
-    jsonschema.Draft202012Validator.check_schema(SCHEMA)
-    validator = jsonschema.Draft202012Validator(SCHEMA)
-    for seq in shipped():
-        validator.validate(json.loads(seq.path.read_text()))
-    for steps, message in BAD:
-        if any(m in message for m in ("is not opened", "go with", "no stream runs", "incomplete frame")):
-            continue  # semantic checks only the loader makes
-        assert not validator.is_valid({**HEAD, "steps": steps}), message
-
-
-def test_shipped_sequences() -> None:
-    ids = {s.id: s for s in shipped()}
-    assert set(ids) == {"SEQ-S1", "SEQ-E4", "SEQ-T2", "SEQ-S4", "SEQ-S5", "SEQ-R3", "SEQ-R4", "SEQ-R5"}
-    assert ids["SEQ-E4"].requires == ("extension",)
 
 
 # -- helpers ------------------------------------------------------------------------------------------------
@@ -175,15 +101,6 @@ def test_runner_may_informs_inconclusive_and_deadline(session: SessionState, tmp
     with pytest.raises(Inconclusive, match="overall deadline"):
         run_sequence(_ctx(session), load(_write(tmp_path, [{"open": "c"}, {"sleep": 5}], deadline_s=1)))
     assert time.monotonic() - start < 1.0
-
-
-def test_pose_stream_against_slow_bundled_box() -> None:
-    with BoxThread(BoxConfig(latency_ms=20)) as box:
-        conn = TcpConnection(Transcript(), Target("127.0.0.1", box.tcp_port), SuiteSettings().profile, "stream").connect()
-        result = PoseStream(conn, 100.0, 0.5, 5.0).start().wait()
-        conn.close()
-    assert (result.sent, result.answered, result.lost, result.failed) == (50, 50, 0, False)
-    assert min(result.latencies_ms) >= 19.0 and result.max_send_lag_ms < 100
 
 
 # -- broken boxes ----------------------------------------------------------------------------------------------
