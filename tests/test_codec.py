@@ -290,3 +290,19 @@ def test_header_property_matches_the_bytes(frame: Frame) -> None:
     wire = encode(frame)
     assert encode_raw(frame.header, wire[12:-2]) == wire
     assert wire[7] == len(frame.blocks) and int.from_bytes(wire[8:10], "big") == frame.block_length
+
+
+def test_fast_built_objects_are_ordinary_frozen_instances() -> None:
+    """The hot paths build frames without the dataclass constructor: the objects must be
+    real, equal, hashable and frozen all the same."""
+    import dataclasses
+
+    for poses in ([(1, 2, 3, 4, 5, 6)], [(1, 2, 3, 4, 5, 6)] * 3):
+        built = request(Action.POSE, pose_blocks(poses))
+        parsed = parse_frame(encode(built))
+        assert type(parsed) is Frame and type(parsed.blocks[0]) is PoseBlock
+        assert parsed == built and hash(parsed) == hash(built) and repr(parsed) == repr(built)
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            parsed.error_code = 1  # type: ignore[misc]
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            parsed.blocks[0].index = 9  # type: ignore[misc]

@@ -66,30 +66,37 @@ _RULES = {
 
 
 # -- fast constructors -----------------------------------------------------------------
-# Frozen dataclasses pay for object.__setattr__ on every field; the hot paths below
-# set the slots directly through their descriptors (same objects, ~3x cheaper).
-_new = object.__new__
-_slot = {name: vars(cls)[name].__set__ for cls in (PoseBlock, Frame) for name in cls.__slots__}
-_set_pose_index, _set_pose = _slot["index"], _slot["pose"]
-_set_tt, _set_action, _set_blocks = _slot["transfer_type"], _slot["action"], _slot["blocks"]
-_set_error, _set_check = _slot["error_code"], _slot["check"]
+# Frozen dataclasses pay for object.__setattr__ on every field. The hot paths build the
+# same objects cheaper: an instance of a mutable twin class with the identical slot
+# layout is filled with plain attribute stores, then becomes a PoseBlock / Frame by
+# __class__ assignment (CPython allows it because the layouts match). The result is an
+# ordinary frozen instance: equal to one built by the constructor, immutable afterwards.
+# tests/test_codec.py checks both (and that the fast path agrees with parse_checked).
+class _PoseTwin:
+    __slots__ = PoseBlock.__slots__
+
+
+class _FrameTwin:
+    __slots__ = Frame.__slots__
 
 
 def _frame(tt: TransferType, action: Action, blocks: tuple[Block, ...], error_code: int, check: int) -> Frame:
-    frame = _new(Frame)
-    _set_tt(frame, tt)
-    _set_action(frame, action)
-    _set_blocks(frame, blocks)
-    _set_error(frame, error_code)
-    _set_check(frame, check)
-    return frame  # type: ignore[no-any-return]
+    frame = _FrameTwin()
+    frame.transfer_type = tt  # type: ignore[attr-defined]
+    frame.action = action  # type: ignore[attr-defined]
+    frame.blocks = blocks  # type: ignore[attr-defined]
+    frame.error_code = error_code  # type: ignore[attr-defined]
+    frame.check = check  # type: ignore[attr-defined]
+    frame.__class__ = Frame  # type: ignore[assignment]
+    return frame  # type: ignore[return-value]
 
 
 def _pose(index: int, pose: tuple[float, ...]) -> PoseBlock:
-    block = _new(PoseBlock)
-    _set_pose_index(block, index)
-    _set_pose(block, pose)
-    return block  # type: ignore[no-any-return]
+    block = _PoseTwin()
+    block.index = index  # type: ignore[attr-defined]
+    block.pose = pose  # type: ignore[attr-defined]
+    block.__class__ = PoseBlock  # type: ignore[assignment]
+    return block  # type: ignore[return-value]
 
 
 class Codec:
@@ -104,6 +111,12 @@ class Codec:
         self.value = struct.Struct(f + "Bi")
         self._unpack_header = self.header.unpack_from
         self._unpack_pose = self.pose.unpack_from
+        self._pose_runs: dict[int, struct.Struct] = {}
+        self._float_order = f
+        # the stream's frame (one pose, 39 bytes) in one unpack, when one byte order serves all
+        self._unpack_one_pose = (
+            struct.Struct(e + "HHBBBBHHB6fH").unpack if profile.byte_order == profile.float_byte_order else None
+        )
         self._block_struct = {PoseBlock: self.pose, ToleranceBlock: self.tolerance, ValueBlock: self.value}
         self._crc = crc_function(profile.crc)
         self._crc_order = profile.crc_byte_order
@@ -199,6 +212,29 @@ class Codec:
         check; anything else goes to :meth:`parse_checked`, which defines the result.
         """
         size = len(data)
+        if size == 39 and transport is _TCP and self._unpack_one_pose is not None:
+            start, version, tt, act, bt, count, blen, error_code, index, x, y, z, w, p, r, check = (
+                self._unpack_one_pose(data)
+            )
+            rule = _RULES.get((tt << 8) | act)
+            if (
+                rule is not None
+                and start == 0xFEFE
+                and version == 1
+                and bt == 1
+                and count == 1
+                and blen == 25
+                and not check
+                and index == self._first
+                and rule[2] == 1
+                and (expect is None or rule[0] is expect)
+                and (not self._strict or isfinite(x + y + z + w + p + r))
+            ):
+                block = _PoseTwin()
+                block.index = index  # type: ignore[attr-defined]
+                block.pose = (x, y, z, w, p, r)  # type: ignore[attr-defined]
+                block.__class__ = PoseBlock  # type: ignore[assignment]
+                return _frame(rule[0], rule[1], (block,), error_code, 0)  # type: ignore[arg-type]
         if size >= 14 and transport is _TCP:
             start, version, tt, act, bt, count, blen, error_code = self._unpack_header(data)
             rule = _RULES.get((tt << 8) | act)
@@ -221,19 +257,10 @@ class Codec:
                     index, x, y, z, w, p, r = self._unpack_pose(data, 12)
                     if self._strict and not isfinite(x + y + z + w + p + r):
                         raise self._fail(FloatError, "block 0: non-finite pose value", data, HEADER_LEN + 1)
-                    block = _new(PoseBlock)
-                    _set_pose_index(block, index)
-                    _set_pose(block, (x, y, z, w, p, r))
-                    blocks = (block,)
+                    blocks = (_pose(index, (x, y, z, w, p, r)),)
                 else:
                     blocks = self._parse_blocks(data, rule[2], count)
-                frame = _new(Frame)
-                _set_tt(frame, rule[0])
-                _set_action(frame, rule[1])
-                _set_blocks(frame, blocks)
-                _set_error(frame, error_code)
-                _set_check(frame, 0)
-                return frame  # type: ignore[no-any-return]
+                return _frame(rule[0], rule[1], blocks, error_code, 0)  # type: ignore[arg-type]
         return self.parse_checked(data, transport, expect)
 
     def parse_checked(
@@ -332,20 +359,20 @@ class Codec:
         strict = self._strict
         blocks: list[Block] = []
         if btype == BlockType.POSE:
-            end = HEADER_LEN + count * POSE_BLOCK_LEN
-            indexes = data[HEADER_LEN:end:POSE_BLOCK_LEN]
-            if indexes != bytes(range(first, first + count)):  # count <= 255, first <= 1
+            flat = self._pose_run(count).unpack_from(data, HEADER_LEN)  # index, x..r, index, x..r, ...
+            indexes = flat[0::7]
+            if indexes != _index_run(first, count):
                 i = next(i for i, got in enumerate(indexes) if got != first + i)
                 raise self._index_error(data, HEADER_LEN + i * POSE_BLOCK_LEN, indexes[i], first + i)
-            records = list(self.pose.iter_unpack(memoryview(data)[HEADER_LEN:end]))
-            if strict and not isfinite(sum([sum(rec) for rec in records])):  # indexes are finite
-                i = next(i for i, rec in enumerate(records) if not isfinite(sum(rec)))
+            if strict and not isfinite(sum(flat)):  # the indexes are finite: only the floats count
+                i = next(i for i in range(count) if not isfinite(sum(flat[7 * i + 1 : 7 * i + 7])))
                 raise self._fail(FloatError, f"block {i}: non-finite pose value", data, HEADER_LEN + i * 25 + 1)
-            for rec in records:
-                block = _new(PoseBlock)
-                _set_pose_index(block, rec[0])
-                _set_pose(block, rec[1:])
-                blocks.append(block)
+            for k in range(0, 7 * count, 7):
+                block = _PoseTwin()
+                block.index = flat[k]  # type: ignore[attr-defined]
+                block.pose = flat[k + 1 : k + 7]  # type: ignore[attr-defined]
+                block.__class__ = PoseBlock  # type: ignore[assignment]
+                blocks.append(block)  # type: ignore[arg-type]
             return tuple(blocks)
         is_tolerance = btype == BlockType.TOLERANCE
         unpack = (self.tolerance if is_tolerance else self.value).unpack_from
@@ -362,11 +389,29 @@ class Codec:
                 blocks.append(ValueBlock(index, value))
         return tuple(blocks)
 
+    def _pose_run(self, count: int) -> struct.Struct:
+        """A struct for ``count`` consecutive pose blocks (cached; at most 255 of them)."""
+        run = self._pose_runs.get(count)
+        if run is None:
+            run = self._pose_runs[count] = struct.Struct(self._float_order + "B6f" * count)
+        return run
+
     def _index_error(self, data: bytes, offset: int, got: int, want: int) -> ProtocolError:
         return self._fail(BlockIndexError, f"block index {got}, expected {want}", data, offset)
 
 
 _CODECS: dict[Profile, Codec] = {}
+
+
+_INDEX_RUNS: dict[tuple[int, int], tuple[int, ...]] = {}
+
+
+def _index_run(first: int, count: int) -> tuple[int, ...]:
+    """B3: the indexes ``count`` blocks must carry, from ``first`` (cached)."""
+    run = _INDEX_RUNS.get((first, count))
+    if run is None:
+        run = _INDEX_RUNS[(first, count)] = tuple(range(first, first + count))
+    return run
 
 
 def codec_for(profile: Profile = DEFAULT_PROFILE) -> Codec:
