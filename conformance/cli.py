@@ -20,11 +20,7 @@ from .protocol import (
 )
 
 #: subcommand -> (help, the issue that delivers it)
-PLANNED = {
-    "fuzz": ("fuzz an AI Box with hypothesis campaigns", "the fuzzing milestone"),
-    "replay": ("resend a vector file to a box and show what it does", "the fuzzing milestone"),
-    "certify-robot": ("act as a box and certify a robot implementation", "the client-role milestone"),
-}
+PLANNED: dict[str, tuple[str, str]] = {}
 
 
 def _decode(args: argparse.Namespace) -> int:
@@ -65,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_serve(sub)
     _add_robot(sub)
+    _add_certify_robot(sub)
 
     from .runner import add_run_arguments, main_run
 
@@ -80,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name, (text, milestone) in PLANNED.items():
         p = sub.add_parser(name, help=f"{text} [not yet implemented: arrives with {milestone}]")
         p.set_defaults(func=_planned(name, milestone))
+    _add_fuzz_and_replay(sub)
     return parser
 
 
@@ -188,6 +186,46 @@ def _robot(args: argparse.Namespace) -> int:
     if not result.ok:
         print(f"isight-conformance robot: {result.reason}", file=sys.stderr)
     return result.exit_code
+
+
+def _add_certify_robot(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    from .certify.cli import add_arguments, main_certify
+
+    p = sub.add_parser(
+        "certify-robot",
+        help="act as the AI Box and certify a robot (client) implementation against PROTOCOL.md",
+        description="Become the AI Box: answer the robot with the reference box's logic, record everything and "
+        "judge the robot's frames, session order, stream rate and closes. The first line on stdout is "
+        "'listening tcp HOST:PORT udp HOST:PORT'. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or "
+        "no robot connected within --wait. See docs/CERTIFY.md.",
+    )
+    add_arguments(p)
+    p.set_defaults(func=main_certify)
+
+
+def _add_fuzz_and_replay(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    from .fuzz.cli import add_fuzz_arguments, add_replay_arguments, main_fuzz, main_replay
+
+    fuzz = sub.add_parser(
+        "fuzz",
+        help="fuzz an AI Box with hypothesis campaigns (valid and malformed frames, and a session state machine)",
+        description="Fuzz a box (or, with no --target, the bundled reference box): malformed and valid frames, each "
+        "followed by a valid probe and judged by PROTOCOL.md (never 0000 to malformed input, A3's errors, answers in "
+        "order, liveness on fresh connections), then a session state machine. Failures are shrunk and written as "
+        "vector files (replay them with 'replay') and pcaps. Exit status: 0 no failure, 1 a failure found, 2 usage "
+        "error or unreachable target. See docs/FUZZING.md.",
+    )
+    add_fuzz_arguments(fuzz)
+    fuzz.set_defaults(func=main_fuzz)
+    replay = sub.add_parser(
+        "replay",
+        help="resend the vectors of isight-vectors-1 files to a box and show what it does now",
+        description="Resend each robot-to-box vector (TCP, or UDP with --udp-target) and show what the box does now "
+        "and whether that satisfies PROTOCOL.md. Exit status: 0 all OK now, 1 a vector still fails, 2 usage error "
+        "or unreachable target.",
+    )
+    add_replay_arguments(replay)
+    replay.set_defaults(func=main_replay)
 
 
 def _planned(name: str, milestone: str):  # type: ignore[no-untyped-def]

@@ -212,3 +212,11 @@ def test_large_run_renders_quickly(tmp_path):
     elapsed = time.perf_counter() - start
     print(f"\nrender_html: 300 cases x 2,000 wire lines in {elapsed:.2f} s, {len(html) / 1e6:.1f} MB")
     assert html.count("<details") == 300
+
+
+def test_a_robot_certification_report_names_the_robot() -> None:
+    from .test_report_summary import sample_cases, sample_suite
+
+    html = render_html(sample_suite(role="robot", target="robot at 127.0.0.1:9004 (client role)"), sample_cases())
+    assert "Robot (client role) tested" in html and "The robot at" in html
+    assert "The AI Box at" not in html and "Vision AI Box (server role)" not in html

@@ -134,7 +134,7 @@ def test_write_summary_shape(tmp_path):
     assert list(doc) == ["suite", "cases", "totals"]
     assert list(doc["suite"])[:5] == ["version", "started", "duration_s", "target", "profile"]
     assert set(doc["suite"]) == {"version", "started", "duration_s", "target", "profile", "udp_target", "extension",
-                                 "expected_failures", "command"}
+                                 "expected_failures", "command", "role"}
     assert doc["suite"]["profile"]["tcp_check"] == "zero-or-crc"
     assert doc["suite"]["profile"]["first_index"] == 1
     assert doc["cases"] == json.loads(json.dumps([c.to_summary() for c in cases]))

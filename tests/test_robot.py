@@ -288,7 +288,7 @@ def test_bursty_drifting_segmented_stream_is_still_answered(box):
 
 
 def test_stream_left_open(box):
-    result = play(box.address, faults=RobotFaults(leave_stream_open=True))
+    result = play(box.address, faults=RobotFaults(leave_stream_open=True, stream_hold_s=0.3))
     assert result.ok
     assert any("left open" in e.text for e in result.timeline)
 

@@ -94,8 +94,10 @@ class RobotFaults:
     burst: int = 1
     #: T2: the stream clock slows by this fraction per second (0.1: 10 % longer periods each second).
     drift: float = 0.0
-    #: S1: ``Send_Pos_Off`` stops the poses but leaves the stream connection open until the end.
+    #: S1/S5: ``Send_Pos_Off`` stops the poses but leaves the stream connection open; it
+    #: stays open ``stream_hold_s`` seconds after the command disconnect (or until the box closes it).
     leave_stream_open: bool = False
+    stream_hold_s: float = 1.0
     #: R3: send every frame in pieces of this many bytes.
     segment_size: int | None = None
     #: Last word on every frame's bytes: ``hook(frame, data) -> data``.
@@ -112,6 +114,8 @@ class RobotFaults:
             raise ValueError("burst must be at least 1")
         if self.segment_size is not None and self.segment_size < 1:
             raise ValueError("segment_size must be at least 1")
+        if not 0 <= self.stream_hold_s <= 600:
+            raise ValueError("stream_hold_s must be 0..600 seconds")
 
 
 @dataclass
@@ -411,7 +415,16 @@ class RobotSession:
             self._sender.cancel()
             with contextlib.suppress(asyncio.CancelledError, _Stop, Exception):
                 await self._sender
-        for link in (self._cmd, self._stream):
+        links = (self._cmd, self._stream)
+        if self.faults.leave_stream_open and self._stream is not None:
+            # the leaked stream: the command connection closes first, the stream after the hold
+            if self._cmd is not None and not self._cmd.lost:
+                self._cmd.close()
+            deadline = perf() + self.faults.stream_hold_s
+            while not self._stream.lost and perf() < deadline:
+                await asyncio.sleep(0.01)
+            links = (self._cmd, self._stream)
+        for link in links:
             if link is not None and not link.lost:
                 link.close()
         for link in (self._cmd, self._stream):

@@ -42,7 +42,7 @@ from .summary import (
     overall_state,
     totals,
 )
-from .svg import latency_svg
+from .svg import histogram_svg, latency_svg
 
 WIRE_HEAD, WIRE_TAIL = 150, 50  # wire lines shown per case: the first and the last ones
 WIRE_HEX_BYTES = 48  # bytes of one wire line's hex shown in the table
@@ -179,6 +179,7 @@ def case_view(case: CaseResult, anchor: str, suite: SuiteInfo, report_dir: Path,
         limit = case.details.get("time_out_ms", suite.profile.get("time_out_ms"))
         svg = Markup(latency_svg(case.latencies_ms, f"{case.id}: answer latency per request",
                                  time_out_ms=float(limit) if isinstance(limit, (int, float)) else None))
+    histogram = _histogram(case)
     return {
         "id": case.id, "anchor": anchor, "title": case.title, "clauses": case.clauses,
         "level": case.level.value, "verdict": case.verdict.value, "cls": css_class(case.verdict),
@@ -188,10 +189,29 @@ def case_view(case: CaseResult, anchor: str, suite: SuiteInfo, report_dir: Path,
         "sent": hexdump(case.sent_hex) if case.sent_hex else "",
         "received": hexdump(case.received_hex) if case.received_hex else "",
         "wire_head": head, "wire_tail": tail, "wire_omitted": omitted, "wire_total": len(case.wire),
-        "svg": svg,
+        "svg": svg, "histogram": histogram,
         "pcap": case.pcap, "pcap_href": pcap_href(case.pcap, report_dir, pcap_base) if case.pcap else None,
-        "details": [(str(k), _detail_value(v)) for k, v in sorted(case.details.items(), key=lambda kv: str(kv[0]))],
+        "details": [(str(k), _detail_value(v)) for k, v in sorted(case.details.items(), key=lambda kv: str(kv[0]))
+                    if not (k == HISTOGRAM_KEY and histogram is not None)],
     }
+
+
+#: ``details[HISTOGRAM_KEY] = {"values_ms": [...], "bins": 40, "title": "...", "expected_ms": 20.0}``
+#: is drawn as an interval histogram (certify-robot's T2 cases) instead of a details row.
+HISTOGRAM_KEY = "interval_histogram"
+
+
+def _histogram(case: CaseResult) -> Markup | None:
+    spec = case.details.get(HISTOGRAM_KEY)
+    if not isinstance(spec, dict) or not isinstance(spec.get("values_ms"), (list, tuple)):
+        return None
+    try:
+        values = [float(v) for v in spec["values_ms"]]
+        expected = spec.get("expected_ms")
+        return Markup(histogram_svg(values, int(spec.get("bins", 40)), str(spec.get("title") or f"{case.id}: intervals"),
+                                    float(expected) if isinstance(expected, (int, float)) else None))
+    except (TypeError, ValueError, OverflowError):
+        return None
 
 
 # -- rendering -------------------------------------------------------------------------

@@ -207,3 +207,89 @@ def latency_svg(latencies_ms: Sequence[float], title: str, time_out_ms: float | 
     out.append(_text(ML, 29, " · ".join(notes), size=9.5, fill="#555"))
     out.append("</svg>")
     return "\n".join(out)
+
+
+def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms: float | None = None,
+                  width: int = 640, height: int = 200) -> str:
+    """A histogram of intervals (e.g. a pose stream's send intervals) as an SVG document string.
+
+    The x axis starts at 0 and reaches at least twice ``expected_ms`` (drawn as a line), so
+    a stream on its period shows as one bar on the line, a bursty one as bars at 0 and at a
+    multiple of the period. Outliers beyond 3 × p99 are counted in the last bar (marked ▲).
+    """
+    width, height = max(int(width), ML + MR + 40), max(int(height), MT + MB + 40)
+    pw, ph = width - ML - MR, height - MT - MB
+    bins = max(1, min(int(bins), pw))
+    finite = sorted(max(0.0, float(v)) for v in values_ms if math.isfinite(v))
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+        f'viewBox="0 0 {width} {height}" role="img" font-family="{FONT}" class="histogram">',
+        f"<title>{escape(clean_text(title))}</title>",
+        f'<rect x="0" y="0" width="{width}" height="{height}" fill="#fff"/>',
+        _text(ML, 15, title, size=11, fill="#111", extra=' font-weight="bold"'),
+    ]
+    if not finite:
+        out.append(f'<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="none" stroke="{C_GRID}"/>')
+        out.append(_text(ML + pw / 2, MT + ph / 2 + 4, "no interval samples", anchor="middle", size=11, fill="#777"))
+        out.append("</svg>")
+        return "\n".join(out)
+    p50, p99, hi = percentile(finite, 50), percentile(finite, 99), finite[-1]
+    top = CLIP_FACTOR * p99 if p99 > 0 and hi > CLIP_FACTOR * p99 else hi
+    if expected_ms and expected_ms > 0:
+        top = max(top, 2 * float(expected_ms))
+    step = _nice_step((top or 1.0) / 5)
+    x_top = max(step, math.ceil(top / step - 1e-9) * step)
+    width_bin = x_top / bins
+    counts = [0] * bins
+    over = 0
+    for v in finite:
+        i = int(v / width_bin)
+        if i >= bins:
+            over += v > x_top
+            i = bins - 1
+        counts[i] += 1
+    c_max = max(counts)
+
+    def xx(v: float) -> float:
+        return ML + min(v, x_top) / x_top * pw
+
+    def yy(c: float) -> float:
+        return MT + ph - c / c_max * ph
+
+    c_step = max(1, int(_nice_step(c_max / 4)))
+    for c in range(0, c_max + 1, c_step):
+        out.append(f'<line x1="{ML}" y1="{_f(yy(c))}" x2="{ML + pw}" y2="{_f(yy(c))}" stroke="{C_GRID}"/>')
+        out.append(_text(ML - 4, yy(c) + 3.5, f"{c:,}", anchor="end"))
+    out.append(_text(12, MT + ph / 2, "count", anchor="middle", extra=f' transform="rotate(-90 12 {_f(MT + ph / 2)})"'))
+    bars = []
+    for i, c in enumerate(counts):
+        if c:
+            x0, x1 = xx(i * width_bin), xx((i + 1) * width_bin)
+            bars.append(f'<rect x="{_f(x0 + 0.5)}" y="{_f(yy(c))}" width="{_f(max(0.8, x1 - x0 - 1))}" '
+                        f'height="{_f(MT + ph - yy(c))}"/>')
+    out.append(f'<g fill="{C_DATA}">' + "".join(bars) + "</g>")
+    if over:
+        out.append(f'<path d="M{_f(ML + pw - 4)},{MT - 1}l3.5,6h-7z" fill="{C_LIMIT}"/>')
+    out.append(f'<line x1="{ML}" y1="{MT + ph}" x2="{ML + pw}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
+    out.append(f'<line x1="{ML}" y1="{MT}" x2="{ML}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
+    for k in range(int(round(x_top / step)) + 1):
+        v = k * step
+        out.append(f'<line x1="{_f(xx(v))}" y1="{MT + ph}" x2="{_f(xx(v))}" y2="{MT + ph + 3}" stroke="{C_AXIS}"/>')
+        out.append(_text(xx(v), MT + ph + 13, fmt_ms(v), anchor="middle"))
+    out.append(_text(ML + pw, height - 3, "interval (ms)", anchor="end", fill="#777"))
+    labels = [(MT + 12, C_P50, f"p50 {fmt_ms(p50)} ms"), (MT + 24, C_P99, f"p99 {fmt_ms(p99)} ms")]
+    if expected_ms and expected_ms > 0:
+        x_exp = xx(float(expected_ms))
+        out.append(f'<line x1="{_f(x_exp)}" y1="{MT}" x2="{_f(x_exp)}" y2="{MT + ph}" stroke="{C_LIMIT}" '
+                   'stroke-width="1.5" stroke-dasharray="5 3"/>')
+        labels.append((MT + 36, C_LIMIT, f"expected {fmt_ms(float(expected_ms))} ms"))
+    for y, colour, label in labels:
+        out.append(_text(ML + pw + 5, y, label, fill=colour))
+    notes = [f"n={len(finite):,}", f"{bins} bins of {fmt_ms(width_bin)} ms", f"max {fmt_ms(hi)} ms"]
+    if over:
+        notes.append(f"▲ {over:,} above {fmt_ms(x_top)} ms in the last bin")
+    if len(finite) < len(values_ms):
+        notes.append(f"{len(values_ms) - len(finite):,} not finite")
+    out.append(_text(ML, 29, " · ".join(notes), size=9.5, fill="#555"))
+    out.append("</svg>")
+    return "\n".join(out)

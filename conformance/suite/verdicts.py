@@ -111,3 +111,5 @@ class SuiteInfo:
     extension: str = "auto"  # how E was decided: "detected", "not implemented", "forced on", "off"
     expected_failures: str | None = None  # path of the list, if any
     command: str = ""  # the command line that produced the run
+    #: what was tested: "box" (the AI Box, server role: ``run``) or "robot" (client role: ``certify-robot``)
+    role: str = "box"

@@ -1,0 +1,187 @@
+"""What ``certify-robot`` records: the settings, and every session, connection and exchange.
+
+The listener (:mod:`.listener`) fills these in as the robot talks to it; the
+judgement (:mod:`.session`, :mod:`.timing`, :mod:`.checks`) reads them afterwards and
+never touches a socket. A connection's bytes live in its
+:class:`~conformance.harness.transcript.Transcript` (``local`` is the suite, the box;
+``remote`` the robot; ``recv`` is what the robot sent); :class:`Exchange` adds what
+the box decided for each request and when its answer went out.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..endpoints.behaviour import BoxConfig
+from ..harness.transcript import Endpoint, Transcript
+from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Action, Profile, ResultCode
+
+#: ``--inject`` choices: box behaviours that show how the robot copes (INFORMATIONAL).
+INJECTIONS: dict[str, str] = {
+    "not-ready": "CycleOn is answered 0001 (box not ready, S2)",
+    "slow": "every answer is held back to 80 % of time_out (T1)",
+    "busy": "the vision result request is answered 202 (busy, E3)",
+    "close-mid-cycle": "the box closes the command connection right after answering CycleOn",
+}
+#: ``slow``: answers are held back by this share of ``time_out``.
+SLOW_SHARE = 0.8
+
+#: How a connection ended (ConnRecord.closed_by).
+BY_ROBOT, BY_ROBOT_RESET, BY_BOX, BY_SUITE = "robot", "robot-reset", "box", "suite"
+
+
+@dataclass(frozen=True)
+class CertifyConfig:
+    """Everything one ``certify-robot`` run needs (the CLI builds it from its flags)."""
+
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    udp: bool = True
+    profile: Profile = DEFAULT_PROFILE
+    #: sessions to judge before ending on its own
+    sessions: int = 1
+    #: seconds to wait for the robot to connect (each session), and the longest silence of a session
+    wait_s: float = 120.0
+    #: seconds the other connections may stay open after the command connection closed
+    linger_s: float = 5.0
+    #: seconds after the last close of a session with no command connection before it ends
+    grace_s: float = 1.0
+    #: a session is cut off after this many seconds
+    max_session_s: float = 600.0
+    #: judge the revision's session (E4) instead of S1
+    extension: bool = False
+    inject: tuple[str, ...] = ()
+    #: T2: mean and windowed rate within this share of the declared rate
+    rate_tolerance: float = 0.10
+    #: T2: p99 |interval - period| within this share of the period
+    jitter_tolerance: float = 0.50
+    report_dir: Path | None = None
+    pcap_dir: Path | None = None
+    command: str = ""
+
+    def __post_init__(self) -> None:
+        unknown = [i for i in self.inject if i not in INJECTIONS]
+        if unknown:
+            raise ValueError(f"unknown --inject {', '.join(unknown)}; choose from {', '.join(INJECTIONS)}")
+        if not 0 <= self.port <= 65535:
+            raise ValueError(f"port must be 0..65535, not {self.port}")
+        if not 1 <= self.sessions <= 1000:
+            raise ValueError(f"--sessions must be 1..1000, not {self.sessions}")
+        for name in ("wait_s", "linger_s", "grace_s", "max_session_s"):
+            if not 0 < getattr(self, name) <= 86_400:
+                raise ValueError(f"{name} must be in (0, 86400] seconds, not {getattr(self, name)}")
+        if not 0 < self.rate_tolerance < 1:
+            raise ValueError(f"rate tolerance must be in (0, 100) %, not {self.rate_tolerance * 100:g} %")
+        if not 0 < self.jitter_tolerance <= 10:
+            raise ValueError(f"jitter tolerance must be in (0, 1000] %, not {self.jitter_tolerance * 100:g} %")
+
+    @property
+    def slow_delay_s(self) -> float:
+        return SLOW_SHARE * self.profile.time_out_ms / 1000.0 if "slow" in self.inject else 0.0
+
+    def box_config(self) -> BoxConfig:
+        """The reference box's knobs for this run (the box always implements 26/27)."""
+        return BoxConfig(
+            profile=self.profile,
+            not_ready="not-ready" in self.inject,
+            vision_result=ResultCode.BUSY if "busy" in self.inject else ResultCode.OK,
+            extension=True,
+        )
+
+
+@dataclass
+class Exchange:
+    """One event the box decoded on a connection (a request, a malformed frame or
+    garbage) and what it did about it."""
+
+    offset: int  # stream offset of its first byte (TCP), datagram number (UDP)
+    t_request: float  # when the chunk that completed it arrived
+    action: int | None  # the request's action, when its header is a request header
+    reaction: str  # the box's Reaction value
+    answer: bytes | None = None  # the answer's bytes (None: silence)
+    answer_text: str = ""
+    error_code: int | None = None
+    value: int | None = None  # the type-03 block value of a 26/27 answer
+    t_answer: float | None = None  # when the answer was written (None: never)
+
+
+@dataclass
+class ConnRecord:
+    """One connection from the robot (or one UDP peer)."""
+
+    number: int  # within the session, from 1
+    transport: str  # "tcp" | "udp"
+    transcript: Transcript
+    local: Endpoint
+    peer: Endpoint
+    t_open: float
+    t_close: float | None = None
+    closed_by: str | None = None  # BY_ROBOT, BY_ROBOT_RESET, BY_BOX, BY_SUITE
+    close_note: str = ""
+    actions: list[int] = field(default_factory=list)  # request actions, in order
+    exchanges: list[Exchange] = field(default_factory=list)
+    pcap: Path | None = None
+
+    @property
+    def open(self) -> bool:
+        return self.t_close is None
+
+    @property
+    def role(self) -> str:
+        """``stream`` (poses only), ``command`` (any other request) or ``unknown`` (no request)."""
+        if not self.actions:
+            return "unknown"
+        return "stream" if all(a == Action.POSE for a in self.actions) else "command"
+
+    @property
+    def label(self) -> str:
+        return f"conn {self.number} ({self.role}, {self.transport} from {self.peer})"
+
+
+@dataclass
+class InjectionEvent:
+    name: str
+    t: float
+    conn: int
+    note: str
+
+
+@dataclass
+class SessionRecord:
+    number: int  # from 1
+    t_start: float
+    conns: list[ConnRecord] = field(default_factory=list)
+    t_end: float | None = None
+    end_reason: str = ""
+    last_activity: float = 0.0
+    injected: list[InjectionEvent] = field(default_factory=list)
+    pcap: Path | None = None  # every connection of the session in one file
+
+    @property
+    def tcp(self) -> list[ConnRecord]:
+        return [c for c in self.conns if c.transport == "tcp"]
+
+
+@dataclass
+class RunRecord:
+    config: CertifyConfig
+    t_start: float
+    t_end: float
+    host: str
+    tcp_port: int
+    udp_port: int | None
+    sessions: list[SessionRecord]
+    end_reason: str  # "complete", "wait", "interrupted"
+    end_note: str = ""
+    refused: int = 0
+    #: the suite's own failures (exceptions in callbacks): each becomes an ERROR case
+    errors: list[str] = field(default_factory=list)
+
+
+def monotonic_wall() -> Callable[[], float]:
+    """A clock that reads like ``time.time()`` but never jumps (perf_counter since now)."""
+    t0_wall, t0 = time.time(), time.perf_counter()
+    return lambda: t0_wall + (time.perf_counter() - t0)

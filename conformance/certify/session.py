@@ -1,0 +1,274 @@
+"""Canonical-order tracking (S1, E4) and awaited answers (A1/T1) for one session, sans-I/O.
+
+:func:`build_view` sorts a session's connections into the command connection, the
+stream connection(s) and the rest, and finds the *cut*: the first moment the box
+answered something other than 0000 (CycleOn 0001, a malformed frame's 1001, ProgIdx
+409, …), stayed silent on bytes that were not a request, or closed a connection itself
+(``--inject close-mid-cycle``). A robot may stop its session there, so what it did not
+do after the cut is INCONCLUSIVE, not FAIL (S2); what it did before is judged.
+
+The canonical sessions are data (:data:`S1_STEPS`, :data:`E4_STEPS`), like the robot
+simulator's: each step gets the time it was first observed, and :func:`judge_order`
+checks that every step happened, in that order, with each command sent once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..protocol import Action, ErrorCode, Profile, ResultCode
+from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, ConnRecord, Exchange, SessionRecord
+from .traffic import FrameRecord, decode_conn
+
+S1_STEPS: tuple[str, ...] = (
+    "command connect", "stream connect", "first pose", "CycleOn", "pose during the cycle", "CycleOff",
+    "stream close", "command disconnect",
+)
+E4_STEPS: tuple[str, ...] = (
+    "command connect", "ProgIdx", "stream connect", "first pose", "CycleOn", "pose during the cycle", "CycleOff",
+    "stream close", "result request", "command disconnect",
+)
+#: Commands of each canonical session, in order (each once; a 27 may repeat after a 202).
+S1_COMMANDS = (Action.CYCLE_ON, Action.CYCLE_OFF)
+E4_COMMANDS = (Action.PROG_IDX, Action.CYCLE_ON, Action.CYCLE_OFF, Action.VISION_RESULT)
+#: Requests allowed anywhere on the command connection: the optional ping, registrations.
+FREE_ACTIONS = frozenset({Action.NONE, Action.REGISTER_POSE, Action.TOLERANCE})
+#: E4: the revision waits this long between Send_Pos_Off and the result request.
+E4_RESULT_WAIT_S = 1.0
+#: A request sent this close to the bound after the previous one counts as "waited time_out".
+WAIT_SLACK = 0.98
+
+
+def action_name(action: int) -> str:
+    try:
+        return Action(action).name
+    except ValueError:
+        return f"0x{action:02X}"
+
+
+@dataclass(frozen=True)
+class Cut:
+    t: float
+    why: str
+
+
+@dataclass
+class SessionView:
+    session: SessionRecord
+    frames: dict[int, list[FrameRecord]]
+    exchanges: dict[tuple[int, int], Exchange]
+    cmd: ConnRecord | None
+    commands: list[ConnRecord]  # every command-role connection (cmd first)
+    streams: list[ConnRecord]
+    silent: list[ConnRecord]  # TCP connections that sent no request
+    cut: Cut | None
+    t0: float
+
+    def ms(self, t: float | None) -> str:
+        return "never" if t is None else f"+{(t - self.t0) * 1000:.1f} ms"
+
+    def requests(self, conn: ConnRecord) -> list[FrameRecord]:
+        return [r for r in self.frames.get(conn.number, []) if r.action is not None]
+
+    def pose_times(self, conn: ConnRecord) -> list[float]:
+        return [r.t for r in self.requests(conn) if r.action == Action.POSE]
+
+    def answer(self, rec: FrameRecord) -> Exchange | None:
+        return self.exchanges.get((rec.conn, rec.offset))
+
+    def before_cut(self, t: float | None) -> bool:
+        return t is not None and (self.cut is None or t <= self.cut.t)
+
+
+def build_view(session: SessionRecord, profile: Profile, interrupted: str = "") -> SessionView:
+    """The session sorted out. ``interrupted``: the run was stopped (a signal) during this
+    session, which is then a cut at its end (what did not happen is not judged)."""
+    frames = {c.number: decode_conn(c, profile) for c in session.conns}
+    exchanges = {(c.number, e.offset): e for c in session.conns for e in c.exchanges}
+    tcp = session.tcp
+    commands = [c for c in tcp if c.role == "command"]
+    silent = [c for c in tcp if c.role == "unknown"]
+    streams = [c for c in tcp if c.role == "stream"]
+    if not commands and silent and (not streams or silent[0].t_open <= streams[0].t_open):
+        # S1's command connection says nothing until CycleOn: a robot that stopped before
+        # it leaves a silent first connection, which is its command connection
+        commands, silent = [silent[0]], silent[1:]
+    t0 = min([session.t_start, *(c.t_open for c in session.conns)])
+    view = SessionView(session, frames, exchanges, commands[0] if commands else None, commands, streams, silent,
+                       None, t0)
+    view.cut = find_cut(view)
+    if interrupted and session.t_end is not None and (view.cut is None or view.cut.t > session.t_end):
+        view.cut = Cut(session.t_end, f"the run was interrupted ({interrupted})")
+    return view
+
+
+def find_cut(view: SessionView) -> Cut | None:
+    """The first refusal by the box: a non-0000 answer, silence on a non-request, a close."""
+    cuts: list[Cut] = []
+    for conn in view.session.conns:
+        for ex in conn.exchanges:
+            where = f"on connection {conn.number} ({conn.role})"
+            what = action_name(ex.action) if ex.action is not None else "bytes that are not a request"
+            if ex.answer is None and ex.reaction in ("silent", "close"):
+                cuts.append(Cut(ex.t_request, f"the box did not answer {what} {where} (A5)"))
+            elif ex.error_code not in (None, ErrorCode.OK):
+                cuts.append(Cut(ex.t_answer or ex.t_request, f"the box answered {what} with 0x{ex.error_code:04X} {where}"))
+            elif ex.action == Action.PROG_IDX and ex.value == ResultCode.CONFLICT:
+                cuts.append(Cut(ex.t_answer or ex.t_request, f"the box answered ProgIdx with 409 {where} (E2)"))
+        if conn.closed_by == BY_BOX and conn.t_close is not None:
+            cuts.append(Cut(conn.t_close, f"the box closed connection {conn.number} ({conn.close_note})"))
+    return min(cuts, key=lambda c: c.t) if cuts else None
+
+
+@dataclass
+class OrderResult:
+    steps: dict[str, float | None]
+    violations: list[str] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)  # FAIL: skipped, or never done without a cut
+    not_judged: list[str] = field(default_factory=list)  # INCONCLUSIVE: after the cut
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def failed(self) -> bool:
+        return bool(self.violations or self.missing)
+
+
+def observe_steps(view: SessionView) -> dict[str, float | None]:
+    cmd, stream = view.cmd, (view.streams[0] if view.streams else None)
+    first: dict[int, float] = {}
+    for conn in view.commands:
+        for rec in view.requests(conn):
+            action = rec.action
+            assert action is not None
+            first[action] = min(first.get(action, rec.t), rec.t)
+    poses = view.pose_times(stream) if stream else []
+    on, off = first.get(Action.CYCLE_ON), first.get(Action.CYCLE_OFF)
+    in_cycle = [t for t in poses if on is not None and t > on and (off is None or t < off)]
+    closed = (BY_ROBOT, BY_ROBOT_RESET)
+    return {
+        "command connect": cmd.t_open if cmd else None,
+        "ProgIdx": first.get(Action.PROG_IDX),
+        "stream connect": stream.t_open if stream else None,
+        "first pose": poses[0] if poses else None,
+        "CycleOn": on,
+        "pose during the cycle": in_cycle[0] if in_cycle else None,
+        "CycleOff": off,
+        "stream close": stream.t_close if stream and stream.closed_by in closed else None,
+        "result request": first.get(Action.VISION_RESULT),
+        "command disconnect": cmd.t_close if cmd and cmd.closed_by in closed else None,
+    }
+
+
+def judge_order(view: SessionView, extension: bool) -> OrderResult:
+    names = E4_STEPS if extension else S1_STEPS
+    seen = observe_steps(view)
+    result = OrderResult({n: seen[n] for n in names})
+    if not any(view.requests(c) for c in view.session.conns):
+        result.violations.append("the robot sent no request the box could read: no session took place")
+        return result
+    # 1. every step, in the canonical order. After the cut the robot may stop or tear its
+    # session down in any order: nothing after it is judged.
+    judged = view.before_cut
+    latest: tuple[float, str] | None = None
+    for i, name in enumerate(names):
+        t = seen[name]
+        if t is None or not judged(t):
+            later = [n for n in names[i + 1 :] if judged(seen[n])]
+            if t is None and (view.cut is None or later):
+                result.missing.append(_missing(view, name, later))
+            elif view.cut is not None:
+                result.not_judged.append(name)
+            continue
+        if latest is not None and t < latest[0]:
+            result.violations.append(f"{name} at {view.ms(t)} came {(latest[0] - t) * 1000:.2f} ms before "
+                                     f"{latest[1]} at {view.ms(latest[0])}; the canonical order puts it after")
+        if latest is None or t >= latest[0]:
+            latest = (t, name)
+    # 2. each command once, nothing foreign on the command connection
+    expected = E4_COMMANDS if extension else S1_COMMANDS
+    counts: dict[int, int] = {}
+    previous: FrameRecord | None = None
+    for conn in view.commands:
+        for rec in view.requests(conn):
+            if not judged(rec.t):
+                continue
+            action = rec.action
+            assert action is not None
+            polled = (action == Action.VISION_RESULT and previous is not None and previous.action == action
+                      and (view.answer(previous) or Exchange(0, 0, None, "")).value == ResultCode.BUSY)
+            previous = rec
+            if action in FREE_ACTIONS or polled:
+                continue
+            counts[action] = counts.get(action, 0) + 1
+            if action == Action.POSE and counts[action] == 1:
+                result.violations.append(f"POSE frames on the command connection {conn.number} (first at "
+                                         f"{view.ms(rec.t)}): poses belong on the stream connection")
+            elif action not in expected and action != Action.POSE and counts[action] == 1:
+                hint = " (the revision's session: rerun with --extension if the robot implements E4)" \
+                    if action in (Action.PROG_IDX, Action.VISION_RESULT) else ""
+                result.violations.append(f"{action_name(action)} at {view.ms(rec.t)} is not part of the canonical "
+                                         f"{'E4' if extension else 'S1'} session{hint}")
+            elif action in expected and counts[action] == 2:
+                result.violations.append(f"{action_name(action)} sent again at {view.ms(rec.t)}; the canonical "
+                                         "session sends it once")
+    # 3. one command and one stream connection
+    for extra, what in ((view.commands[1:], "command"), (view.streams[1:], "stream")):
+        extra = [c for c in extra if judged(c.t_open)]
+        if extra:
+            result.violations.append(f"{len(extra) + 1} {what} connections (also {', '.join(c.label for c in extra)}); "
+                                     f"the canonical session opens one")
+    for conn in view.silent:
+        result.notes.append(f"{conn.label} sent nothing (opened {view.ms(conn.t_open)}, closed {view.ms(conn.t_close)})")
+    if extension and seen["result request"] is not None and seen["stream close"] is not None:
+        waited = seen["result request"] - seen["stream close"]  # type: ignore[operator]
+        if 0 <= waited < E4_RESULT_WAIT_S:
+            result.notes.append(f"the result request came {waited * 1000:.0f} ms after Send_Pos_Off; the revision "
+                                f"waits {E4_RESULT_WAIT_S:g} s (noted, not judged)")
+    return result
+
+
+def _missing(view: SessionView, name: str, later: list[str]) -> str:
+    why = ""
+    if name in ("stream close", "command disconnect"):
+        conn = view.cmd if name == "command disconnect" else (view.streams[0] if view.streams else None)
+        if conn is not None and conn.closed_by == BY_SUITE:
+            why = f": the robot left it open ({conn.close_note})"
+        elif conn is None:
+            why = ": there is no such connection"
+    elif name in ("stream connect", "first pose") and not view.streams:
+        why = ": no connection carried only poses"
+    elif name == "command connect" and view.cmd is None:
+        why = ": no connection carried a command"
+    if later:
+        why += f" (skipped: {', '.join(later[:2])} happened)"
+    return f"{name} missing{why}"
+
+
+# -- A1/T1: the command connection waits for each answer ---------------------------------------------
+def awaited(view: SessionView, profile: Profile) -> tuple[int, list[str]]:
+    """(requests checked, violations): on command connections a request follows the previous
+    one's answer, or time_out (vision_time_out after a 27) without one; a close too."""
+    checked, bad = 0, []
+    for conn in view.commands:
+        requests = view.requests(conn)
+        for prev, cur in zip(requests, [*requests[1:], None]):
+            bound = (profile.vision_time_out_ms if prev.action == Action.VISION_RESULT else profile.time_out_ms) / 1000
+            ex = view.answer(prev)
+            answered = ex.t_answer if ex is not None else None
+            if cur is None:  # the last request: the robot may close only after the answer or the bound
+                t_next, what = conn.t_close, "closed the connection"
+                if conn.closed_by not in (BY_ROBOT, BY_ROBOT_RESET):
+                    continue
+            else:
+                t_next, what = cur.t, f"sent {action_name(cur.action or 0)}"
+            assert t_next is not None
+            if cur is not None:
+                checked += 1
+            if (answered is not None and answered <= t_next) or t_next - prev.t >= bound * WAIT_SLACK:
+                continue
+            state = (f"its answer went out at {view.ms(answered)}" if answered is not None
+                     else "no answer was coming (the box stays silent on it)")
+            bad.append(f"connection {conn.number}: {what} at {view.ms(t_next)}, {(t_next - prev.t) * 1000:.1f} ms after "
+                       f"{action_name(prev.action or 0)} ({view.ms(prev.t)}) and before its answer; {state}; "
+                       f"the robot waits up to {bound * 1000:.0f} ms")
+    return checked, bad

@@ -1,0 +1,261 @@
+"""What the robot sent, decoded from the transcripts (sans-I/O).
+
+:func:`decode_conn` replays a connection's ``recv`` chunks through the codec's
+:class:`~conformance.protocol.StreamDecoder` (``expect=ROBOT_TO_BOX``) and gives one
+:class:`FrameRecord` per event with the time its last byte arrived. The judging
+profile is the run's profile with ``tcp_check=zero``: a TCP *sender* MUST send 00 00
+(F6), whatever a receiver tolerates. :func:`byte_order_evidence` is the F4 heuristic
+(values absurd as read, plausible byte-swapped) and :func:`session_wire` the session's
+wire log for the report, seen from the box (``←`` from the robot, ``→`` the answers).
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+from ..harness.transcript import Kind, Transcript
+from ..protocol import (
+    Frame,
+    Profile,
+    ProtocolError,
+    StreamDecoder,
+    TcpCheckPolicy,
+    TransferType,
+    decode_datagram,
+)
+from ..protocol.constants import HEADER_LEN, START_WORD, VERSION, Action, BlockType
+from ..suite.verdicts import WireLine
+from .records import ConnRecord
+
+_FLOAT_ACTIONS = {Action.POSE: (BlockType.POSE, 6), Action.REGISTER_POSE: (BlockType.POSE, 6),
+                  Action.TOLERANCE: (BlockType.TOLERANCE, 1)}
+#: A pose value (mm or degrees) or a tolerance beyond this is not plausible.
+PLAUSIBLE_MAX = 1e6
+#: Values of at least this magnitude count as evidence (other-endian floats read as ~1e-40).
+PLAUSIBLE_MIN = 1e-6
+
+
+def judge_profile(profile: Profile) -> Profile:
+    """The profile frames are judged with: a TCP sender MUST send check 00 00 (F6)."""
+    return profile.replace(tcp_check=TcpCheckPolicy.ZERO)
+
+
+@dataclass(frozen=True)
+class FrameRecord:
+    """One decoder event from the robot: a frame or a ProtocolError, with its bytes."""
+
+    conn: int
+    transport: str
+    t: float
+    offset: int
+    raw: bytes
+    event: Frame | ProtocolError
+
+    @property
+    def error(self) -> ProtocolError | None:
+        return self.event if isinstance(self.event, ProtocolError) else None
+
+    @property
+    def action(self) -> int | None:
+        """The action, when the bytes have a readable request-like header (FE FE, 00 01)."""
+        if isinstance(self.event, Frame):
+            return int(self.event.action)
+        header = self.event.header
+        if header is None or header.start_word != START_WORD or header.version != VERSION:
+            return None
+        return int(header.action)
+
+    @property
+    def header_ok(self) -> bool:
+        """Start word and version readable: the frame's other fields can be judged."""
+        return self.action is not None
+
+    def describe(self) -> str:
+        if isinstance(self.event, Frame):
+            return self.event.describe()
+        return f"[{self.event.clause}] {self.event.message}"
+
+
+def decode_conn(conn: ConnRecord, profile: Profile) -> list[FrameRecord]:
+    """Every event of what the robot sent on ``conn`` (a TCP stream or UDP datagrams)."""
+    judged = judge_profile(profile)
+    if conn.transport == "udp":
+        out = []
+        for n, ev in enumerate(e for e in conn.transcript.events if e.kind == Kind.RECV):
+            try:
+                event: Frame | ProtocolError = decode_datagram(ev.data, judged, TransferType.ROBOT_TO_BOX)
+            except ProtocolError as exc:
+                event = exc
+            out.append(FrameRecord(conn.number, "udp", ev.t, n, ev.data, event))
+        return out
+    return decode_stream(conn.transcript, judged, conn.number)
+
+
+def decode_stream(transcript: Transcript, profile: Profile, conn: int = 1) -> list[FrameRecord]:
+    """The robot's TCP bytes (``recv`` events), frame by frame, each with its arrival time."""
+    decoder = StreamDecoder(profile, TransferType.ROBOT_TO_BOX)
+    stream = bytearray()
+    out: list[FrameRecord] = []
+
+    def drain(t: float) -> None:
+        while True:
+            start = decoder.offset
+            event = decoder.next_event()
+            if not isinstance(event, (Frame, ProtocolError)):
+                return
+            out.append(FrameRecord(conn, "tcp", t, start, bytes(stream[start:decoder.offset]), event))
+
+    last = 0.0
+    for ev in transcript.events:
+        if ev.kind == Kind.RECV and ev.data and not decoder.eof:
+            stream += ev.data
+            decoder.receive_data(ev.data)
+            last = ev.t
+            drain(ev.t)
+        elif ev.kind in (Kind.PEER_CLOSE, Kind.PEER_RESET) and not decoder.eof:
+            decoder.receive_data(b"")
+            drain(last or ev.t)  # a truncated frame's bytes arrived before the close
+    return out
+
+
+# -- F4: the byte-order heuristic ----------------------------------------------------------------
+def _reading(values: Iterable[float]) -> tuple[bool, int]:
+    """(absurd, normal): a reading is absurd with a non-finite value or one beyond
+    PLAUSIBLE_MAX; ``normal`` counts values of a plausible magnitude (residues like
+    1e-17 and zeros count for neither reading)."""
+    values = list(values)
+    absurd = any(not math.isfinite(v) or abs(v) > PLAUSIBLE_MAX for v in values)
+    return absurd, sum(1 for v in values if math.isfinite(v) and PLAUSIBLE_MIN <= abs(v) <= PLAUSIBLE_MAX)
+
+
+def compare_readings(straight: Iterable[float], swapped: Iterable[float]) -> str | None:
+    """``straight``, ``swapped`` or None (no evidence either way)."""
+    bad_a, n_a = _reading(straight)
+    bad_b, n_b = _reading(swapped)
+    if not bad_a and n_a and n_a >= n_b:
+        return "straight"
+    if not bad_b and n_b > n_a and (bad_a or 2 * n_a < n_b):
+        return "swapped"
+    return None
+
+
+def byte_order_evidence(rec: FrameRecord, profile: Profile) -> str | None:
+    """``"swapped"`` when the frame reads as absurd under the profile's byte order but
+    plausible in the other one, ``"straight"`` when it reads plausibly, None when the
+    frame says nothing about byte order (no values, all zero, not a whole frame)."""
+    raw = rec.raw
+    if len(raw) < HEADER_LEN + 2 or raw[:2] != b"\xfe\xfe":
+        return None
+    order = ">" if profile.byte_order == "big" else "<"
+    other = "<" if order == ">" else ">"
+    version, = struct.unpack_from(order + "H", raw, 2)
+    if version != VERSION:
+        return "swapped" if struct.unpack_from(other + "H", raw, 2)[0] == VERSION else None
+    _tt, action, block_type, count, length = struct.unpack_from(order + "BBBBH", raw, 4)
+    if len(raw) != HEADER_LEN + count * length + 2 or not count:
+        return None
+    f_order = ">" if profile.float_byte_order == "big" else "<"
+    f_other = "<" if f_order == ">" else ">"
+    if action in _FLOAT_ACTIONS and (block_type, length) == (_FLOAT_ACTIONS[Action(action)][0], 1 + 4 * _FLOAT_ACTIONS[Action(action)][1]):
+        n = _FLOAT_ACTIONS[Action(action)][1]
+        straight: list[float] = []
+        swapped: list[float] = []
+        for i in range(count):
+            at = HEADER_LEN + i * length + 1
+            straight += struct.unpack_from(f"{f_order}{n}f", raw, at)
+            swapped += struct.unpack_from(f"{f_other}{n}f", raw, at)
+        return compare_readings(straight, swapped)
+    if action == Action.PROG_IDX and (block_type, length) == (BlockType.VALUE, 5):
+        value, = struct.unpack_from(f_order + "i", raw, HEADER_LEN + 1)
+        value_swapped, = struct.unpack_from(f_other + "i", raw, HEADER_LEN + 1)
+        if value == 0:
+            return None
+        if 0 < abs(value) <= 0xFFFF:
+            return "straight"
+        return "swapped" if 0 < abs(value_swapped) <= 0xFFFF else None
+    return None
+
+
+# -- the wire log, seen from the box ------------------------------------------------------------------
+def _chunk_summary(decoder: StreamDecoder, data: bytes) -> tuple[str, bool]:
+    """(summary, only whole pose requests/answers without errors)."""
+    parts, poses_only = [], True
+    for event in decoder.feed(data):
+        if isinstance(event, Frame):
+            parts.append(event.describe())
+            poses_only = poses_only and event.action is Action.POSE and not event.error_code
+        else:
+            parts.append(f"[{event.clause}] {event.message}")
+            poses_only = False
+    if decoder.buffered:
+        parts.append(f"({decoder.buffered} bytes of an incomplete frame)")
+        poses_only = False
+    return "; ".join(parts), poses_only and bool(parts)
+
+
+def session_wire(conns: list[ConnRecord], profile: Profile, t0: float, keep_poses: int = 3,
+                 limit: int = 1500) -> list[WireLine]:
+    """The session's connections merged in time. Pose traffic on stream connections keeps
+    its first and last ``keep_poses`` chunks each way; the rest is one line (the pcap has it)."""
+    judged = judge_profile(profile)
+    rows: list[tuple[float, int, WireLine, bool]] = []
+    for conn in conns:
+        decoders = {Kind.RECV: StreamDecoder(judged, TransferType.ROBOT_TO_BOX),
+                    Kind.SEND: StreamDecoder(judged, TransferType.BOX_TO_ROBOT)}
+        for ev in conn.transcript.events:
+            t_ms = round((ev.t - t0) * 1000, 3)
+            if ev.kind in decoders:
+                if conn.transport == "udp":
+                    expect = TransferType.ROBOT_TO_BOX if ev.kind == Kind.RECV else TransferType.BOX_TO_ROBOT
+                    try:
+                        summary, pose = decode_datagram(ev.data, judged, expect).describe(), False
+                    except ProtocolError as exc:
+                        summary, pose = f"[{exc.clause}] {exc.message}", False
+                else:
+                    summary, pose = _chunk_summary(decoders[ev.kind], ev.data)
+                if ev.note:
+                    summary = f"{ev.note}: {summary}"
+                arrow = "←" if ev.kind == Kind.RECV else "→"
+                line = WireLine(t_ms, conn.number, arrow, ev.kind, ev.data.hex(" "), summary)
+                rows.append((ev.t, conn.number, line, pose and conn.role == "stream"))
+            else:
+                note = ev.note or ""
+                if ev.kind == Kind.CONNECT:
+                    note += f" ({conn.role}, {conn.transport} {conn.peer} → {conn.local})"
+                rows.append((ev.t, conn.number, WireLine(t_ms, conn.number, "·", ev.kind, "", note.strip()), False))
+    rows.sort(key=lambda r: r[0])
+    keep = set()
+    for conn in conns:
+        pose_rows = [i for i, r in enumerate(rows) if r[1] == conn.number and r[3]]
+        keep.update(pose_rows[: 2 * keep_poses] + pose_rows[-2 * keep_poses :])
+    out: list[WireLine] = []
+    omitted: dict[int, int] = {}
+    for i, (_t, conn_no, line, pose) in enumerate(rows):
+        if pose and i not in keep:
+            if conn_no not in omitted:
+                out.append(WireLine(line.t_ms, conn_no, "·", "note", "", "__omitted__"))
+            omitted[conn_no] = omitted.get(conn_no, 0) + 1
+            continue
+        out.append(line)
+    out = [WireLine(w.t_ms, w.conn, w.direction, w.kind, w.hex,
+                    f"… {omitted[w.conn]} chunks of pose traffic omitted here (all of them are in the pcap)")
+           if w.summary == "__omitted__" else w for w in out]
+    if len(out) > limit:
+        out = out[: limit - 1] + [WireLine(out[limit - 1].t_ms, 0, "·", "note", "",
+                                           f"… {len(out) - limit + 1} more lines in the pcap")]
+    return out
+
+
+def frame_wire(records: list[FrameRecord], t0: float, answers: dict[tuple[int, int], str] | None = None) -> list[WireLine]:
+    """Wire lines for a few frames (a case's offending frames), with the box's answer if any."""
+    lines = []
+    for rec in records:
+        lines.append(WireLine(round((rec.t - t0) * 1000, 3), rec.conn, "←", "recv", rec.raw[:512].hex(" "),
+                              f"offset {rec.offset}: {rec.describe()}"))
+        answer = (answers or {}).get((rec.conn, rec.offset))
+        if answer:
+            lines.append(WireLine(round((rec.t - t0) * 1000, 3), rec.conn, "→", "send", "", f"box answered {answer}"))
+    return lines
