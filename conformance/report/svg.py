@@ -82,27 +82,36 @@ def _spread(labels: list[tuple[float, str, str]], top: float, bottom: float, gap
     return [(max(y, top), c, t) for y, c, t in labels]
 
 
-def latency_svg(latencies_ms: Sequence[float], title: str, time_out_ms: float | None = None,
-                width: int = 640, height: int = 200) -> str:
-    """The latency of each request (in request order) as an SVG document string."""
+def _open(width: int, height: int, title: str, css: str) -> tuple[int, int, int, int, list[str]]:
+    """The SVG document's opening (size clamped, background, title): width, height, plot width/height, lines."""
     width, height = max(int(width), ML + MR + 40), max(int(height), MT + MB + 40)
-    pw, ph = width - ML - MR, height - MT - MB
-    n = len(latencies_ms)
-    finite = [max(0.0, float(v)) for v in latencies_ms if math.isfinite(v)]
-    lost = n - len(finite)
     out = [
         f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-        f'viewBox="0 0 {width} {height}" role="img" font-family="{FONT}" class="latency">',
+        f'viewBox="0 0 {width} {height}" role="img" font-family="{FONT}" class="{css}">',
         f"<title>{escape(clean_text(title))}</title>",
         f'<rect x="0" y="0" width="{width}" height="{height}" fill="#fff"/>',
         _text(ML, 15, title, size=11, fill="#111", extra=' font-weight="bold"'),
     ]
+    return width, height, width - ML - MR, height - MT - MB, out
+
+
+def _empty(out: list[str], pw: int, ph: int, message: str) -> str:
+    """Close an SVG that has no data: an empty plot frame with ``message`` in it."""
+    out.append(f'<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="none" stroke="{C_GRID}"/>')
+    out.append(_text(ML + pw / 2, MT + ph / 2 + 4, message, anchor="middle", size=11, fill="#777"))
+    out.append("</svg>")
+    return "\n".join(out)
+
+
+def latency_svg(latencies_ms: Sequence[float], title: str, time_out_ms: float | None = None,
+                width: int = 640, height: int = 200) -> str:
+    """The latency of each request (in request order) as an SVG document string."""
+    width, height, pw, ph, out = _open(width, height, title, "latency")
+    n = len(latencies_ms)
+    finite = [max(0.0, float(v)) for v in latencies_ms if math.isfinite(v)]
+    lost = n - len(finite)
     if not finite:
-        out.append(f'<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="none" stroke="{C_GRID}"/>')
-        msg = "no latency samples" if n == 0 else f"no answer to any of {n} requests"
-        out.append(_text(ML + pw / 2, MT + ph / 2 + 4, msg, anchor="middle", size=11, fill="#777"))
-        out.append("</svg>")
-        return "\n".join(out)
+        return _empty(out, pw, ph, "no latency samples" if n == 0 else f"no answer to any of {n} requests")
 
     ordered = sorted(finite)
     p50, p99, hi = percentile(ordered, 50), percentile(ordered, 99), ordered[-1]
@@ -217,22 +226,11 @@ def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms
     a stream on its period shows as one bar on the line, a bursty one as bars at 0 and at a
     multiple of the period. Outliers beyond 3 × p99 are counted in the last bar (marked ▲).
     """
-    width, height = max(int(width), ML + MR + 40), max(int(height), MT + MB + 40)
-    pw, ph = width - ML - MR, height - MT - MB
+    width, height, pw, ph, out = _open(width, height, title, "histogram")
     bins = max(1, min(int(bins), pw))
     finite = sorted(max(0.0, float(v)) for v in values_ms if math.isfinite(v))
-    out = [
-        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-        f'viewBox="0 0 {width} {height}" role="img" font-family="{FONT}" class="histogram">',
-        f"<title>{escape(clean_text(title))}</title>",
-        f'<rect x="0" y="0" width="{width}" height="{height}" fill="#fff"/>',
-        _text(ML, 15, title, size=11, fill="#111", extra=' font-weight="bold"'),
-    ]
     if not finite:
-        out.append(f'<rect x="{ML}" y="{MT}" width="{pw}" height="{ph}" fill="none" stroke="{C_GRID}"/>')
-        out.append(_text(ML + pw / 2, MT + ph / 2 + 4, "no interval samples", anchor="middle", size=11, fill="#777"))
-        out.append("</svg>")
-        return "\n".join(out)
+        return _empty(out, pw, ph, "no interval samples")
     p50, p99, hi = percentile(finite, 50), percentile(finite, 99), finite[-1]
     top = CLIP_FACTOR * p99 if p99 > 0 and hi > CLIP_FACTOR * p99 else hi
     if expected_ms and expected_ms > 0:
