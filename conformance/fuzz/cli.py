@@ -1,0 +1,238 @@
+"""The ``fuzz`` and ``replay`` subcommands (their arguments and their main functions).
+
+Exit status, like ``run``: 0 no failure, 1 a failure was found (fuzz) or a vector
+still fails (replay), 2 usage error or unreachable target.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import shlex
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from ..harness.target import Target
+from ..harness.transcript import Transcript
+from ..options import add_profile_options, profile_from_options
+from ..protocol import DEFAULT_PORT, Profile
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+#: Where the example database lives by default (relative to the current directory).
+DEFAULT_DATABASE = Path(".hypothesis") / "isight-fuzz"
+
+
+def _targets(p: argparse.ArgumentParser | Any) -> None:
+    p.add_argument("--target", metavar="HOST:PORT", help="the AI Box over TCP (default: start the bundled reference box)")
+    p.add_argument("--udp-target", metavar="HOST:PORT", help="the box's UDP endpoint (UDP cases only with it; "
+                   "the bundled box's UDP port when no --target is given)")
+    p.add_argument("--extension", choices=("auto", "on", "off"), default="auto",
+                   help="extension E (actions 26/27): detect (auto, default), or force on/off")
+
+
+def add_fuzz_arguments(p: argparse.ArgumentParser) -> None:
+    _targets(p)
+    p.add_argument("--stream-target", metavar="HOST:PORT", help="where the session machine's stream connection "
+                   "goes (default: --target)")
+    budget = p.add_mutually_exclusive_group()
+    budget.add_argument("--max-examples", type=int, metavar="N", help="fuzz cases to send (default: 5000)")
+    budget.add_argument("--duration", type=float, metavar="S", help="seconds to fuzz for")
+    p.add_argument("--seed", type=int, metavar="N", help="the campaign's seed (printed at the start; default: random)")
+    p.add_argument("--report-dir", metavar="DIR", help="fuzz-summary.json and one vector file per failure "
+                   "(default: reports/fuzz-<timestamp>)")
+    p.add_argument("--pcap-dir", metavar="DIR", help="one pcapng per failure (default: pcaps/fuzz-<timestamp>)")
+    p.add_argument("--capture", choices=("failures", "all", "off"), default="failures",
+                   help="pcaps of the failing examples (default), also every case of the campaign (all: "
+                        "campaign-NNN.pcapng, about 0.8 KB per case), or none")
+    p.add_argument("--database", metavar="DIR|none", help="hypothesis example database: failures found before are "
+                   f"replayed first (default: {DEFAULT_DATABASE}, or none when the active hypothesis profile, "
+                   "e.g. its built-in 'ci' profile, switches the database off)")
+    p.add_argument("--stateful-share", type=float, default=0.2, metavar="F",
+                   help="share of the budget for the session state machine (default: 0.2; 0: frames only)")
+    p.add_argument("--categories", metavar="LIST", help="only these case categories, comma-separated "
+                   "(e.g. B3-index,B4-floats; see docs/FUZZING.md)")
+    p.add_argument("--batch", type=int, default=32, metavar="N", help="most cases per hypothesis example (default: 32)")
+    p.add_argument("--liveness-every", type=int, default=64, metavar="K",
+                   help="[R2] liveness check on a fresh connection every K cases, and after every anomaly (default: 64)")
+    p.add_argument("--max-failures", type=int, default=5, metavar="N", help="stop after N distinct failures (default: 5)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    group = p.add_argument_group("profile")
+    add_profile_options(group.add_argument)
+
+
+def add_replay_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("files", nargs="+", metavar="FILE", help="isight-vectors-1 files (golden vectors or fuzz failures)")
+    _targets(p)
+    p.add_argument("--tc", type=int, action="append", metavar="ID", help="only this tcId (repeatable)")
+    p.add_argument("--one-connection", action="store_true",
+                   help="send every vector on one connection, in file order (a fuzz 'context' failure)")
+    p.add_argument("--settle-ms", type=int, default=0, metavar="MS",
+                   help="after each probe's answer, watch this long for late extra answers (default: 0)")
+    group = p.add_argument_group("profile")
+    add_profile_options(group.add_argument)
+
+
+# -- shared -------------------------------------------------------------------------------------
+
+
+def _parse_target(text: str | None) -> Target | None:
+    return Target.parse(text, DEFAULT_PORT) if text else None
+
+
+class _Box:
+    """The bundled reference box for a command without --target (restartable: R2 identification)."""
+
+    def __init__(self, profile: Profile) -> None:
+        from ..endpoints.behaviour import BoxConfig
+        from ..endpoints.box import BoxThread
+
+        self._make = lambda port: BoxThread(BoxConfig(profile=profile), host="127.0.0.1", port=port).start()
+        self.thread = self._make(0)
+        self.port = self.thread.tcp_port
+        self.udp_port = self.thread.udp_port
+
+    def restart(self) -> None:
+        self.thread.stop()
+        self.thread = self._make(self.port)
+
+    def stop(self) -> None:
+        self.thread.stop()
+
+
+@contextmanager
+def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tuple[Target, Target | None, _Box | None]]:
+    """(target, udp target, the bundled box if started); raises SystemExit(2) when unreachable."""
+    from ..runner import check_reachable
+
+    target, udp = _parse_target(args.target), _parse_target(args.udp_target)
+    if target is not None:
+        problem = check_reachable(target, profile.time_out_ms / 1000)
+        if problem:
+            print(f"isight-conformance {name}: {problem}", file=sys.stderr)
+            raise SystemExit(EXIT_USAGE)
+        yield target, udp, None
+        return
+    box = _Box(profile)
+    try:
+        yield Target("127.0.0.1", box.port), udp or (Target("127.0.0.1", box.udp_port) if box.udp_port else None), box
+    finally:
+        box.stop()
+
+
+def _extension(mode: str, target: Target, profile: Profile, transcript: Transcript) -> tuple[bool, str]:
+    from ..suite.context import SessionState
+    from ..suite.settings import SuiteSettings
+
+    state = SessionState(SuiteSettings(target=target, profile=profile, extension=mode))
+    supported = state.detect_extension(transcript)
+    return supported, state.extension_how
+
+
+def resolve_database(value: str | None) -> tuple[Any, str]:
+    """(ExampleDatabase or None, how to describe it)."""
+    from hypothesis import settings
+    from hypothesis.database import DirectoryBasedExampleDatabase
+
+    if value is not None and value.lower() == "none":
+        return None, "off (--database none)"
+    active = settings.default
+    if value is None and active is not None and active.database is None:
+        return None, f"off (the active hypothesis profile {settings.get_current_profile_name()!r} has no database)"
+    path = Path(value) if value else DEFAULT_DATABASE
+    return DirectoryBasedExampleDatabase(path), str(path)
+
+
+def _run_guarded(name: str, body: Callable[[], int]) -> int:
+    try:
+        return body()
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    except ValueError as exc:
+        print(f"isight-conformance {name}: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+# -- fuzz ---------------------------------------------------------------------------------------------
+
+
+def main_fuzz(args: argparse.Namespace) -> int:
+    return _run_guarded("fuzz", lambda: _fuzz(args))
+
+
+def _fuzz(args: argparse.Namespace) -> int:
+    from .campaign import Campaign, CampaignConfig
+
+    profile = profile_from_options(args)
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    report_dir = Path(args.report_dir) if args.report_dir else Path("reports") / f"fuzz-{stamp}"
+    pcap_dir = Path(args.pcap_dir) if args.pcap_dir else Path("pcaps") / f"fuzz-{stamp}"
+    database, db_label = resolve_database(args.database)
+    categories = tuple(c.strip() for c in (args.categories or "").split(",") if c.strip())
+    quiet = args.quiet
+    with _box(args, profile, "fuzz") as (target, udp, box):
+        extension, how = _extension(args.extension, target, profile, Transcript(case_id="FUZZ-extension"))
+        config = CampaignConfig(
+            target=target, profile=profile, udp_target=udp, stream_target=_parse_target(args.stream_target),
+            seed=args.seed, max_examples=args.max_examples if args.max_examples or args.duration else 5000,
+            duration_s=args.duration, report_dir=report_dir, pcap_dir=pcap_dir, capture=args.capture,
+            database=database, database_label=db_label, extension=extension, batch=args.batch,
+            liveness_every=args.liveness_every, max_failures=args.max_failures, categories=categories,
+            stateful_share=args.stateful_share, restart=box.restart if box is not None else None, bundled=box is not None,
+            log=(lambda line: None if line.startswith("fuzz: ") and " examples (" in line else print(line, flush=True))
+            if quiet else (lambda line: print(line, flush=True)),
+            command=" ".join(shlex.quote(a) for a in sys.argv),
+        )
+        if not quiet:
+            print(f"fuzz: extension E {how}", flush=True)
+        try:
+            summary = Campaign(config).run()
+        except Exception as exc:  # the suite's own fault, never the box's
+            print(f"isight-conformance fuzz: internal error: {type(exc).__name__}: {exc}", file=sys.stderr)
+            return EXIT_USAGE
+    failures = summary["failures"]
+    rate = summary["examples_per_s"]
+    print(f"fuzz: {summary['examples']:,} examples in {summary['duration_s']:.1f} s "
+          f"({rate:,.0f}/s{' frames' if summary['stateful']['steps'] else ''}); "
+          f"{summary['stateful']['steps']:,} session steps in {summary['stateful']['runs']} sessions; "
+          f"{len(failures)} failures; {len(summary['non_strict'])} kinds of NON-STRICT")
+    for obs in summary["non_strict"]:
+        print(f"  NON-STRICT [{obs['clause']}] {obs['requirement']} (×{obs['count']}, first on {obs['hex'][:80]})")
+    for f in failures:
+        print(f"  FAIL {f['number']} [{', '.join(f['clauses'])}] {f['message']}")
+        print(f"       vector: {f['vector']}" + (f"  pcap: {f['pcap']}" if f["pcap"] else ""))
+    print(f"fuzz: summary {report_dir / 'fuzz-summary.json'}; seed {summary['seed']}")
+    return EXIT_FAILED if failures else EXIT_OK
+
+
+# -- replay -------------------------------------------------------------------------------------------
+
+
+def main_replay(args: argparse.Namespace) -> int:
+    return _run_guarded("replay", lambda: _replay(args))
+
+
+def _replay(args: argparse.Namespace) -> int:
+    from .replay import load_files, replay, summary_line
+
+    profile = profile_from_options(args)
+    try:
+        vectors = load_files(args.files, args.tc or ())
+    except (OSError, ValueError, KeyError) as exc:
+        print(f"isight-conformance replay: cannot read the vectors: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if not vectors:
+        print("isight-conformance replay: no vectors selected", file=sys.stderr)
+        return EXIT_USAGE
+    with _box(args, profile, "replay") as (target, udp, _box_started):
+        transcript = Transcript(case_id="REPLAY")
+        extension, how = _extension(args.extension, target, profile, transcript)
+        print(f"replay: {len(vectors)} vectors to {target}" + (f", UDP {udp}" if udp else "")
+              + f"; profile {profile.describe()}; extension E {how}", flush=True)
+        results = replay(vectors, target, profile, udp_target=udp, extension=extension,
+                         one_connection=args.one_connection, settle_s=args.settle_ms / 1000, transcript=transcript,
+                         log=lambda line: print("  " + line, flush=True))
+    print(summary_line(results))
+    return EXIT_FAILED if any(r.failing for r in results) else EXIT_OK

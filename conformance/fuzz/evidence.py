@@ -1,0 +1,131 @@
+"""Evidence of a fuzz failure: an ``isight-vectors-1`` file and a pcapng of the failing example.
+
+The vector file holds the (shrunk) bytes as one test per case, with the clauses it
+breaks, ``result`` as a conforming receiver must read the bytes (``invalid`` for a
+malformed frame, ``valid`` with its ``frame`` for a well-formed request the box
+mishandled) and a ``comment`` saying what the box did. ``isight-conformance replay
+FILE`` resends it. The pcap is synthesised from the socket transcript of the
+evidence run (a fresh connection: the bytes, the probe, the liveness check) with
+:func:`~conformance.evidence.pcap.write_transcript`.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..evidence.pcap import write_transcript
+from ..harness.transcript import Transcript
+from ..protocol import Frame, Profile, ProtocolError, TransferType, Transport, parse_frame
+from ..suite.catalogue import _CLAUSE
+from ..vectors import frame_to_dict, write
+from .strategies import FuzzCase
+
+
+@dataclass
+class Failure:
+    """One distinct failure a campaign found."""
+
+    number: int
+    kind: str  # "oracle" (shrunk by hypothesis), "death" (R2), "context" (only on a reused connection), "stateful"
+    clauses: list[str]
+    message: str  # the requirement and what the box did
+    cases: list[FuzzCase] = field(default_factory=list)
+    shrunk: bool = False
+    confirmed: bool = True
+    vector: Path | None = None
+    pcap: Path | None = None
+    sequence: Path | None = None
+    steps: list[str] = field(default_factory=list)  # stateful: the (shrunk) rule sequence
+    found_after: int = 0  # examples generated before it was found
+
+    @property
+    def hex(self) -> str:
+        return " ".join(c.wire.hex() for c in self.cases)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "number": self.number, "kind": self.kind, "clauses": self.clauses, "message": self.message,
+            "cases": [{"kind": c.kind, "note": c.note, "transport": c.transport.value, "eof": c.eof,
+                       "hex": c.wire.hex()} for c in self.cases],
+            "shrunk": self.shrunk, "confirmed": self.confirmed, "steps": self.steps, "found_after": self.found_after,
+            "vector": str(self.vector) if self.vector else None, "pcap": str(self.pcap) if self.pcap else None,
+            "sequence": str(self.sequence) if self.sequence else None,
+        }
+
+
+def clauses_of(case: FuzzCase, extra: Sequence[str] = ()) -> list[str]:
+    """The case's clauses for a vector: the decoder's first, then the strategy's, then ``extra``."""
+    out: list[str] = []
+    for c in (case.first_clause, case.clause, *(e.clause for e in case.expects), *extra):
+        for part in c.split("/"):
+            if part and _CLAUSE.match(part) and part not in out:
+                out.append(part)
+    return out or ["A1"]
+
+
+def _frame(case: FuzzCase, profile: Profile) -> Frame | None:
+    """The request the bytes are, when they are exactly one well-formed frame."""
+    if case.filler or case.eof:
+        return None
+    try:
+        return parse_frame(case.data, profile, case.transport, TransferType.ROBOT_TO_BOX)
+    except ProtocolError:
+        return None
+
+
+def vector_entry(tc_id: int, case: FuzzCase, profile: Profile, comment: str, clauses: Sequence[str]) -> dict[str, Any]:
+    frame = _frame(case, profile) if case.valid else None
+    entry: dict[str, Any] = {
+        "tcId": tc_id,
+        "comment": comment,
+        "clauses": list(clauses),
+        "flags": [],
+        "result": "valid" if frame is not None else "invalid",
+        "hex": case.wire.hex(),
+    }
+    if frame is not None:
+        entry["frame"] = frame_to_dict(frame)
+    return entry
+
+
+def write_vectors(path: Path, failure: Failure, profile: Profile, description: str) -> Path:
+    """The failure's cases as an ``isight-vectors-1`` file (one group per transport)."""
+    groups: dict[Transport, dict[str, Any]] = {}
+    for i, case in enumerate(failure.cases, 1):
+        group = groups.get(case.transport)
+        if group is None:
+            group = groups[case.transport] = {
+                "transport": case.transport.value,
+                "crc": profile.crc,
+                "direction": "robot-to-box",
+                "profile": {"firstIndex": profile.first_index, "crcByteOrder": profile.crc_byte_order},
+                "tests": [],
+            }
+        where = f" (case {i} of {len(failure.cases)}, in this order on one connection)" if failure.kind == "context" else ""
+        comment = f"fuzz failure {failure.number} ({failure.kind}){where}: {case.describe()}. {failure.message}"
+        group["tests"].append(vector_entry(len(group["tests"]) + 1, case, profile, comment,
+                                           clauses_of(case, failure.clauses)))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    notes: dict[str, str] = {}
+    if profile.byte_order != "big" or profile.float_byte_order != "big":
+        description += (f" Profile: byte order {profile.byte_order}, float byte order {profile.float_byte_order} "
+                        "(the vectors are in that order).")
+    write(path, list(groups.values()), notes, description)
+    return path
+
+
+def write_pcap(transcript: Transcript, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return write_transcript(transcript, path)
+
+
+def write_summary(path: Path, summary: dict[str, Any]) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(summary, indent=1, default=str) + "\n", encoding="utf-8")
+    tmp.replace(path)
+    return path

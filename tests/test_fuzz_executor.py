@@ -1,0 +1,108 @@
+"""The fuzz executor (conformance/fuzz/executor.py): probes, connection reuse, isolation, liveness, UDP."""
+
+from __future__ import annotations
+
+import pytest
+
+from conformance.endpoints.behaviour import BoxConfig
+from conformance.fuzz.executor import Executor, alive
+from conformance.fuzz.strategies import Strategies
+from conformance.harness.client import Answer, Closed, Silence
+from conformance.harness.target import Target
+from conformance.harness.transcript import Transcript
+from conformance.protocol import Action, Profile, Transport, answer, encode, encode_udp, pose_blocks, request
+from conformance.suite.verdicts import Verdict
+from tests.boxes import ScriptedBox, answering, silent
+from tests.test_fuzz_campaign import patched_box, zero_to_bad_pose_index
+
+pytestmark = pytest.mark.timeout(60)
+P = Profile()
+S = Strategies(P, extension=True, udp=True)
+POSE = encode(request(Action.POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)])))
+BAD_INDEX = encode(request(Action.POSE, pose_blocks([(0.0,) * 6], first_index=1)))
+
+
+def executor(port: int, udp: int | None = None, **kw: object) -> Executor:
+    return Executor(Target("127.0.0.1", port), P, Transcript("T"), udp_target=Target("127.0.0.1", udp) if udp else None,
+                    **kw)  # type: ignore[arg-type]
+
+
+def test_cases_against_the_bundled_box_pass_and_reuse_one_connection() -> None:
+    with patched_box() as box:
+        ex = executor(box.tcp_port, box.udp_port, liveness_every=4)
+        results = [ex.run(S.case("t", "", data, "t")) for data in (POSE, BAD_INDEX, b"garbage", POSE)]
+        ex.close()
+    assert [r.verdict for r in results] == [Verdict.PASS] * 4
+    assert len({r.conn for r in results}) == 1 and results[0].fresh and not results[1].fresh
+    assert isinstance(results[0].outcomes[0], Answer) and results[1].outcomes[0].frame.error_code == 0x1001
+    assert results[2].outcomes == [] and results[2].probe is Action.NONE  # silence, bounded by the probe
+    assert results[3].liveness is not None and alive(results[3].liveness)  # every 4th case
+    assert ex.stats.liveness_checks == 1 and ex.stats.connections == 1
+
+
+def test_isolation_opens_a_connection_per_case_and_truncation_ends_the_stream() -> None:
+    with patched_box() as box:
+        ex = executor(box.tcp_port)
+        ex.isolate = ex.settle = True
+        a, b = ex.run(S.case("t", "", POSE, "t")), ex.run(S.case("t", "", POSE, "t"))
+        cut = ex.run(S.case("t", "F5", POSE[:20], "t", eof=True))
+        ex.close()
+    assert a.conn != b.conn and a.verdict is b.verdict is Verdict.PASS
+    assert cut.verdict is Verdict.PASS and isinstance(cut.end, Closed) and cut.liveness is None  # a normal end
+
+
+def test_a_planted_defect_fails_and_a_box_closing_on_garbage_is_allowed() -> None:
+    with patched_box(zero_to_bad_pose_index) as box:
+        ex = executor(box.tcp_port)
+        bad = ex.run(S.case("t", "B3", BAD_INDEX, "t"))
+        ex.close()
+    assert bad.verdict is Verdict.FAIL and bad.anomaly and bad.liveness is not None
+    assert bad.judgement.failures[0].clause == "B3"
+    with patched_box(config=BoxConfig(on_garbage="close")) as box:
+        ex = executor(box.tcp_port)
+        garbage = ex.run(S.case("t", "F1", b"garbage", "t"))
+        after = ex.run(S.case("t", "", POSE, "t"))
+        ex.close()
+    assert garbage.verdict is Verdict.PASS and isinstance(garbage.end, Closed)
+    assert after.verdict is Verdict.PASS and after.fresh and after.conn != garbage.conn
+
+
+def test_a_silent_box_fails_within_the_time_out() -> None:
+    with ScriptedBox(silent) as box:
+        ex = executor(box.port, time_out_s=0.3)
+        result = ex.run(S.case("t", "", POSE, "t"))
+        ex.close()
+    assert result.verdict is Verdict.FAIL and isinstance(result.end, Silence)
+    assert {f.clause for f in result.judgement.failures} == {"T1", "A1"}
+    assert result.liveness is not None and not alive(result.liveness)
+
+
+def test_a_box_answering_twice_is_caught_even_when_the_extra_answer_looks_like_the_probe_s() -> None:
+    with ScriptedBox(answering(lambda f: encode(answer(f.action)) * 2)) as box:
+        ex = executor(box.port, time_out_s=1.0)
+        result = ex.run(S.case("t", "", POSE, "t"))
+        ex.close()
+    assert result.verdict is Verdict.FAIL
+    assert {f.clause for f in result.judgement.failures} == {"A1"}
+    assert isinstance(result.end, Answer) and result.end.frame.action is Action.NONE
+
+
+def test_udp_cases_go_to_the_udp_target() -> None:
+    with patched_box() as box:
+        ex = executor(box.tcp_port, box.udp_port)
+        good = ex.run(S.case("t", "", encode_udp(request(Action.NONE)), "t", Transport.UDP))
+        bad = ex.run(S.case("t", "F7", encode_udp(request(Action.NONE))[:-1] + b"\x00", "t", Transport.UDP))
+        ex.close()
+    assert good.verdict is bad.verdict is Verdict.PASS
+    assert isinstance(good.outcomes[0], Answer) and bad.outcomes == []  # R7: dropped silently
+    assert ex.stats.udp == 2
+
+
+def test_a_probe_answered_with_an_error_ends_the_wait_at_once() -> None:
+    """No time_out wait when the box answers the probe with an error (S3 broken for the POSE probe)."""
+    with ScriptedBox(answering(lambda f: encode(answer(f.action, 0x1001 if f.action == Action.POSE else 0)))) as box:
+        ex = executor(box.port, time_out_s=5.0)
+        result = ex.run(S.case("t", "", encode(request(Action.NONE)), "t"))
+        ex.close()
+    assert result.probe is Action.POSE and isinstance(result.end, Answer) and result.end.frame.error_code == 0x1001
+    assert [f.key for f in result.judgement.failures] == ["probe/code"]  # judged, not waited out as a hang
