@@ -118,3 +118,20 @@ def test_udp_channel_decodes_datagrams_and_times_out() -> None:
     ch.close()
     server.close()
     assert [e.kind for e in t.events] == [Kind.SEND, Kind.RECV]
+
+
+def test_bytes_sent_before_a_reset_are_recorded_before_it() -> None:
+    import socket
+    import struct
+
+    def read_then_reset(conn: socket.socket) -> None:
+        conn.recv(100)
+        conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        conn.close()
+
+    with ScriptedBox(read_then_reset) as box:
+        t = Transcript("t")
+        conn = _conn(box, t)
+        assert conn.send(b"\x00" * 20_000_000, "a big send the box resets") is False
+    kinds = [e.kind for e in t.events]
+    assert Kind.SEND in kinds and kinds.index(Kind.SEND) < kinds.index(Kind.PEER_RESET)

@@ -173,9 +173,9 @@ class TcpConnection:
                     break
                 select.select([], [self.sock], [], 0.05)
             except OSError as exc:
-                self._peer_gone(exc)
-                if sent:
+                if sent:  # what went out before the reset, recorded before it
                     self.transcript.add(self.conn_id, Kind.SEND, data[:sent], note)
+                self._peer_gone(exc)
                 return False
         self.transcript.add(self.conn_id, Kind.SEND, data[:sent], note)
         return sent == len(data)
