@@ -493,3 +493,22 @@ def test_oversize_header_and_garbage(tmp_path):
     assert any("[F1]" in m and "R6" in m for m in expert_messages(packets[8]))
     decoded = [f for f in frames if "isight.action" in f]
     assert len(decoded) == 2 and all(int(f["isight.action"], 0) == 1 for f in decoded)
+
+
+def test_header_with_a_bad_version_is_skipped_like_the_codec_does(tmp_path):
+    """F2/R6: a header whose version is not 00 01 is not trusted for framing; the frames
+    after it decode (the codec's stream decoder and the reference box skip it too)."""
+    bad = bytes.fromhex("fefe00810127000000000000") + b"\x00"
+    none = bytes.fromhex("fefe000101000000000000000000")
+    pose = bytes.fromhex("fefe0001012301010019000000") + bytes(24) + b"\x00\x00"
+    c = TcpConnection(37000, SERVER_PORT)
+    c.send(bad + none)
+    c.send(pose)
+    write_pcap(tmp_path / "v.pcap", c.packets)
+    packets, _ = run_tshark(tmp_path / "v.pcap", _prefs())
+    decoded = [f for p in packets.values() for f in isight_frames(p) if "isight.action" in f]
+    actions = [int(f["isight.action"], 0) for f in decoded]
+    assert actions == [0x00, 0x23], actions
+    msgs = [m for p in packets.values() for m in expert_messages(p)]
+    assert any("[F2]" in m and "R6" in m for m in msgs), msgs
+    assert not any("[F3]" in m or "[A5]" in m or "[B5]" in m for m in msgs), msgs

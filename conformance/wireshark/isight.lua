@@ -609,6 +609,19 @@ local function dissect_tcp(tvb, pinfo, tree)
             offset = offset + garbage
         elseif frame_len == nil then
             return need_more(DESEGMENT_ONE_MORE_SEGMENT)
+        elseif tvb(offset + 2, 2):uint() ~= 0x0001 then
+            -- F2/R6: a header whose version is not 00 01 is not trusted for framing (the
+            -- codec's stream decoder and the reference box skip to the next start word too)
+            local version = tvb(offset + 2, 2):uint()
+            local next_start = find_next_start(tvb, offset + 2)
+            local skip = next_start and (next_start - offset) or remaining
+            local item = tree:add(isight, tvb(offset, skip), "iSight header with an unknown version")
+            item:add(f.start_word, tvb(offset, 2))
+            item:add(f.version, tvb(offset + 2, 2))
+            item:add_proto_expert_info(ef.malformed, string.format(
+                "[F2] version %s, expected 0x0001: %d bytes skipped to the next FE FE 00 01 (R6)", hex(version, 4), skip))
+            infos[#infos + 1] = string.format("version %s, %d bytes skipped [MALFORMED]", hex(version, 4), skip)
+            offset = offset + skip
         elseif frame_len > MAX_FRAME_LEN then
             -- R5: never wait for an impossible frame; show what is there as malformed.
             infos[#infos + 1] = dissect_frame(tvb(offset, remaining):tvb(), pinfo, tree, "tcp")
