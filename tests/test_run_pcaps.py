@@ -17,12 +17,8 @@ server port, and:
 * a packet whose bytes belong only to *valid* frames (as the codec decodes the
   transcript) carries no malformed marker (``_ws.malformed``) and no iSight error
   expert: the dissector flags deliberately malformed frames, and only those (a fuzz
-  pcap must show some flagged ones, so the dissector is seen to be at work). One
-  exception, counted and printed: the segment right after malformed bytes. The
-  dissector decodes a header with a damaged version but sane lengths as a frame
-  (isight.lua README) where the codec and the box skip to the next FE FE, so after
-  such bytes the two frame the stream differently until the next header; the
-  dissector must be back in step by the following segment.
+  pcap must show some flagged ones, so the dissector is seen to be at work). The
+  dissector frames the stream exactly as the codec does, resynchronisation included.
 
 Skipped only when tshark is missing.
 """
@@ -53,8 +49,6 @@ CASES = [
 ]
 #: Cases whose streams are also compared with Wireshark's own reassembly (-z follow).
 FOLLOW = ("R3-01", "R3-02", "R4-01", "R2-01", "B1-01", "A1-01", "SEQ-R3")
-#: Valid frames the dissector flagged right after malformed bytes it framed differently (see check_case).
-RESYNC: list[str] = []
 #: Streams compared with Wireshark's own reassembly, and bytes compared with the transcripts.
 COMPARED = {"followed": 0, "bytes": 0}
 FIELDS = ("frame.number", "tcp.stream", "tcp.srcport", "tcp.dstport", "udp.srcport", "udp.dstport", "tcp.seq",
@@ -276,14 +270,8 @@ def check_case(case_id: str, ctx: Any, run: Run) -> list[str]:
                     problems.append(f"{where} frame {p.number}: seq {p.seq}, expected {offset}")
                 offset = p.nxtseq
             ranges = frame_ranges(want, expect, profile)
-            for i, p in enumerate(seg):
+            for p in seg:
                 if not (p.flagged and only_valid(ranges, p.seq - 1, p.nxtseq - 1)):
-                    continue
-                before = seg[i - 1] if i else None
-                if before is not None and not only_valid(ranges, before.seq - 1, before.nxtseq - 1):
-                    # the segment before held malformed bytes that the dissector framed differently from the
-                    # codec (it trusts a damaged header's lengths); it is back in step one segment later (R6)
-                    RESYNC.append(f"{case_id} frame {p.number}")
                     continue
                 problems.append(f"{where} frame {p.number}: flagged malformed, but its bytes are valid frames")
         if case_id.split("[")[0] in FOLLOW and (conn["sent"] or conn["received"]):
@@ -323,9 +311,6 @@ def test_every_pcap_is_the_transcript(run: Run) -> None:
     bad = {cid: problems[:5] for cid, problems in results.items() if problems}
     assert not bad, bad
     assert COMPARED["followed"] >= 10 and COMPARED["bytes"] > 100_000, COMPARED
-    if RESYNC:
-        print(f"valid frames the dissector flagged right after malformed bytes (resynchronised one segment later): "
-              f"{len(RESYNC)}: {', '.join(RESYNC[:10])}")
 
 
 def test_the_dissector_flags_malformed_frames_in_the_fuzz_pcap(run: Run) -> None:
