@@ -21,7 +21,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
+from conformance.harness.client import Closed, Outcome, Silence, TcpConnection, UdpChannel
 from conformance.harness.target import Unreachable
 from conformance.options import profile_flags
 from conformance.protocol import (
@@ -52,17 +52,9 @@ SCAN_WAIT_S = 0.1
 CONFIRM_WAIT_S = 1.0
 
 
-def _raw(outcome: Outcome) -> bytes:
-    if isinstance(outcome, Answer):
-        return outcome.raw
-    if isinstance(outcome, Malformed):
-        return outcome.error.raw
-    return b""
-
-
 def fields(outcome: Outcome) -> tuple[str, int, int] | None:
     """(byte order, action, error code) of an answer, read in the order in which its version is 1."""
-    raw = _raw(outcome)
+    raw = outcome.raw
     if len(raw) < 12 or raw[:2] != b"\xfe\xfe":
         return None
     for order in ORDERS:
@@ -262,7 +254,7 @@ def _answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
         raise fail(Level.MUST, f"F4: multi-byte header fields are {isight.profile.byte_order}-endian",
                    f"NONE with {isight.profile.byte_order}-endian fields answered 0000",
                    f"only NONE with {other}-endian fields (version {data[2:4].hex(' ')}) is answered 0000 "
-                   f"(rerun with --byte-order={other} to test the rest)", sent=sent, received=_raw(outcome))
+                   f"(rerun with --byte-order={other} to test the rest)", sent=sent, received=outcome.raw)
     raise Inconclusive("the box answered NONE in neither byte order: nothing to read (A4/T1 judge the silence)")
 
 
@@ -287,14 +279,14 @@ def test_answer_byte_order(isight: CaseContext) -> None:
 
     conn = isight.connect()
     sent = encode(request(Action.NONE), isight.profile)
-    raw = _raw(conn.request(sent, "NONE request"))
+    raw = conn.request(sent, "NONE request").raw
     if len(raw) < 12:
         _answers_other_order_only(isight, sent)
     expect(raw, 2, 1, "version 00 01", sent)
     first = isight.profile.first_index
     gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(first, POSE), PoseBlock(first + 2, POSE)))
     bad = encode(gap, isight.profile)
-    raw = _raw(isight.send_malformed(bad, "two poses with indexes first, first+2 (B3 gap): answered 1001?"))
+    raw = isight.send_malformed(bad, "two poses with indexes first, first+2 (B3 gap): answered 1001?").raw
     if len(raw) >= 12 and raw[10:12] in (b"\x10\x01", b"\x01\x10"):
         expect(raw, 10, 0x1001, "error code 1001", bad)
     if isight.session.detect_extension(isight.transcript):

@@ -48,14 +48,6 @@ def pose_request(isight: CaseContext, action: Action = Action.POSE) -> Frame:
     return request(action, pose_blocks([POSE], isight.profile.first_index))
 
 
-def raw_of(outcome: Outcome) -> bytes:
-    if isinstance(outcome, Answer):
-        return outcome.raw
-    if isinstance(outcome, Malformed):
-        return outcome.error.raw
-    return b""
-
-
 def header_field(data: bytes, offset: int, profile: Profile) -> int | None:
     """A 2-byte header field of a datagram, read in the profile's byte order (None if too short)."""
     if len(data) < offset + 2:
@@ -64,7 +56,7 @@ def header_field(data: bytes, offset: int, profile: Profile) -> int | None:
 
 
 def action_of(outcome: Outcome) -> int | None:
-    raw = raw_of(outcome)
+    raw = outcome.raw
     return raw[5] if len(raw) >= 6 else None
 
 
@@ -113,7 +105,7 @@ def test_udp_answer_crc(isight: CaseContext) -> None:
     for name, frame in _valid_requests(isight):
         data = udp_bytes(isight, frame)
         outcome = ch.request(data, f"{name} datagram")
-        raw = raw_of(outcome)
+        raw = outcome.raw
         if not raw:
             continue
         judged += 1
@@ -240,14 +232,14 @@ def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
     ch.send(probe, "probe: a valid NONE datagram; its answer bounds the wait")
     extras, answer = _await_probe(isight, ch, start)
     replies = [o for o in extras if isinstance(o, (Answer, Malformed))]
-    isight.details["replies_to_bad"] = [raw_of(o).hex(" ") for o in replies]
+    isight.details["replies_to_bad"] = [o.raw.hex(" ") for o in replies]
     if answer is None:
         isight.details["probe"] = "not answered within time_out"
-    ok = [o for o in replies if header_field(raw_of(o), 10, isight.profile) == 0]
+    ok = [o for o in replies if header_field(o.raw, 10, isight.profile) == 0]
     if ok:
         raise fail(Level.MUST, "R7: a datagram with a wrong CRC or not exactly one frame MUST NOT be answered 0000",
                    "silence (or a non-zero error)", f"{len(replies)} answer(s), {ok[0].describe()}",
-                   sent=bad, received=raw_of(ok[0]))
+                   sent=bad, received=ok[0].raw)
     if replies:
         raise fail(Level.SHOULD, "R7: a datagram with a wrong CRC or not exactly one frame SHOULD be dropped silently",
-                   "silence", "; ".join(o.describe() for o in replies), sent=bad, received=raw_of(replies[0]))
+                   "silence", "; ".join(o.describe() for o in replies), sent=bad, received=replies[0].raw)

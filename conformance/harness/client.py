@@ -51,6 +51,10 @@ class Malformed:
     error: ProtocolError
     latency_s: float
 
+    @property
+    def raw(self) -> bytes:
+        return self.error.raw
+
     def describe(self) -> str:
         return f"sent a malformed answer: {self.error} ({self.error.raw.hex(' ')})"
 
@@ -60,6 +64,7 @@ class Silence:
     """Nothing arrived before the deadline."""
 
     waited_s: float
+    raw = b""  # nothing arrived
 
     def describe(self) -> str:
         return f"stayed silent for {self.waited_s * 1000:.0f} ms"
@@ -71,6 +76,7 @@ class Closed:
 
     reset: bool
     latency_s: float
+    raw = b""  # no bytes, a FIN or RST
 
     def describe(self) -> str:
         return "reset the connection" if self.reset else "closed the connection"

@@ -145,7 +145,7 @@ def check(
     if any(e.matches(outcome) for e in options):
         return
     expected = "; or ".join(e.text for e in options)
-    received = outcome.raw if isinstance(outcome, Answer) else outcome.error.raw if isinstance(outcome, Malformed) else b""
+    received = outcome.raw
     observed = outcome.describe()
     raise CaseVerdict(
         level.broken_verdict,
