@@ -42,6 +42,7 @@ sys.path.insert(0, str(ROOT))
 from conformance.endpoints.box import new_event_loop, raise_fd_limit  # noqa: E402
 from conformance.endpoints.trajectory import PrimerTrajectory  # noqa: E402
 from conformance.protocol import Action, answer, encode, pose_blocks, request  # noqa: E402
+from conformance.stats import percentile  # noqa: E402
 
 ANSWER = encode(answer(Action.POSE))  # 14 bytes: the only right answer to a valid pose
 ANSWER_LEN = len(ANSWER)
@@ -105,12 +106,6 @@ class BoxProcess:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
-
-
-def percentile(sorted_values: list[float] | array, q: float) -> float:
-    if not len(sorted_values):
-        return float("nan")
-    return sorted_values[min(len(sorted_values) - 1, max(0, round(q / 100.0 * (len(sorted_values) - 1))))]
 
 
 def pose_frames(count: int = 50) -> list[bytes]:

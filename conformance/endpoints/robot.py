@@ -52,6 +52,7 @@ from ..protocol import (
     value_blocks,
 )
 from ..protocol.frames import ValueBlock
+from ..stats import percentile
 from .behaviour import SENDABLE_RESULTS
 from .trajectory import Pose, PrimerTrajectory
 
@@ -165,10 +166,7 @@ class RobotResult:
 
     def latency(self, q: float) -> float:
         """The q-th percentile of the stream's answer latencies (ms); NaN without answers."""
-        values = sorted(self.pose_latencies_ms)
-        if not values:
-            return math.nan
-        return values[min(len(values) - 1, max(0, round(q / 100.0 * (len(values) - 1))))]
+        return percentile(self.pose_latencies_ms, q)
 
     @property
     def jitter_ms(self) -> tuple[float, float]:

@@ -19,6 +19,7 @@ import math
 from collections.abc import Sequence
 from xml.sax.saxutils import escape
 
+from ..stats import percentile
 from .summary import clean_text
 
 FONT = "DejaVu Sans, Helvetica, Arial, sans-serif"
@@ -26,16 +27,6 @@ C_DATA, C_P50, C_P99, C_LIMIT, C_AXIS, C_GRID = "#1565c0", "#2e7d32", "#b26a00",
 ML, MR, MT, MB = 48, 100, 38, 30  # margins: left (y labels), right (line labels), top (title + notes), bottom
 CLIP_FACTOR = 3.0  # scale stops at CLIP_FACTOR × p99 when the maximum is beyond it
 DOTS_UP_TO = 150  # draw a dot per point up to this many points
-
-
-def percentile(sorted_values: Sequence[float], q: float) -> float:
-    """Linear-interpolation percentile (q in [0, 100]) of an ascending, non-empty sequence."""
-    if len(sorted_values) == 1:
-        return sorted_values[0]
-    pos = (len(sorted_values) - 1) * q / 100
-    lo = math.floor(pos)
-    hi = min(lo + 1, len(sorted_values) - 1)
-    return sorted_values[lo] + (sorted_values[hi] - sorted_values[lo]) * (pos - lo)
 
 
 def fmt_ms(value: float) -> str:

@@ -7,7 +7,6 @@ the verdict on it. :func:`percentile` and :func:`latency_figures` summarise late
 
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Callable
@@ -17,17 +16,11 @@ from typing import Any
 from ..endpoints.trajectory import PrimerTrajectory
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
 from ..protocol import Action, pose_blocks, request
+from ..stats import percentile
 from .judge import Expect, answered, check, fail
 from .verdicts import Level
 
 DEFAULT_POSE = PrimerTrajectory().home
-
-
-def percentile(values: list[float], q: float) -> float:
-    if not values:
-        return math.nan
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]
 
 
 def latency_figures(values: list[float]) -> dict[str, Any]:
