@@ -125,16 +125,10 @@ def pose_frames(count: int = 50) -> list[bytes]:
 _BUFFER = memoryview(bytearray(1 << 16))
 
 
-class Robot(asyncio.BufferedProtocol):
-    __slots__ = ("transport", "sent", "carry", "latencies", "answered", "wrong", "closed", "closing")
+class _SharedBufferClient(asyncio.BufferedProtocol):
+    """Reads into the shared buffer and hands each read to ``data_received``."""
 
-    def __init__(self, latencies: array) -> None:
-        self.transport: asyncio.Transport | None = None
-        self.sent: deque[float] = deque()
-        self.carry = b""
-        self.latencies = latencies
-        self.answered = self.wrong = 0
-        self.closed = self.closing = False
+    transport: asyncio.Transport | None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         self.transport = transport  # type: ignore[assignment]
@@ -144,6 +138,21 @@ class Robot(asyncio.BufferedProtocol):
 
     def buffer_updated(self, nbytes: int) -> None:
         self.data_received(_BUFFER[:nbytes].tobytes())
+
+    def data_received(self, data: bytes) -> None:
+        raise NotImplementedError
+
+
+class Robot(_SharedBufferClient):
+    __slots__ = ("transport", "sent", "carry", "latencies", "answered", "wrong", "closed", "closing")
+
+    def __init__(self, latencies: array) -> None:
+        self.transport: asyncio.Transport | None = None
+        self.sent: deque[float] = deque()
+        self.carry = b""
+        self.latencies = latencies
+        self.answered = self.wrong = 0
+        self.closed = self.closing = False
 
     def data_received(self, data: bytes) -> None:
         now = perf()
@@ -298,7 +307,7 @@ def run_load(box: BoxProcess, robots: int, rate: float, duration: float, procs: 
 # -- pipelined ------------------------------------------------------------------------------------------
 
 
-class Pipe(asyncio.BufferedProtocol):
+class Pipe(_SharedBufferClient):
     def __init__(self, chunk: bytes, frames_per_chunk: int, window: int) -> None:
         self.chunk, self.per, self.window = chunk, frames_per_chunk, window
         self.outstanding = self.answered = self.sent = self.wrong = 0
@@ -306,15 +315,6 @@ class Pipe(asyncio.BufferedProtocol):
         self.sending = True
         self.transport: asyncio.Transport | None = None
         self.done = asyncio.get_running_loop().create_future()
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
-
-    def get_buffer(self, sizehint: int) -> memoryview:
-        return _BUFFER
-
-    def buffer_updated(self, nbytes: int) -> None:
-        self.data_received(_BUFFER[:nbytes].tobytes())
 
     def top_up(self) -> None:
         transport = self.transport
