@@ -135,3 +135,28 @@ def test_bytes_sent_before_a_reset_are_recorded_before_it() -> None:
         assert conn.send(b"\x00" * 20_000_000, "a big send the box resets") is False
     kinds = [e.kind for e in t.events]
     assert Kind.SEND in kinds and kinds.index(Kind.SEND) < kinds.index(Kind.PEER_RESET)
+
+
+def test_a_reset_right_after_accept_is_an_outcome_not_an_exception(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The box accepts and resets before we ask for the peer's address (a race seen in CI)."""
+    import errno
+    import socket
+
+    import conformance.harness.client as client
+
+    class GoneAtOnce(socket.socket):
+        def getpeername(self):  # type: ignore[no-untyped-def]
+            raise OSError(errno.ENOTCONN, "Transport endpoint is not connected")
+
+    real = socket.create_connection
+
+    def create_connection(address, timeout=None):  # type: ignore[no-untyped-def]
+        return GoneAtOnce(fileno=real(address, timeout=timeout).detach())
+
+    with ScriptedBox(silent) as box:
+        monkeypatch.setattr(client.socket, "create_connection", create_connection)
+        t = Transcript("t")
+        conn = _conn(box, t)
+        outcome = conn.request(request(Action.NONE))
+    assert isinstance(outcome, Closed) and outcome.reset
+    assert [e.kind for e in t.events][:2] == [Kind.CONNECT, Kind.PEER_RESET]

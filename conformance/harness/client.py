@@ -8,6 +8,7 @@ byte in and out is recorded in the case's :class:`~.transcript.Transcript`.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import select
 import socket
@@ -121,13 +122,22 @@ class TcpConnection:
             reason = _reason(exc, self.time_out_s)
             self.transcript.add(info.conn, Kind.CONNECT_FAILED, note=reason)
             raise Unreachable(f"cannot connect to {self.target}: {reason}") from None
-        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        sock.setblocking(False)
         self.sock = sock
-        local, remote = sock.getsockname(), sock.getpeername()
+        gone: OSError | None = None
+        try:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            sock.setblocking(False)
+            local, remote = sock.getsockname(), sock.getpeername()
+        except OSError as exc:  # the box reset the connection right after accepting it
+            gone = exc
+            local, remote = ("0.0.0.0", 0), (self.target.host, self.target.port)
+            with contextlib.suppress(OSError):
+                local = sock.getsockname()
         info = self.transcript.open("tcp", Endpoint(local[0], local[1]), Endpoint(remote[0], remote[1]), self.label)
         self.conn_id = info.conn
         self.transcript.add(self.conn_id, Kind.CONNECT, note=f"{self.label} connected in {(time.monotonic() - start) * 1000:.1f} ms")
+        if gone is not None:
+            self._peer_gone(gone)
         return self
 
     def close(self, note: str = "") -> None:
@@ -248,7 +258,7 @@ class TcpConnection:
     def _peer_gone(self, exc: OSError, start: float | None = None) -> None:
         if self.closed_by_peer is not None:
             return
-        reset = exc.errno in (errno.ECONNRESET, errno.EPIPE, errno.ECONNABORTED)
+        reset = exc.errno in (errno.ECONNRESET, errno.EPIPE, errno.ECONNABORTED, errno.ENOTCONN)
         latency = time.monotonic() - start if start is not None else 0.0
         self.closed_by_peer = Closed(reset, latency)
         self.transcript.add(self.conn_id, Kind.PEER_RESET if reset else Kind.PEER_CLOSE, note=str(exc))
