@@ -6,9 +6,10 @@ Every writer derives its totals, clause verdicts and overall line from
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
-from ..suite.verdicts import CaseResult, SuiteInfo
+from ..suite.verdicts import CaseResult, RootCause, SuiteInfo
 from .html import render_html, write_html
 from .junit import write_junit
 from .summary import by_clause, conforms, overall_line, totals, write_summary
@@ -31,9 +32,10 @@ __all__ = [
 ]
 
 
-def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult]) -> None:
+def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult],
+                  root_causes: Sequence[RootCause] = ()) -> None:
     """summary.json, junit.xml and report.html into ``report_dir``, each written atomically."""
     report_dir.mkdir(parents=True, exist_ok=True)
-    write_summary(report_dir / "summary.json", suite, cases)
+    write_summary(report_dir / "summary.json", suite, cases, root_causes)
     write_junit(report_dir / "junit.xml", suite, cases)
     write_html(report_dir / "report.html", suite, cases)

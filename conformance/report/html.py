@@ -258,7 +258,7 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
         suite=suite, started=display_time(suite.started), duration=format_duration(suite.duration_s),
         extension=EXTENSION_MEANING.get(suite.extension, suite.extension),
         profile=profile, changed=[r for r in profile if r["changed"]],
-        overall=overall_line(cases), overall_state=overall_state(cases),
+        overall=overall_line(cases, suite), overall_state=overall_state(cases, suite),
         totals=t, total=len(cases), order=[v.value for v in VERDICT_ORDER],
         meaning={v.value: m for v, m in VERDICT_MEANING.items()},
         families=families, untested=untested, n_clauses=len(CLAUSES), link=link,

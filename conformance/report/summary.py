@@ -13,12 +13,12 @@ import json
 import os
 import re
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, SuiteInfo, Verdict
+from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
 
 #: Every clause of PROTOCOL.md, in document order, with a short title for tables.
 CLAUSES: dict[str, str] = {
@@ -151,15 +151,23 @@ def _judged(t: dict[str, int]) -> int:
     return t["PASS"] + t["NON-STRICT"] + t["INFORMATIONAL"] + t["FAIL"]
 
 
-def overall_line(cases: Iterable[CaseResult]) -> str:
+def overall_line(cases: Iterable[CaseResult], suite: SuiteInfo | None = None) -> str:
     """The one-line result an integrator signs, e.g.
     ``DOES NOT CONFORM: 2 FAIL, 0 ERROR; 1 NON-STRICT`` or
     ``CONFORMS (no FAIL/ERROR); 0 NON-STRICT; 3 INCONCLUSIVE (not judged)``.
 
     A run in which no case reached a judgement (nothing ran, or everything was
-    SKIP/INCONCLUSIVE) says NOT JUDGED rather than CONFORMS.
+    SKIP/INCONCLUSIVE) says NOT JUDGED rather than CONFORMS. A run cut short
+    (``suite.complete`` is False) says ``INCOMPLETE (k of n cases run)``, never CONFORMS.
     """
+    cases = list(cases)
     t = totals(cases)
+    if suite is not None and not suite.complete:
+        n = max(suite.cases_total, len(cases))
+        line = f"INCOMPLETE ({len(cases)} of {n} cases run)"
+        if t["FAIL"] or t["ERROR"]:
+            line += f": DOES NOT CONFORM so far: {t['FAIL']} FAIL, {t['ERROR']} ERROR"
+        return line + f"; {t['NON-STRICT']} NON-STRICT"
     if t["FAIL"] or t["ERROR"]:
         line = f"DOES NOT CONFORM: {t['FAIL']} FAIL, {t['ERROR']} ERROR"
     elif not _judged(t):
@@ -174,11 +182,13 @@ def overall_line(cases: Iterable[CaseResult]) -> str:
     return line
 
 
-def overall_state(cases: Iterable[CaseResult]) -> str:
-    """"conforms", "fails" or "unjudged": what colour the overall line gets."""
+def overall_state(cases: Iterable[CaseResult], suite: SuiteInfo | None = None) -> str:
+    """"conforms", "fails", "incomplete" or "unjudged": what colour the overall line gets."""
     t = totals(cases)
     if t["FAIL"] or t["ERROR"]:
         return "fails"
+    if suite is not None and not suite.complete:
+        return "incomplete"
     return "conforms" if _judged(t) else "unjudged"
 
 
@@ -276,10 +286,12 @@ def suite_dict(suite: SuiteInfo) -> dict[str, Any]:
     return dataclasses.asdict(suite)
 
 
-def write_summary(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult]) -> dict[str, Any]:
+def write_summary(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult],
+                  root_causes: Sequence[RootCause] = ()) -> dict[str, Any]:
     """Write summary.json atomically and return what was written:
-    ``{"suite": {...SuiteInfo}, "cases": [CaseResult.to_summary()...], "totals": {verdict: n}}``."""
-    doc = {"suite": suite_dict(suite), "cases": [c.to_summary() for c in cases], "totals": totals(cases)}
+    ``{"suite": {...SuiteInfo}, "root_causes": [...], "cases": [CaseResult.to_summary()...], "totals": {verdict: n}}``."""
+    doc = {"suite": suite_dict(suite), "root_causes": [r.to_dict() for r in root_causes],
+           "cases": [c.to_summary() for c in cases], "totals": totals(cases)}
     text = json.dumps(doc, indent=2, ensure_ascii=False, default=_json_default) + "\n"
     # a lone surrogate from hostile input becomes a JSON \udcxx escape, still valid JSON
     atomic_write_bytes(path, text.encode("utf-8", "backslashreplace"))

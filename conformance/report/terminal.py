@@ -31,7 +31,7 @@ STYLES: dict[Verdict, str] = {
     Verdict.FAIL: "bold red",
     Verdict.ERROR: "bold magenta",
 }
-OVERALL_STYLES = {"conforms": "bold green", "fails": "bold red", "unjudged": "bold yellow"}
+OVERALL_STYLES = {"conforms": "bold green", "fails": "bold red", "unjudged": "bold yellow", "incomplete": "bold yellow"}
 
 
 def verdict_counts_text(counts: Mapping[str, int], zeros: bool = False) -> Text:
@@ -153,7 +153,7 @@ def print_final_table(suite: SuiteInfo, cases: list[CaseResult], console: Consol
     line.append_text(verdict_counts_text(totals(cases), zeros=True))
     line.append(f"  ({len(cases)} cases, {format_duration(suite.duration_s)})", style="dim")
     parts.append(line)
-    parts.append(Text(overall_line(cases), style=OVERALL_STYLES[overall_state(cases)]))
+    parts.append(Text(overall_line(cases, suite), style=OVERALL_STYLES[overall_state(cases, suite)]))
     parts.append(Text(f"Target: {suite.target}", style="dim"))
     if reports:
         items = reports.items() if isinstance(reports, Mapping) else ((None, p) for p in reports)

@@ -74,6 +74,8 @@ class CaseResult:
     #: timing cases: answer latencies in ms, in request order (for plots)
     latencies_ms: list[float] = field(default_factory=list)
     details: dict[str, Any] = field(default_factory=dict)
+    #: the id of the root cause that explains this verdict ("RC1"), when one does
+    root_cause: str | None = None
 
     def to_summary(self) -> dict[str, Any]:
         """The case's entry in summary.json."""
@@ -90,6 +92,7 @@ class CaseResult:
             "sent_hex": self.sent_hex,
             "received_hex": self.received_hex,
             "pcap": self.pcap,
+            "root_cause": self.root_cause,
         }
 
     def to_dict(self) -> dict[str, Any]:
@@ -111,5 +114,43 @@ class SuiteInfo:
     extension: str = "auto"  # how E was decided: "detected", "not implemented", "forced on", "off"
     expected_failures: str | None = None  # path of the list, if any
     command: str = ""  # the command line that produced the run
-    #: what was tested: "box" (the AI Box, server role: ``run``) or "robot" (client role: ``certify-robot``)
+    #: what was tested: "box" (the AI Box, server role: ``run``) or "robot" (client role: ``certify-robot``),
+    #: or "observed" (a capture judged by ``analyze``)
     role: str = "box"
+    #: False when the run was cut short (Ctrl-C, SIGTERM, SIGHUP): the overall line is then INCOMPLETE
+    complete: bool = True
+    #: how many cases were selected to run (``len(cases)`` when complete)
+    cases_total: int = 0
+    #: the ids of selected cases that did not run (an incomplete run)
+    not_run: list[str] = field(default_factory=list)
+    #: the version of the clause registry the verdicts cite
+    registry_version: str = ""
+
+
+@dataclass
+class RootCause:
+    """One defect that explains several non-PASS verdicts (reported once, first).
+
+    ``cases`` are the ids of the cases it explains; each of those carries
+    ``root_cause = id``. Root causes are ordered most explanatory first.
+    """
+
+    id: str  # "RC1", "RC2", ... in report order
+    clauses: tuple[str, ...]  # the clause(s) the defect breaks (the first is the one judged)
+    title: str  # one line: what the box does wrong
+    evidence: str  # what shows it: the bytes (hex) and/or a description
+    cases: list[str] = field(default_factory=list)
+    level: Level = Level.MUST
+    #: what kind of defect: "malformed-answers", "one-connection", "connection-leak", "unresponsive", ...
+    kind: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "id": self.id,
+            "clauses": list(self.clauses),
+            "title": self.title,
+            "evidence": self.evidence,
+            "cases": list(self.cases),
+            "level": self.level.value,
+            "kind": self.kind,
+        }
