@@ -18,6 +18,7 @@ from conformance.protocol.clauses import (
     all_clauses,
     clause,
     clause_ids,
+    families,
     parse_registry,
     text_of,
 )
@@ -31,6 +32,12 @@ def test_every_clause_once_in_document_order():
     assert list(all_clauses()) == EXPECTED_IDS
     assert clause_ids() == frozenset(EXPECTED_IDS)
     assert all(c.id == key for key, c in all_clauses().items())
+
+
+def test_families_in_document_order():
+    assert list(families()) == list("FBASTRE")
+    assert families()["F"] == "Frame" and families()["E"].startswith("Extension")
+    assert [c[0] for c in all_clauses()] == sorted((c[0] for c in all_clauses()), key=list(families()).index)
 
 
 def test_version_is_the_files():
@@ -109,6 +116,9 @@ def _mutate(change) -> str:
     (lambda d: d["clauses"][0].update(id="X1"), "family letter"),
     (lambda d: d["clauses"][0].update(title=""), "must not be empty"),
     (lambda d: d.pop("version"), "version"),
+    (lambda d: d["families"].pop("E"), "family letter"),
+    (lambda d: d["families"].update(X="Extra"), "every family"),
+    (lambda d: d["families"].update(F=""), "heading"),
 ])
 def test_a_malformed_registry_is_refused_with_a_reason(change, message):
     with pytest.raises(RegistryError, match=message):
@@ -121,7 +131,7 @@ def test_not_json_is_refused():
 
 
 def test_the_shipped_file_parses_to_the_same_clauses():
-    version, parsed = parse_registry(RAW)
-    assert version == REGISTRY_VERSION and parsed == all_clauses()
-    assert all(isinstance(c, Clause) for c in parsed.values())
+    parsed = parse_registry(RAW)
+    assert parsed.version == REGISTRY_VERSION and parsed.clauses == all_clauses()
+    assert all(isinstance(c, Clause) for c in parsed.clauses.values())
     assert registry._load() is registry._load()  # read once

@@ -16,7 +16,6 @@ from importlib import resources
 from typing import Any
 
 LEVELS = ("MUST", "SHOULD", "MAY")  # strongest first
-FAMILIES = "FBASTRE"  # document order of the clause families
 _FIELDS = ("id", "level", "levels", "title", "text", "flags", "source")
 
 
@@ -59,58 +58,73 @@ def _clause(entry: Any, index: int) -> Clause:
     return clause
 
 
-def _key(clause_id: str) -> tuple[int, int]:
-    return FAMILIES.index(clause_id[0]), int(clause_id[1:])
+@dataclass(frozen=True)
+class Registry:
+    version: str
+    families: dict[str, str]  # family letter -> heading, in document order
+    clauses: dict[str, Clause]  # by id, in document order
 
 
-def parse_registry(text: str) -> tuple[str, dict[str, Clause]]:
-    """(version, clauses by id in document order) from the JSON text; RegistryError if malformed."""
+def parse_registry(text: str) -> Registry:
+    """The registry from the JSON text; RegistryError if malformed."""
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise RegistryError(f"clauses.json is not JSON: {exc}") from None
     if not isinstance(data, dict) or not isinstance(data.get("version"), str) or \
-            not isinstance(data.get("clauses"), list):
-        raise RegistryError("clauses.json: expected an object with a string 'version' and a list 'clauses'")
+            not isinstance(data.get("clauses"), list) or not isinstance(data.get("families"), dict):
+        raise RegistryError("clauses.json: expected an object with a string 'version', an object 'families' "
+                            "and a list 'clauses'")
+    families: dict[str, str] = data["families"]
+    if not all(isinstance(k, str) and len(k) == 1 and isinstance(v, str) and v for k, v in families.items()):
+        raise RegistryError("clauses.json: families maps one letter to a heading")
+    order = list(families)
     out: dict[str, Clause] = {}
     for i, entry in enumerate(data["clauses"]):
         clause = _clause(entry, i)
-        if len(clause.id) < 2 or clause.id[0] not in FAMILIES or not clause.id[1:].isdigit():
-            raise RegistryError(f"clause id {clause.id!r} is not a family letter ({FAMILIES}) and a number")
+        if len(clause.id) < 2 or clause.id[0] not in families or not clause.id[1:].isdigit():
+            raise RegistryError(f"clause id {clause.id!r} is not a family letter ({''.join(order)}) and a number")
         if clause.id in out:
             raise RegistryError(f"clause {clause.id} appears twice")
         out[clause.id] = clause
     ids = list(out)
-    if ids != sorted(ids, key=_key):
-        raise RegistryError("clauses.json: clauses must be in document order (F, B, A, S, T, R, E; by number)")
-    return data["version"], out
+    if ids != sorted(ids, key=lambda c: (order.index(c[0]), int(c[1:]))):
+        raise RegistryError(f"clauses.json: clauses must be in document order (families {''.join(order)}, by number)")
+    if {c[0] for c in ids} != set(order):
+        raise RegistryError("clauses.json: every family has clauses, and every clause a family")
+    return Registry(data["version"], families, out)
 
 
 @functools.lru_cache(maxsize=1)
-def _load() -> tuple[str, dict[str, Clause]]:
+def _load() -> Registry:
     text = resources.files("conformance.protocol").joinpath("clauses.json").read_text(encoding="utf-8")
     return parse_registry(text)
 
 
-REGISTRY_VERSION: str = _load()[0]
+REGISTRY_VERSION: str = _load().version
+
+
+def families() -> dict[str, str]:
+    """Clause family letter -> heading ("F" -> "Frame"), in document order."""
+    return dict(_load().families)
 
 
 def all_clauses() -> dict[str, Clause]:
     """Every clause by id, in document order F1..E5 (a fresh dict; the clauses are frozen)."""
-    return dict(_load()[1])
+    return dict(_load().clauses)
 
 
 def clause(id: str) -> Clause:
     """The clause ``id``; KeyError for an unknown id."""
-    return _load()[1][id]
+    return _load().clauses[id]
 
 
 @functools.lru_cache(maxsize=1)
 def clause_ids() -> frozenset[str]:
-    return frozenset(_load()[1])
+    return frozenset(_load().clauses)
 
 
 def text_of(id: str) -> str:
     """The clause's full text, "" for an unknown id."""
-    found = _load()[1].get(id)
+    found = _load().clauses.get(id)
     return found.text if found else ""
