@@ -8,8 +8,8 @@ import sys
 
 import pytest
 
-from conformance.cli import main
 from conformance.clauses_cli import format_text, select
+from conformance.cli import main
 from conformance.protocol.clauses import REGISTRY_VERSION, all_clauses, clause
 
 
