@@ -6,6 +6,7 @@ import dataclasses
 import json
 import re
 from importlib import resources
+from pathlib import Path
 
 import pytest
 
@@ -135,3 +136,64 @@ def test_the_shipped_file_parses_to_the_same_clauses():
     assert parsed.version == REGISTRY_VERSION and parsed.clauses == all_clauses()
     assert all(isinstance(c, Clause) for c in parsed.clauses.values())
     assert registry._load() is registry._load()  # read once
+
+
+# -- docs/PROTOCOL.md says the same -------------------------------------------------------------
+DOC = Path(__file__).resolve().parents[1] / "docs" / "PROTOCOL.md"
+_HEADING = re.compile(r"^#### ([A-Z][0-9]+) · ([A-Z, ]+) · (.+)$")
+_FAMILY = re.compile(r"^### ([A-Z]) — (.+)$")
+
+
+def _doc_sections() -> dict[str, tuple[str, str, str]]:
+    """clause id -> (levels as written, title, the section's text up to the next heading)."""
+    out: dict[str, tuple[str, str, str]] = {}
+    current: list[str] | None = None
+    for line in DOC.read_text(encoding="utf-8").splitlines():
+        m = _HEADING.match(line)
+        if m:
+            assert m.group(1) not in out, f"{m.group(1)} twice in PROTOCOL.md"
+            current = []
+            out[m.group(1)] = (m.group(2), m.group(3), "")
+            body = current
+            key = m.group(1)
+        elif line.startswith("#"):
+            current = None
+        elif current is not None:
+            body.append(line)
+            out[key] = (*out[key][:2], "\n".join(body))
+    return out
+
+
+def test_protocol_doc_has_every_clause_with_the_registrys_level_and_title():
+    sections = _doc_sections()
+    assert list(sections) == list(all_clauses()), "PROTOCOL.md's clause headings are not the registry's, in order"
+    for cid, (levels, title, _) in sections.items():
+        c = clause(cid)
+        assert levels == ", ".join(c.levels), f"{cid}: PROTOCOL.md says {levels}, the registry {c.levels}"
+        assert title == c.title, f"{cid}: PROTOCOL.md titles it {title!r}, the registry {c.title!r}"
+
+
+def test_protocol_doc_family_headings_are_the_registrys():
+    found = [m.groups() for line in DOC.read_text(encoding="utf-8").splitlines() if (m := _FAMILY.match(line))]
+    assert found == list(families().items())
+
+
+def test_protocol_doc_names_the_registrys_flags_and_decisions():
+    for cid, (_, _, body) in _doc_sections().items():
+        lines = [line for line in body.splitlines() if line.startswith("Flags: ")]
+        assert len(lines) == 1, f"{cid}: one 'Flags:' line expected"
+        flags = tuple(re.findall(r"`(--[a-z-]+)`", lines[0]))
+        assert flags == clause(cid).flags, f"{cid}: PROTOCOL.md lists {flags}, the registry {clause(cid).flags}"
+        assert (lines[0] == "Flags: none.") == (not flags)
+        assert ("**[decision]**" in body) == ("[decision]" in clause(cid).text), f"{cid}: [decision] differs"
+
+
+def test_protocol_doc_quotes_come_with_a_translation():
+    lines = DOC.read_text(encoding="utf-8").splitlines()
+    quotes = [i for i, line in enumerate(lines) if line.startswith("> 原文：")]
+    assert len(quotes) >= 25
+    for i in quotes:
+        assert lines[i + 1] == ">" and lines[i + 2].startswith("> Translation: "), f"line {i + 1}: no translation"
+    for cid, (_, _, body) in _doc_sections().items():  # a clause whose registry entry quotes the source quotes it too
+        if re.search(r"[\u4e00-\u9fff]", clause(cid).source) and cid != "S1":
+            assert "> 原文：" in body, f"{cid}: the registry quotes the source, PROTOCOL.md does not"
