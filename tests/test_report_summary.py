@@ -139,10 +139,12 @@ def test_write_summary_shape(tmp_path):
     returned = write_summary(path, suite, cases)
     doc = json.loads(path.read_text(encoding="utf-8"))
     assert doc == returned
-    assert list(doc) == ["suite", "cases", "totals"]
+    assert list(doc) == ["suite", "root_causes", "cases", "totals"]
+    assert doc["root_causes"] == []
     assert list(doc["suite"])[:5] == ["version", "started", "duration_s", "target", "profile"]
     assert set(doc["suite"]) == {"version", "started", "duration_s", "target", "profile", "udp_target", "extension",
-                                 "expected_failures", "command", "role"}
+                                 "expected_failures", "command", "role", "complete", "cases_total", "not_run",
+                                 "registry_version"}
     assert doc["suite"]["profile"]["tcp_check"] == "zero-or-crc"
     assert doc["suite"]["profile"]["first_index"] == 1
     assert doc["cases"] == json.loads(json.dumps([c.to_summary() for c in cases]))

@@ -15,10 +15,13 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ..harness.target import Target
+from ..endpoints.bundled import Bundled, start_bundled
+from ..harness.client import TcpConnection
+from ..harness.target import Target, Unreachable, check_reachable
 from ..harness.transcript import Transcript
 from ..options import add_profile_options, profile_from_options
 from ..protocol import DEFAULT_PORT, Profile
+from ..suite.extension import detect_extension
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 #: Where the example database lives by default (relative to the current directory).
@@ -82,31 +85,9 @@ def _parse_target(text: str | None) -> Target | None:
     return Target.parse(text, DEFAULT_PORT) if text else None
 
 
-class _Box:
-    """The bundled reference box for a command without --target (restartable: R2 identification)."""
-
-    def __init__(self, profile: Profile) -> None:
-        from ..endpoints.behaviour import BoxConfig
-        from ..endpoints.box import BoxThread
-
-        self._make = lambda port: BoxThread(BoxConfig(profile=profile), host="127.0.0.1", port=port).start()
-        self.thread = self._make(0)
-        self.port = self.thread.tcp_port
-        self.udp_port = self.thread.udp_port
-
-    def restart(self) -> None:
-        self.thread.stop()
-        self.thread = self._make(self.port)
-
-    def stop(self) -> None:
-        self.thread.stop()
-
-
 @contextmanager
-def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tuple[Target, Target | None, _Box | None]]:
+def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tuple[Target, Target | None, Bundled | None]]:
     """(target, udp target, the bundled box if started); raises SystemExit(2) when unreachable."""
-    from ..runner import check_reachable
-
     target, udp = _parse_target(args.target), _parse_target(args.udp_target)
     if target is not None:
         problem = check_reachable(target, profile.time_out_ms / 1000)
@@ -115,20 +96,25 @@ def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tupl
             raise SystemExit(EXIT_USAGE)
         yield target, udp, None
         return
-    box = _Box(profile)
+    box = start_bundled(profile)
     try:
-        yield Target("127.0.0.1", box.port), udp or (Target("127.0.0.1", box.udp_port) if box.udp_port else None), box
+        yield box.target, udp or box.udp_target, box
     finally:
         box.stop()
 
 
 def _extension(mode: str, target: Target, profile: Profile, transcript: Transcript) -> tuple[bool, str]:
-    from ..suite.context import SessionState
-    from ..suite.settings import SuiteSettings
-
-    state = SessionState(SuiteSettings(target=target, profile=profile, extension=mode))
-    supported = state.detect_extension(transcript)
-    return supported, state.extension_how
+    if mode != "auto":
+        return mode == "on", "forced on" if mode == "on" else "off (--extension off)"
+    conn = TcpConnection(transcript, target, profile, "extension detection")
+    try:
+        conn.connect()
+    except Unreachable:
+        return False, "not checked (the box could not be reached)"
+    try:
+        return detect_extension(conn)
+    finally:
+        conn.close()
 
 
 def resolve_database(value: str | None) -> tuple[Any, str]:
