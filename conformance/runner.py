@@ -12,7 +12,6 @@ shows progress, applies the expected-failures list and sets the exit code:
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import os
 import socket
@@ -25,6 +24,7 @@ import pytest
 
 from .harness.target import Target
 from .pytest_plugin import results, suite_info
+from .rundirs import default_run_dirs
 from .suite.catalogue import CaseInfo, info_of
 from .suite.settings import SuiteSettings, add_suite_options
 from .suite.verdicts import CaseResult, Verdict
@@ -178,12 +178,12 @@ def main_run(args: argparse.Namespace) -> int:
     if args.list:
         return list_cases(settings, args.list_format)
 
-    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    settings = replace(
-        settings,
-        report_dir=settings.report_dir or Path("reports") / stamp,
-        pcap_dir=None if settings.capture == "off" else (settings.pcap_dir or Path("pcaps") / stamp),
-    )
+    try:
+        report_dir, pcap_dir = default_run_dirs(settings.report_dir, settings.pcap_dir, settings.capture != "off")
+    except OSError as exc:
+        print(f"isight-conformance run: cannot create the report directory: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    settings = replace(settings, report_dir=report_dir, pcap_dir=pcap_dir)
     embedded = None
     if settings.target is None:
         from .endpoints.behaviour import BoxConfig
