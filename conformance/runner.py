@@ -42,6 +42,11 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
                        help="case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
                             "only when the failing set equals the list")
     group.add_argument("--quiet", action="store_true", help="no live progress line (for CI logs)")
+    fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
+    fleet.add_argument("--targets", metavar="FILE", default=None,
+                       help="test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
+                            "into --report-dir (default reports/fleet-<timestamp>), each box's reports in DIR/<name>/")
+    fleet.add_argument("--jobs", type=int, metavar="N", default=None, help="with --targets: boxes tested at once (default 1)")
 
 
 def read_expected_failures(path: Path) -> set[str]:
@@ -169,6 +174,10 @@ def list_cases(settings: SuiteSettings, fmt: str = "text") -> int:
 
 
 def main_run(args: argparse.Namespace) -> int:
+    if getattr(args, "targets", None):
+        from .fleet import main_fleet
+
+        return main_fleet(args)
     try:
         settings = SuiteSettings.resolve(lambda dest: getattr(args, dest, None))
         expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
