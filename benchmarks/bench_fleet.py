@@ -62,15 +62,17 @@ def main() -> None:
                 print(f"{boxes} boxes, --jobs {jobs}: wall {r['wall_s']:6.1f} s; boxes' own durations sum "
                       f"{r['sum_s']:6.1f} s, longest {r['max_box_s']:5.1f} s; "
                       f"{'PASS' if r['passed'] else 'FAIL'} ({r['statuses']})", flush=True)
+    print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    if len(jobs_list) < 2:
+        return
     print()
-    print("| boxes | " + " | ".join(f"--jobs {j}" for j in jobs_list) + " | speed-up |")
+    print("| boxes | " + " | ".join(f"--jobs {j}" for j in jobs_list) + f" | --jobs {jobs_list[-1]} vs {jobs_list[0]} |")
     print("|---|" + "---|" * len(jobs_list) + "---|")
     for boxes in sizes:
         row = {r["jobs"]: r for r in results if r["boxes"] == boxes}
         cells = [f"{row[j]['wall_s']:.1f} s" for j in jobs_list]
         first, last = row[jobs_list[0]]["wall_s"], row[jobs_list[-1]]["wall_s"]
         print(f"| {boxes} | " + " | ".join(cells) + f" | {last / first:.2f}× the time ({first / last:.2f}× faster) |")
-    print(f"\nload average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
 if __name__ == "__main__":

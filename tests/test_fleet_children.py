@@ -86,6 +86,19 @@ def test_n_jobs_run_together_and_never_more(tmp_path: Path) -> None:
     assert [name for kind, name in events if kind == "start"] == ["b0", "b1", "b2", "b3"]
 
 
+def test_two_boxes_with_the_same_target_never_run_at_the_same_time(tmp_path: Path) -> None:
+    events: list[tuple[str, str]] = []
+    boxes = runs(tmp_path, ["pass"] * 4)
+    targets = ["10.0.0.5:9004", "10.0.0.5:9004", "10.0.0.6:9004", ""]
+    for box, target in zip(boxes, targets):
+        box.spec = BoxSpec(box.spec.name, box.spec.line, {"target": (target,)} if target else {})
+    FleetRunner(boxes, 3, on_start=lambda r: events.append(("start", r.name)),
+                on_done=lambda r: events.append(("done", r.name))).run()
+    assert events.index(("done", "b0")) < events.index(("start", "b1"))  # same target: one after the other
+    assert events[:3] == [("start", "b0"), ("start", "b2"), ("start", "b3")]  # the others did not wait
+    assert all(b.exit_code == 0 for b in boxes)
+
+
 def test_stale_results_are_removed_and_the_expected_failures_written(tmp_path: Path) -> None:
     (box,) = runs(tmp_path, ["pass"], expected=("T2-01", "R5-02"))
     box.report_dir.mkdir(parents=True)

@@ -65,7 +65,8 @@ class BoxRun:
 
 
 class FleetRunner:
-    """Start the children ``jobs`` at a time, in file order; wait; stop them all on request."""
+    """Start the children ``jobs`` at a time, in file order (a box whose target is under test
+    already waits its turn); wait; stop them all on request."""
 
     def __init__(self, boxes: Sequence[BoxRun], jobs: int = 1,
                  on_start: Callable[[BoxRun], None] = lambda run: None,
@@ -92,8 +93,11 @@ class FleetRunner:
         running: list[BoxRun] = []
         try:
             while (pending or running) and self.stopped is None:
-                while pending and len(running) < self.jobs and self.stopped is None:
-                    box = pending.pop(0)
+                while len(running) < self.jobs and self.stopped is None:
+                    box = _next(pending, running)
+                    if box is None:
+                        break
+                    pending.remove(box)
                     self._start(box)
                     running.append(box)
                 for box in list(running):
@@ -152,6 +156,13 @@ class FleetRunner:
                 box.status = for_status
                 continue
             self._finish(box, for_status)
+
+
+def _next(pending: list[BoxRun], running: list[BoxRun]) -> BoxRun | None:
+    """The first pending box whose target is not under test right now: one box has one cycle
+    state, so two runs against the same address never overlap (bundled boxes never clash)."""
+    busy = {r.spec.target for r in running if r.spec.target}
+    return next((box for box in pending if not box.spec.target or box.spec.target not in busy), None)
 
 
 def _signal_group(box: BoxRun, sig: signal.Signals) -> None:
