@@ -14,7 +14,6 @@ say INCOMPLETE).
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import os
 import sys
@@ -28,6 +27,7 @@ from .harness.target import check_reachable
 from .protocol.clauses import all_clauses, clause_ids
 from .protocol.clauses import families as registry_families
 from .pytest_plugin import CAUSES, results, suite_info
+from .rundirs import default_run_dirs
 from .suite.catalogue import CaseInfo, info_of
 from .suite.settings import SuiteSettings, add_suite_options
 from .suite.verdicts import CaseResult, RootCause, Verdict
@@ -45,6 +45,11 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
                        help="case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
                             "only when the failing set equals the list")
     group.add_argument("--quiet", action="store_true", help="no live progress line (for CI logs)")
+    fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
+    fleet.add_argument("--targets", metavar="FILE", default=None,
+                       help="test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
+                            "into --report-dir (default reports/fleet-<timestamp>), each box's reports in DIR/<name>/")
+    fleet.add_argument("--jobs", type=int, metavar="N", default=None, help="with --targets: boxes tested at once (default 1)")
 
 
 def read_expected_failures(path: Path) -> set[str]:
@@ -162,6 +167,10 @@ def list_cases(settings: SuiteSettings, fmt: str = "text") -> int:
 
 
 def main_run(args: argparse.Namespace) -> int:
+    if getattr(args, "targets", None):
+        from .fleet import main_fleet
+
+        return main_fleet(args)
     try:
         settings = SuiteSettings.resolve(lambda dest: getattr(args, dest, None))
         expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
@@ -171,12 +180,12 @@ def main_run(args: argparse.Namespace) -> int:
     if args.list:
         return list_cases(settings, args.list_format)
 
-    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    settings = replace(
-        settings,
-        report_dir=settings.report_dir or Path("reports") / stamp,
-        pcap_dir=None if settings.capture == "off" else (settings.pcap_dir or Path("pcaps") / stamp),
-    )
+    try:
+        report_dir, pcap_dir = default_run_dirs(settings.report_dir, settings.pcap_dir, settings.capture != "off")
+    except OSError as exc:
+        print(f"isight-conformance run: cannot create the report directory: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    settings = replace(settings, report_dir=report_dir, pcap_dir=pcap_dir)
     embedded = None
     if settings.target is None:
         from .endpoints.bundled import start_bundled
