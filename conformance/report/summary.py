@@ -9,6 +9,8 @@ Files are written atomically (a temp file in the same directory, then
 from __future__ import annotations
 
 import dataclasses
+import functools
+import importlib
 import json
 import os
 import re
@@ -16,6 +18,7 @@ import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
@@ -73,6 +76,21 @@ FAMILIES: dict[str, str] = {
 }
 
 _RANK = {v: i for i, v in enumerate(VERDICT_ORDER)}
+
+
+@functools.cache
+def clause_registry() -> ModuleType | None:
+    """The clause registry module (``conformance.protocol.clauses``), None without it."""
+    try:
+        return importlib.import_module("conformance.protocol.clauses")
+    except ImportError:
+        return None
+
+
+def registry_version() -> str:
+    """The clause registry's version ("" without a registry)."""
+    reg = clause_registry()
+    return str(getattr(reg, "REGISTRY_VERSION", "")) if reg is not None else ""
 
 
 def worst(verdicts: Iterable[Verdict]) -> Verdict | None:
@@ -282,8 +300,12 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
 
 def suite_dict(suite: SuiteInfo) -> dict[str, Any]:
-    """SuiteInfo as summary.json's "suite" object (its fields, in their order)."""
-    return dataclasses.asdict(suite)
+    """SuiteInfo as summary.json's "suite" object (its fields, in their order), with the
+    clause registry's version filled in when the run did not set it."""
+    out = dataclasses.asdict(suite)
+    if not out.get("registry_version"):
+        out["registry_version"] = registry_version()
+    return out
 
 
 def write_summary(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult],

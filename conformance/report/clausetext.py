@@ -1,0 +1,69 @@
+"""The words of the clauses a verdict cites, for the reports.
+
+Every non-PASS verdict in the HTML report and on the terminal shows the text of the
+clause(s) it judged. The text comes from the clause registry
+(:mod:`conformance.protocol.clauses`: ``text_of(id)``, ``REGISTRY_VERSION``); a clause
+the registry does not know (or a build without the registry) falls back to the short
+title of :data:`~.summary.CLAUSES`, so a report never fails for want of a text.
+
+"The clause(s) it judged": a verdict's ``requirement`` (or, failing that, its message)
+starts with the clause IDs it judged, e.g. ``"A4/T1: the box does not answer..."``.
+Those are the judged clauses; with no such prefix, every clause the case cites is.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from ..suite.verdicts import CaseResult
+from .summary import CLAUSES, clause_registry
+
+#: "A4/T1: ..." or "R1, B4: ..." at the start of a requirement or message
+_PREFIX = re.compile(r"^\s*((?:[A-Z]\d+)(?:\s*[/,]\s*[A-Z]\d+)*)\s*(?:\([A-Z]+\))?\s*:")
+_ID = re.compile(r"[A-Z]\d+")
+
+
+@dataclass(frozen=True)
+class ClauseText:
+    id: str
+    level: str  # "MUST", "SHOULD", "MAY" or "" when unknown
+    title: str
+    text: str
+
+
+@functools.cache
+def clause_text(clause_id: str) -> ClauseText:
+    """The registry's level, title and text of a clause (the title again as the text
+    when the registry is missing or does not know the clause)."""
+    title = CLAUSES.get(clause_id, "")
+    reg = clause_registry()
+    if reg is not None:
+        try:
+            entry: Any = reg.clause(clause_id)
+        except (KeyError, LookupError, ValueError):
+            entry = None
+        if entry is not None:
+            level = getattr(entry, "level", "")
+            return ClauseText(clause_id, str(getattr(level, "value", level) or ""),
+                              str(getattr(entry, "title", "") or title), " ".join(str(entry.text).split()))
+    return ClauseText(clause_id, "", title, title)
+
+
+def judged_clauses(case: CaseResult) -> tuple[str, ...]:
+    """The clause IDs a verdict judged: the ID prefix of its requirement or message,
+    else every clause the case cites (in the case's order, each once)."""
+    for source in (case.requirement, case.message):
+        m = _PREFIX.match(source or "")
+        if m:
+            ids = tuple(dict.fromkeys(_ID.findall(m.group(1))))
+            if ids:
+                return ids
+    return tuple(dict.fromkeys(case.clauses))
+
+
+def judged_texts(case: CaseResult) -> list[ClauseText]:
+    """:func:`clause_text` of each judged clause."""
+    return [clause_text(c) for c in judged_clauses(case)]
