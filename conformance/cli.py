@@ -18,6 +18,7 @@ from .protocol import (
     Transport,
     parse_frame,
 )
+from .report import diff_cli
 
 #: subcommand -> (help, the issue that delivers it)
 PLANNED: dict[str, tuple[str, str]] = {}
@@ -78,6 +79,7 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=f"{text} [not yet implemented: arrives with {milestone}]")
         p.set_defaults(func=_planned(name, milestone))
     _add_fuzz_and_replay(sub)
+    diff_cli.add_parser(sub)
     return parser
 
 

@@ -118,3 +118,11 @@ def root_causes_of(doc: dict[str, Any]) -> list[RootCause]:
             level=_level(r.get("level")), kind=str(r.get("kind", "")),
         ))
     return out
+
+
+def root_causes_in(report_dir: str | os.PathLike[str]) -> list[RootCause]:
+    """The root causes of the summary.json in ``report_dir`` ([] when there is none)."""
+    try:
+        return root_causes_of(load_summary(report_dir))
+    except SummaryError:
+        return []
