@@ -14,7 +14,15 @@ import pytest
 
 from conformance.protocol import DEFAULT_PROFILE
 from conformance.report import by_clause, conforms, overall_line, totals, write_summary
-from conformance.report.summary import CLAUSES, clean_text, format_duration, group_hex, hex_bytes, worst
+from conformance.report.summary import (
+    CLAUSES,
+    clean_text,
+    format_duration,
+    group_hex,
+    hex_bytes,
+    registry_version,
+    worst,
+)
 from conformance.suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict, WireLine
 
 HOSTILE = "<script>alert('x')</script> & \x00\x1b[31m\ud800 ]]> [bold]markup[/]"
@@ -153,15 +161,28 @@ def test_write_summary_shape(tmp_path):
     returned = write_summary(path, suite, cases)
     doc = json.loads(path.read_text(encoding="utf-8"))
     assert doc == returned
-    assert list(doc) == ["suite", "cases", "totals"]
+    assert list(doc) == ["suite", "root_causes", "cases", "totals"]
+    assert doc["root_causes"] == []
     assert list(doc["suite"])[:5] == ["version", "started", "duration_s", "target", "profile"]
     assert set(doc["suite"]) == {"version", "started", "duration_s", "target", "profile", "udp_target", "extension",
-                                 "expected_failures", "command", "role"}
+                                 "expected_failures", "command", "role", "complete", "cases_total", "not_run",
+                                 "registry_version"}
+    assert doc["suite"]["registry_version"] == registry_version()
+    assert all(case["clauses"] for case in doc["cases"])
     assert doc["suite"]["profile"]["tcp_check"] == "zero-or-crc"
     assert doc["suite"]["profile"]["first_index"] == 1
     assert doc["cases"] == json.loads(json.dumps([c.to_summary() for c in cases]))
     assert doc["totals"] == totals(cases)
     assert set(doc["totals"]) == {v.value for v in Verdict}
+
+
+def test_write_summary_root_causes_and_registry_version(tmp_path):
+    cases, rcs = sample_root_causes()
+    doc = write_summary(tmp_path / "summary.json", sample_suite(registry_version="7"), cases, rcs)
+    assert doc["suite"]["registry_version"] == "7"  # a version the run set is kept
+    assert doc["root_causes"] == [rcs[0].to_dict()]
+    assert doc["root_causes"][0]["cases"][0] == "A5-01[v00]"
+    assert {c["id"]: c["root_cause"] for c in doc["cases"]}["A5-01[v11]"] == "RC1"
 
 
 def test_write_summary_survives_hostile_text(tmp_path):
