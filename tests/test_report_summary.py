@@ -16,6 +16,7 @@ from conformance.protocol import DEFAULT_PROFILE
 from conformance.report import by_clause, conforms, overall_line, totals, write_summary
 from conformance.report.summary import (
     CLAUSES,
+    FAMILIES,
     clean_text,
     format_duration,
     group_hex,
@@ -118,6 +119,14 @@ def test_clause_catalogue_matches_the_suites_clause_ids():
     assert all(_CLAUSE.match(c) for c in CLAUSES)
     expected = [f"{f}{i}" for f, n in zip("FBASTRE", (7, 5, 5, 6, 2, 7, 5)) for i in range(1, n + 1)]
     assert list(CLAUSES) == expected
+    assert not _CLAUSE.match("Z9") and not _CLAUSE.match("F8") and not _CLAUSE.match("F1 ")
+
+
+def test_clause_table_is_a_view_of_the_registry():
+    from conformance.protocol.clauses import all_clauses, families
+
+    assert CLAUSES == {c.id: c.title for c in all_clauses().values()}
+    assert FAMILIES == families() and list(FAMILIES) == list("FBASTRE")
 
 
 def test_by_clause_worst_verdict_case_ids_and_untested():

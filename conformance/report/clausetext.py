@@ -1,10 +1,9 @@
 """The words of the clauses a verdict cites, for the reports.
 
 Every non-PASS verdict in the HTML report and on the terminal shows the text of the
-clause(s) it judged. The text comes from the clause registry
-(:mod:`conformance.protocol.clauses`: ``text_of(id)``, ``REGISTRY_VERSION``); a clause
-the registry does not know (or a build without the registry) falls back to the short
-title of :data:`~.summary.CLAUSES`, so a report never fails for want of a text.
+clause(s) it judged, from the clause registry (:mod:`conformance.protocol.clauses`).
+A clause ID the registry does not know (a case naming one by mistake) gets an empty
+level and its ID as the title, so a report never fails for want of a text.
 
 "The clause(s) it judged": a verdict's ``requirement`` (or, failing that, its message)
 starts with the clause IDs it judged, e.g. ``"A4/T1: the box does not answer..."``.
@@ -16,12 +15,11 @@ from __future__ import annotations
 import functools
 import re
 from dataclasses import dataclass
-from typing import Any
 
+from ..protocol.clauses import all_clauses
 from ..suite.verdicts import CaseResult
-from .summary import CLAUSES, clause_registry
 
-#: "A4/T1: ..." or "R1, B4: ..." at the start of a requirement or message
+#: "A4/T1: ..." or "R1, B4 (MUST): ..." at the start of a requirement or message
 _PREFIX = re.compile(r"^\s*((?:[A-Z]\d+)(?:\s*[/,]\s*[A-Z]\d+)*)\s*(?:\([A-Z]+\))?\s*:")
 _ID = re.compile(r"[A-Z]\d+")
 
@@ -29,27 +27,18 @@ _ID = re.compile(r"[A-Z]\d+")
 @dataclass(frozen=True)
 class ClauseText:
     id: str
-    level: str  # "MUST", "SHOULD", "MAY" or "" when unknown
+    level: str  # "MUST", "SHOULD", "MAY" or several ("MUST/SHOULD"); "" for an ID the registry does not know
     title: str
     text: str
 
 
 @functools.cache
 def clause_text(clause_id: str) -> ClauseText:
-    """The registry's level, title and text of a clause (the title again as the text
-    when the registry is missing or does not know the clause)."""
-    title = CLAUSES.get(clause_id, "")
-    reg = clause_registry()
-    if reg is not None:
-        try:
-            entry: Any = reg.clause(clause_id)
-        except (KeyError, LookupError, ValueError):
-            entry = None
-        if entry is not None:
-            level = getattr(entry, "level", "")
-            return ClauseText(clause_id, str(getattr(level, "value", level) or ""),
-                              str(getattr(entry, "title", "") or title), " ".join(str(entry.text).split()))
-    return ClauseText(clause_id, "", title, title)
+    """The registry's level, title and text of a clause."""
+    found = all_clauses().get(clause_id)
+    if found is None:
+        return ClauseText(clause_id, "", clause_id, f"{clause_id} is not a clause of docs/PROTOCOL.md")
+    return ClauseText(found.id, "/".join(found.levels), found.title, " ".join(found.text.split()))
 
 
 def judged_clauses(case: CaseResult) -> tuple[str, ...]:
