@@ -30,6 +30,19 @@ FAMILY_CLAUSES = {
     "T": ("T1", "T2"), "R": ("R1", "R3", "R4", "R6"), "E": ("E1", "E2", "E4"),
 }
 POSE = "fefe000101230101001900" + "00" + "42c80000" * 6 + "0000"
+#: requirements a systematic defect breaks: 8 kinds x 9 wordings, about as many distinct findings as a real run has
+KINDS = ("NONE", "CycleOn", "CycleOff", "POSE", "REGISTER_POSE", "TOLERANCE", "ProgIdx", "result request")
+WORDINGS = (
+    "a well-formed {k} request is answered with type 10 and the action echoed",
+    "a {k} request with a gap in its block indexes SHOULD be answered with its action's error",
+    "a {k} request with a wrong block length MUST NOT be answered 0000",
+    "a {k} request split into pieces is answered like the whole frame",
+    "several {k} requests in one segment are each answered, in order",
+    "a {k} request after garbage is answered once the box resynchronised",
+    "a {k} request on a fresh connection is answered within time_out",
+    "a {k} request with a wrong transfer type is not a request and MUST NOT be answered 0000",
+    "the {k} request of a golden vector is answered as the vector says",
+)
 ANSWER = "fefe000110230000000000000000"
 
 
@@ -115,7 +128,8 @@ def systematic_defect(cases: list[CaseResult], fails: int = 150, non_strict: int
             continue
         budget[verdict] -= 1
         first = case.clauses[0] if case.clauses else "A2"
-        requirement = f"{first}: a well-formed request is answered with type 10, the action echoed, version 00 01"
+        n = len(explained)
+        requirement = f"{first}: " + WORDINGS[n % len(WORDINGS)].format(k=KINDS[(n // len(WORDINGS)) % len(KINDS)])
         out.append(dataclasses.replace(
             case, verdict=verdict, level=Level.SHOULD if verdict is Verdict.NON_STRICT else Level.MUST,
             message=f"{requirement}: expected answered POSE with error 0x0000 (OK); the box sent a malformed "

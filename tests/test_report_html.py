@@ -284,6 +284,10 @@ def test_print_cards(tmp_path):
     cards = {anchor for anchor, cls in classes.items() if "card" in cls.split()}
     # FAIL/ERROR/NON-STRICT/INCONCLUSIVE with a finding of their own, and the first case of RC1
     assert cards == {"case-F1-01", "case-A5-01_v00_", "case-A3-02", "case-S2-01", "case-R5-03"}
+    # the other findings print under Findings only; PASS, INFORMATIONAL and SKIP print one line each
+    assert "pextra" in classes["case-A5-01_v01_"].split() and "pextra" in classes["case-A3-01_g0_"].split()
+    for anchor in ("case-T2-01", "case-S3-02", "case-F7-01"):
+        assert not {"pextra", "card"} & set(classes[anchor].split())
     css = html[html.index("@media print"):html.index("</style>")]
     assert "details.case:not(.card) > .case-body { display: none; }" in css
     assert ".pextra { display: none !important; }" in css

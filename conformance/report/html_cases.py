@@ -25,12 +25,12 @@ from .summary import clean_text, format_duration, group_hex, hex_bytes
 from .svg import histogram_svg, latency_svg
 
 WIRE_HEAD, WIRE_TAIL = 150, 50  # wire lines shown per case: the first and the last ones
-WIRE_PRINT_HEAD, WIRE_PRINT_TAIL = 6, 2  # of those, the ones a print card shows
+WIRE_PRINT_HEAD, WIRE_PRINT_TAIL = 5, 2  # of those, the ones a print card shows
 WIRE_HEX_BYTES = 48  # bytes of one wire line's hex shown in the table
 HEX_DUMP_BYTES = 4096  # bytes of sent/received hex shown per case
-HEX_PRINT_ROWS = 4  # rows of 16 bytes a print card shows
+HEX_PRINT_ROWS = 2  # rows of 16 bytes a print card shows
 DETAIL_CHARS = 2000  # characters of one details value shown
-PRINT_CARDS = 60  # at most this many cases print their body; the rest print as one line
+PRINT_CARDS = 40  # at most this many cases print their body; the rest print as one line
 #: verdicts whose cases print a card (INFORMATIONAL, SKIP and PASS print one line)
 CARD_VERDICTS = (Verdict.FAIL, Verdict.ERROR, Verdict.NON_STRICT, Verdict.INCONCLUSIVE)
 
@@ -106,7 +106,8 @@ def wire_rows(wire: Sequence[WireLine]) -> tuple[list[dict[str, Any]], list[dict
 
     n = len(wire)
     if n <= WIRE_HEAD + WIRE_TAIL:
-        return [row(w, WIRE_PRINT_HEAD <= i < n - WIRE_PRINT_TAIL) for i, w in enumerate(wire)], [], 0
+        cut = n > WIRE_PRINT_HEAD + WIRE_PRINT_TAIL + 1  # never cut a single line
+        return [row(w, cut and WIRE_PRINT_HEAD <= i < n - WIRE_PRINT_TAIL) for i, w in enumerate(wire)], [], 0
     return ([row(w, i >= WIRE_PRINT_HEAD) for i, w in enumerate(wire[:WIRE_HEAD])],
             [row(w, i < WIRE_TAIL - WIRE_PRINT_TAIL) for i, w in enumerate(wire[-WIRE_TAIL:])],
             n - WIRE_HEAD - WIRE_TAIL)
@@ -174,13 +175,15 @@ def case_view(case: CaseResult, anchor: str, suite: SuiteInfo, report_dir: Path,
         "level": case.level.value, "verdict": case.verdict.value, "cls": css_class(case.verdict),
         # on screen, a case a root cause explains opens with one click (the first one is open)
         "open": not passed and (not case.root_cause or card), "card": card,
+        "finding": case.verdict in CARD_VERDICTS,  # listed under Findings
         "duration": format_duration(case.duration_s),
         "message": case.message, "requirement": case.requirement,
         "expected": case.expected, "observed": case.observed,
         "clause_texts": [] if passed else judged_texts(case), "root_cause": case.root_cause,
         "sent": _hex_view(case.sent_hex), "received": _hex_view(case.received_hex),
         "wire_head": head, "wire_tail": tail, "wire_omitted": omitted, "wire_total": len(case.wire),
-        "wire_print_omitted": max(0, len(case.wire) - WIRE_PRINT_HEAD - WIRE_PRINT_TAIL),
+        "wire_print_omitted": (len(case.wire) - WIRE_PRINT_HEAD - WIRE_PRINT_TAIL
+                               if len(case.wire) > WIRE_PRINT_HEAD + WIRE_PRINT_TAIL + 1 else 0),
         "svg": svg, "histogram": histogram,
         "pcap": case.pcap, "pcap_href": pcap_href(case.pcap, report_dir, pcap_base) if case.pcap else None,
         "details": [(str(k), _detail_value(v)) for k, v in sorted(case.details.items(), key=lambda kv: str(kv[0]))
