@@ -62,7 +62,7 @@ def measure(label: str, html: Path, limit: int | None) -> int:
     start = time.monotonic()
     pages = print_to_pdf(html, pdf)
     took = time.monotonic() - start
-    verdict = "" if limit is None else (" (limit %d: %s)" % (limit, "ok" if pages <= limit else "OVER"))
+    verdict = "" if limit is None else f" (limit {limit}: {'ok' if pages <= limit else 'OVER'})"
     print(f"{label:<58} {pages:>4} pages{verdict}  PDF {pdf.stat().st_size / 1e6:5.2f} MB  "
           f"HTML {html.stat().st_size / 1e6:5.2f} MB  {took:4.1f} s")
     return pages
@@ -105,7 +105,7 @@ def main() -> int:
         for i, (label, run_cases, run_rcs, kind) in enumerate(runs):
             html = render(work / f"doc-{i}.html", suite, run_cases, run_rcs)
             over += measure(label, html, LIMITS[kind]) > LIMITS[kind]
-        existing = ", ".join(root_causes_of(doc)[i].id for i in range(len(root_causes_of(doc))))
+        existing = ", ".join(rc.id for rc in root_causes_of(doc))
         if existing:
             print(f"(the run itself reported root causes {existing})")
     return 1 if over else 0
