@@ -46,6 +46,7 @@ def test_not_a_tty_prints_one_plain_line_per_non_pass_case():
     # each case line is followed by the text of the clause(s) its verdict judged
     assert re.match(r"^ {14}R1( \(MUST\))?: " + re.escape(clause_text("R1").text[:40]), lines[1])
     assert all(line.startswith(" " * 14) for line in lines if line not in case_lines)
+    assert all(len(line) <= 120 for line in lines if line not in case_lines)  # cut to the console's width
     assert len(lines) - len(case_lines) >= len(case_lines)
     assert "T2-01" not in out and "B3-01" not in out  # PASS cases say nothing
     assert "[bold]markup[/]" in out  # a box's text is never read as markup

@@ -69,13 +69,14 @@ def case_line(result: CaseResult) -> Text:
     return line
 
 
-def clause_lines(result: CaseResult, indent: str = "              ") -> Text:
-    """The text of the clause(s) a non-PASS verdict judged, one dim line each."""
+def clause_lines(result: CaseResult, width: int = 240, indent: str = "              ") -> Text:
+    """The text of the clause(s) a non-PASS verdict judged, one dim line each, cut to ``width``."""
     out = Text(style="dim")
     for i, t in enumerate(judged_texts(result)):
         if i:
             out.append("\n")
-        out.append(f"{indent}{t.id}{f' ({t.level})' if t.level else ''}: {one_line(t.text, 240)}")
+        out.append(indent + one_line(f"{t.id}{f' ({t.level})' if t.level else ''}: {t.text}",
+                                     max(width - len(indent), 30)))
     return out
 
 
@@ -113,7 +114,7 @@ class Progress:
         if result.verdict is not Verdict.PASS:
             # above the live line on a TTY; the only output otherwise
             self.console.print(case_line(result), soft_wrap=True, highlight=False)
-            texts = clause_lines(result)
+            texts = clause_lines(result, self.console.width)
             if texts:
                 self.console.print(texts, soft_wrap=True, highlight=False)
         self._refresh()
