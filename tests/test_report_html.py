@@ -15,7 +15,7 @@ from conformance.report.clausetext import clause_text
 from conformance.report.diff import compare
 from conformance.report.html import WIRE_HEAD, WIRE_TAIL, pcap_href
 from conformance.report.html_cases import PRINT_CARDS, WIRE_PRINT_HEAD, WIRE_PRINT_TAIL
-from conformance.report.summary import CLAUSES, write_summary
+from conformance.report.summary import CLAUSES, registry_version, write_summary
 from conformance.suite.verdicts import CaseResult, Level, Verdict, WireLine
 
 from .test_report_summary import sample_cases, sample_root_causes, sample_suite
@@ -124,6 +124,7 @@ def test_header_for_signing(tmp_path):
                    "none: UDP cases (F7, R7) are SKIP", "Tested by", "Signature", "Date"):
         assert needle in text, needle
     # the one non-default setting is highlighted
+    assert f"isight-conformance 0.1.0 · clause registry version {registry_version()}" in text
     changed = re.findall(r'<tr class="changed"><td class="mono">(\w+)</td>', html)
     assert changed == ["first_index"]
     assert "1 setting differs from PROTOCOL.md's defaults" in text

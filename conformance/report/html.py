@@ -55,6 +55,7 @@ from .summary import (
     format_duration,
     overall_line,
     overall_state,
+    registry_version,
     totals,
 )
 
@@ -234,6 +235,7 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
         root_causes=root_cause_views(root_causes, cases, link), findings=findings(cases, root_causes),
         not_run=suite.not_run[:NOT_RUN_SHOWN], n_not_run=len(suite.not_run),
         cases_total=max(suite.cases_total, len(cases)), baseline=diff_view(diff),
+        registry_version=suite.registry_version or registry_version(),
         generated=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"),
     )
 
