@@ -9,8 +9,9 @@ from conformance.report.clausetext import clause_text, judged_clauses, judged_te
 from conformance.suite.verdicts import CaseResult, Level, Verdict
 
 
-def _case(requirement: str = "", message: str = "", clauses=("A5", "R1", "F1")) -> CaseResult:
-    return CaseResult("X-01", "t", clauses, Level.MUST, Verdict.FAIL, message=message, requirement=requirement)
+def _case(requirement: str = "", message: str = "", clauses=("A5", "R1", "F1"), judged=()) -> CaseResult:
+    return CaseResult("X-01", "t", clauses, Level.MUST, Verdict.FAIL, message=message, requirement=requirement,
+                      judged=judged)
 
 
 @pytest.mark.parametrize(("requirement", "message", "judged"), [
@@ -24,6 +25,11 @@ def _case(requirement: str = "", message: str = "", clauses=("A5", "R1", "F1")) 
 ])
 def test_judged_clauses(requirement, message, judged):
     assert judged_clauses(_case(requirement, message)) == judged
+
+
+def test_the_suites_own_judged_field_wins():
+    case = _case("A5: a frame that is not a request", judged=("R2",))
+    assert judged_clauses(case) == ("R2",)
 
 
 def test_a_clause_named_twice_counts_once():

@@ -347,7 +347,11 @@ def _answers(outcome: Outcome, probe: Action) -> bool:
 
 
 def _probe_action(outcome: Outcome, probe: Action) -> bool:
-    return isinstance(outcome, Answer) and outcome.frame.action == probe
+    """An answer with the probe's action, even a malformed one: it ends the wait (the oracle attributes it)."""
+    if isinstance(outcome, Answer):
+        return outcome.frame.action == probe
+    header = outcome.error.header if isinstance(outcome, Malformed) else None
+    return header is not None and header.start_word == 0xFEFE and header.action == probe
 
 
 def frame_of(outcome: Outcome) -> Frame | None:

@@ -154,13 +154,14 @@ class Reader:
                                              raw=data[p : p + HEADER_LEN], header=header, clause="F2"), end=-1)
         total = HEADER_LEN + header.body_length + CHECK_LEN
         if total > MAX_FRAME_LEN:
+            # a header no receiver can trust: like the reference decoder, a box may take it for bytes that are
+            # not a request (A5: silence is fine) whatever its action; 0000 is still never allowed
+            message = f"header announces {header.body_length} block bytes, more than the largest legal frame"
             try:
                 self.codec.check_header(data[p : p + HEADER_LEN], TransferType.ROBOT_TO_BOX)
-                error: ProtocolError = LengthError(f"header announces {header.body_length} block bytes, more than "
-                                                   "the largest legal frame", offset=p, header=header)
             except ProtocolError as exc:
-                error = exc
-            return self._error(error, end=-1)
+                message = exc.message
+            return self._error(LengthError(message, offset=p, raw=data[p : p + HEADER_LEN]), end=-1)
         if total > rem:
             try:
                 self.codec.check_header(data[p : p + HEADER_LEN], TransferType.ROBOT_TO_BOX)

@@ -5,9 +5,9 @@ clause(s) it judged, from the clause registry (:mod:`conformance.protocol.clause
 A clause ID the registry does not know (a case naming one by mistake) gets an empty
 level and its ID as the title, so a report never fails for want of a text.
 
-"The clause(s) it judged": a verdict's ``requirement`` (or, failing that, its message)
-starts with the clause IDs it judged, e.g. ``"A4/T1: the box does not answer..."``.
-Those are the judged clauses; with no such prefix, every clause the case cites is.
+"The clause(s) it judged": the case's ``judged`` field when the suite set it; else the
+clause IDs its ``requirement`` (or, failing that, its message) starts with, e.g.
+``"A4/T1: the box does not answer..."``; with neither, every clause the case cites.
 """
 
 from __future__ import annotations
@@ -42,8 +42,10 @@ def clause_text(clause_id: str) -> ClauseText:
 
 
 def judged_clauses(case: CaseResult) -> tuple[str, ...]:
-    """The clause IDs a verdict judged: the ID prefix of its requirement or message,
-    else every clause the case cites (in the case's order, each once)."""
+    """The clause IDs a verdict judged: ``case.judged``, the ID prefix of its requirement
+    or message, else every clause the case cites (in the case's order, each once)."""
+    if case.judged:
+        return tuple(dict.fromkeys(case.judged))
     for source in (case.requirement, case.message):
         m = _PREFIX.match(source or "")
         if m:

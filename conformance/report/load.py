@@ -102,6 +102,7 @@ def cases_of(doc: dict[str, Any]) -> list[CaseResult]:
             requirement=str(c.get("requirement") or ""), expected=str(c.get("expected") or ""),
             observed=str(c.get("observed") or ""), sent_hex=str(c.get("sent_hex") or ""),
             received_hex=str(c.get("received_hex") or ""), pcap=c.get("pcap"), root_cause=c.get("root_cause"),
+            judged=tuple(str(x) for x in c.get("judged") or ()),
         ))
     return out
 
@@ -119,10 +120,3 @@ def root_causes_of(doc: dict[str, Any]) -> list[RootCause]:
         ))
     return out
 
-
-def root_causes_in(report_dir: str | os.PathLike[str]) -> list[RootCause]:
-    """The root causes of the summary.json in ``report_dir`` ([] when there is none)."""
-    try:
-        return root_causes_of(load_summary(report_dir))
-    except SummaryError:
-        return []

@@ -76,13 +76,21 @@ def _clause_key(clause: str) -> tuple[int, str, int, str]:
 
 def by_clause(cases: Iterable[CaseResult]) -> dict[str, ClauseResult]:
     """Every clause of PROTOCOL.md (untested ones with verdict None), then any other
-    clause a case names, each with its worst verdict and the ids of the cases that test it."""
+    clause a case names, each with its worst verdict and the ids of the cases that test it.
+
+    A FAIL or NON-STRICT marks only the clause(s) it judged (``case.judged``), at the
+    level of the verdict: a case about A2 that fails R2 marks R2, not A2."""
     ids: dict[str, list[str]] = {c: [] for c in CLAUSES}
     verdicts: dict[str, list[tuple[Level, Verdict]]] = {c: [] for c in CLAUSES}
     for case in cases:
+        judged = set(case.judged) if case.verdict in (Verdict.FAIL, Verdict.NON_STRICT) else set()
         for clause in dict.fromkeys(case.clauses):  # a clause named twice counts once
             ids.setdefault(clause, []).append(case.id)
-            verdicts.setdefault(clause, []).append((case.level, case.verdict))
+            if judged and clause not in judged:
+                continue  # tested by the case, but not what its verdict is about
+            level = {Verdict.FAIL: Level.MUST, Verdict.NON_STRICT: Level.SHOULD}.get(case.verdict, case.level) \
+                if judged else case.level
+            verdicts.setdefault(clause, []).append((level, case.verdict))
     out: dict[str, ClauseResult] = {}
     for clause in sorted(ids, key=_clause_key):
         levels: dict[Level, Verdict] = {}
