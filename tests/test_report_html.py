@@ -150,6 +150,15 @@ def test_clause_table_lists_every_clause(tmp_path):
     assert '<a class="chip v-FAIL" href="#case-F1-01">F1-01</a>' in html
 
 
+def test_a_clause_whose_cases_judged_another_clause_is_not_judged(tmp_path):
+    case = CaseResult("S4-01", "two connections", ("S4", "F2"), Level.MUST, Verdict.FAIL, judged=("F2",),
+                      message="F2: the answer is malformed")
+    html, checker = _render(tmp_path, cases=[case])
+    rows = {r[0]: r for r in checker.rows if r and r[0] in CLAUSES}
+    assert rows["S4"][2] == "not judged" and rows["F2"][2] == "FAIL" and rows["F1"][2] == "not tested"
+    assert "(not judged, their cases ended on another clause: S4)" in _text(checker)
+
+
 def test_cases_expanded_unless_pass(tmp_path):
     html, checker = _render(tmp_path)
     for case in sample_cases():

@@ -220,7 +220,8 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
     verdict_of = {c.id: c.verdict for c in cases}
     clause_print = {clause: clause_on_paper(row.cases, verdict_of) for clause, row in clause_results.items()}
     t = totals(cases)
-    untested = [c for c in CLAUSES if not clause_results[c].tested]
+    untested = [c for c in CLAUSES if not clause_results[c].cases]
+    unjudged = [c for c in CLAUSES if clause_results[c].cases and not clause_results[c].tested]
     profile = profile_rows(dict(suite.profile))
     return environment().get_template("report.html.j2").render(
         suite=suite, started=display_time(suite.started), duration=format_duration(suite.duration_s),
@@ -229,7 +230,7 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
         overall=overall_line(cases, suite), overall_state=overall_state(cases, suite),
         totals=t, total=len(cases), order=[v.value for v in VERDICT_ORDER],
         meaning={v.value: m for v, m in VERDICT_MEANING.items()},
-        families=families, untested=untested, n_clauses=len(CLAUSES), link=link, clause_print=clause_print,
+        families=families, untested=untested, unjudged=unjudged, n_clauses=len(CLAUSES), link=link, clause_print=clause_print,
         levels=list(Level), cases=views, wire_head=WIRE_HEAD, wire_tail=WIRE_TAIL,
         wire_print=(WIRE_PRINT_HEAD, WIRE_PRINT_TAIL), n_cards=len(cards),
         root_causes=root_cause_views(root_causes, cases, link), findings=findings(cases, root_causes),

@@ -167,9 +167,9 @@ def _case_table(rows: Sequence[CaseResult], title: str | None = None) -> Table:
     table = Table(title=title, title_justify="left", title_style="bold", box=None, padding=(0, 1),
                   show_header=True, header_style="bold", expand=True)
     table.add_column("Verdict", no_wrap=True, width=12)
-    table.add_column("Case", no_wrap=True, overflow="ellipsis", max_width=26)
-    table.add_column("Clauses", no_wrap=True, overflow="ellipsis", max_width=12)
-    table.add_column("Message", no_wrap=True, overflow="ellipsis", ratio=1, min_width=24)
+    table.add_column("Case", no_wrap=True, overflow="ellipsis", max_width=24)
+    table.add_column("Clauses", no_wrap=True, overflow="ellipsis", max_width=11)
+    table.add_column("Message", no_wrap=True, overflow="ellipsis", ratio=1, min_width=28)
     for c in rows:
         # Text, never str: rich would read "[...]" in a box's message as markup
         table.add_row(Text(c.verdict.value, style=STYLES[c.verdict]), Text(one_line(c.id, 120)),
