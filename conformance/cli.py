@@ -18,6 +18,7 @@ from .protocol import (
     Transport,
     parse_frame,
 )
+from .report import diff_cli
 
 #: subcommand -> (help, the issue that delivers it)
 PLANNED: dict[str, tuple[str, str]] = {}
@@ -80,6 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fuzz_and_replay(sub)
     clauses_cli.add_parser(sub)
     wireshark_cli.add_parser(sub)
+    diff_cli.add_parser(sub)
     return parser
 
 
