@@ -86,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_serve(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    from .endpoints.behaviour import SENDABLE_RESULTS
+    from .protocol.answers import SENDABLE_RESULTS
 
     p = sub.add_parser(
         "serve",

@@ -27,11 +27,11 @@ from hypothesis import strategies as st
 from hypothesis.errors import Flaky
 from hypothesis.stateful import RuleBasedStateMachine, precondition, rule, run_state_machine_as_test
 
-from ..endpoints.behaviour import SENDABLE_RESULTS
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..harness.target import Unreachable
 from ..harness.transcript import Transcript
 from ..protocol import BLOCK_LEN, Action, BlockType, Header, Transport, codec_for
+from ..protocol.answers import SENDABLE_RESULTS
 from ..suite.verdicts import Verdict
 from .evidence import Failure, clauses_of
 from .executor import Executor, FuzzConnection, alive
