@@ -78,6 +78,9 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=f"{text} [not yet implemented: arrives with {milestone}]")
         p.set_defaults(func=_planned(name, milestone))
     _add_fuzz_and_replay(sub)
+    from .analyze.cli import add_parser as add_analyze
+
+    add_analyze(sub)
     return parser
 
 

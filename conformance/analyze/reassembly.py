@@ -1,0 +1,333 @@
+"""TCP reassembly for one connection, both directions (sans-I/O).
+
+:class:`TcpStream` takes the segments of one connection in capture order and hands
+its sink each direction's bytes in stream order, exactly once:
+
+* **retransmissions** (and duplicates, as a mirror port makes) are dropped; where the
+  bytes a retransmission repeats are still known (the last :data:`RECENT` bytes of
+  the direction) they are compared, and a difference is reported (``conflict``);
+* **out-of-order** segments wait until the bytes before them arrive;
+* **gaps**: bytes the capture does not have. The evidence is the receiver's ACK: when
+  one side acknowledges bytes of the other that the capture has not shown, those bytes
+  reached the receiver but not the capture. After a short grace (a capture may show
+  segments a little out of order: :data:`REORDER_PACKETS` packets or
+  :data:`REORDER_S` seconds) the missing range is declared a gap (``gap``) and the
+  stream resumes after it. Without ACK evidence a hole that lasts
+  :data:`STALL_PACKETS` packets, or holds more than :data:`OOO_LIMIT` bytes waiting,
+  is a gap too. Bytes cut by the snap length are a gap at once;
+* **causal order across directions**: bytes of one side whose segment acknowledges
+  bytes of the other side not yet seen are held back until those bytes arrive (or are
+  declared a gap), so an answer is never delivered before the request it answers even
+  when the capture shows them the other way round.
+
+Everything held is bounded (out-of-order bytes, held-back bytes, the recent bytes),
+so the state of a connection does not grow with its length.
+
+The sink has ``data(d, payload, frame, ts)``, ``gap(d, nbytes, frame_before, frame_after, ts)``,
+``close(d, how, frame, ts)`` (``how`` is ``"fin"`` or ``"rst"``) and ``conflict(d, frame, ts)``;
+``d`` is 0 or 1, the direction of the connection's first packet or its reverse.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Any
+
+from .packets import ACK, FIN, RST, SYN
+
+__all__ = ["RESTART", "TcpStream", "REORDER_PACKETS", "REORDER_S", "STALL_PACKETS", "OOO_LIMIT", "RECENT"]
+
+MASK = 0xFFFFFFFF
+HALF = 1 << 31
+REORDER_PACKETS = 32
+REORDER_S = 0.5
+STALL_PACKETS = 4096
+OOO_LIMIT = 1 << 20
+PENDING_LIMIT = 1 << 18
+RECENT = 8192
+#: ``segment`` returns this for a SYN that starts a new connection on the same addresses and ports
+RESTART = "restart"
+_DATA, _GAP, _FIN = 0, 1, 2
+
+
+def _behind(a: int, b: int) -> bool:
+    """Sequence number ``a`` is before ``b`` (modulo 2**32)."""
+    return 0 < ((b - a) & MASK) < HALF
+
+
+class Direction:
+    __slots__ = ("next", "isn", "ooo", "ooo_bytes", "acked", "hole_pkt", "hole_ts", "hole_no", "closed",
+                 "recent", "pending", "pending_bytes", "last_no", "midstart", "seen")
+
+    def __init__(self) -> None:
+        self.next: int | None = None  # next expected sequence number
+        self.isn: int | None = None
+        self.ooo: dict[int, tuple[bytes, int, int, float, bool]] = {}  # seq -> (payload, missing, frame, ts, fin)
+        self.ooo_bytes = 0
+        self.acked: int | None = None  # the other side's highest ACK of this direction
+        self.hole_pkt: int | None = None  # packet count when the current hole was first seen
+        self.hole_ts = 0.0
+        self.hole_no = 0
+        self.closed = False  # FIN reached
+        self.recent = bytearray()  # the last bytes delivered, ending at ``next``
+        #: held back for causal order: (kind, payload or byte count, frame, ts, sequence number the other side must reach)
+        self.pending: deque[tuple[int, Any, int, float, int]] = deque()
+        self.pending_bytes = 0
+        self.last_no = 0  # frame of the last segment delivered
+        self.midstart = False  # the first bytes seen did not follow a SYN
+        self.seen = False  # any segment of this direction seen
+
+    def acked_hole(self) -> bool:
+        """The other side acknowledged bytes of this direction the capture has not shown."""
+        return self.acked is not None and self.next is not None and _behind(self.next, self.acked)
+
+    def has_hole(self) -> bool:
+        return bool(self.ooo) or self.acked_hole()
+
+
+class TcpStream:
+    def __init__(self, sink: Any) -> None:
+        self.sink = sink
+        self.dirs = (Direction(), Direction())
+        self.packets = 0
+        self.client: int | None = None  # the direction whose SYN opened the connection
+        self.syn_frame = 0
+        self.syn_ts = 0.0
+        self.done = False  # reset, or both sides closed
+        self.reset_by: int | None = None
+        self._holes = False
+
+    # -- input -------------------------------------------------------------------------------
+    def segment(self, d: int, seq: int, ack: int, flags: int, payload: bytes, missing: int, no: int,
+                ts: float) -> str | None:
+        self.packets += 1
+        me, other = self.dirs[d], self.dirs[d ^ 1]
+        me.seen = True
+        if flags & SYN:
+            if self.done:
+                return RESTART
+            if me.isn is not None:
+                if seq == me.isn:
+                    return None  # a retransmitted SYN
+                if me.closed or self.done or other.closed or me.recent:
+                    return RESTART
+            me.isn = seq
+            me.next = (seq + 1) & MASK
+            seq = me.next
+            if not flags & ACK:
+                self.client, self.syn_frame, self.syn_ts = d, no, ts
+            elif self.client is None:
+                self.client = d ^ 1
+        elif self.done:
+            return None
+        if flags & RST:
+            if not self.done:
+                self._flush_holes(ts)
+                self.done = True
+                self.reset_by = d
+                self.sink.close(d, "rst", no, ts)
+            return None
+        if flags & ACK and other.next is not None and _behind(other.next, ack) and \
+                (other.acked is None or _behind(other.acked, ack)):
+            other.acked = ack
+            if other.hole_pkt is None:
+                other.hole_pkt, other.hole_ts, other.hole_no = self.packets, ts, no
+            self._holes = True
+        n = len(payload) + missing
+        if n or flags & FIN:
+            if me.next is None:
+                me.next = seq
+                me.midstart = True
+            off = (seq - me.next) & MASK
+            fin = bool(flags & FIN)
+            if off == 0:
+                if not me.closed:
+                    if n:
+                        self._accept(d, payload, missing, no, ts)
+                    if fin:
+                        self._fin(d, no, ts)
+                    if me.ooo:
+                        self._drain(d)
+            elif off >= HALF:
+                self._old(d, MASK + 1 - off, payload, missing, fin, no, ts)
+            elif not me.closed:
+                if seq not in me.ooo or len(me.ooo[seq][0]) < len(payload):
+                    me.ooo[seq] = (payload, missing, no, ts, fin)
+                    me.ooo_bytes += len(payload)
+                if me.hole_pkt is None:
+                    me.hole_pkt, me.hole_ts, me.hole_no = self.packets, ts, no
+                self._holes = True
+        if self._holes:
+            self._check_holes(ts)
+        return None
+
+    def finish(self, ts: float) -> None:
+        """The capture ended: what is still missing is a gap; release everything held."""
+        self._flush_holes(ts)
+
+    # -- delivery ---------------------------------------------------------------------------------
+    def _emit(self, d: int, kind: int, value: Any, no: int, ts: float) -> None:
+        sink = self.sink
+        if kind == _DATA:
+            sink.data(d, value, no, ts)
+        elif kind == _GAP:
+            sink.gap(d, value, no, no, ts)
+        else:
+            sink.close(d, "fin", no, ts)
+            if self.dirs[d ^ 1].closed and not self.dirs[d ^ 1].pending:
+                self.done = True
+
+    def _deliver(self, d: int, kind: int, value: Any, no: int, ts: float) -> None:
+        """Hand on now, or hold back while the other side has acknowledged bytes not yet seen."""
+        me, other = self.dirs[d], self.dirs[d ^ 1]
+        if not me.pending and not other.acked_hole():
+            self._emit(d, kind, value, no, ts)
+            return
+        wait = other.acked if other.acked_hole() else (me.pending[-1][4] if me.pending else other.next)
+        me.pending.append((kind, value, no, ts, wait))  # type: ignore[arg-type]
+        if kind == _DATA:
+            me.pending_bytes += len(value)
+            if me.pending_bytes > PENDING_LIMIT or len(me.pending) > 4096:
+                self._declare_gap(d ^ 1, ts)
+
+    def _accept(self, d: int, payload: bytes, missing: int, no: int, ts: float) -> None:
+        me = self.dirs[d]
+        me.next = (me.next + len(payload) + missing) & MASK  # type: ignore[operator]
+        me.last_no = no
+        if missing:
+            me.recent.clear()
+        elif payload:
+            recent = me.recent
+            recent += payload
+            if len(recent) > 2 * RECENT:
+                del recent[:-RECENT]
+        if payload:
+            self._deliver(d, _DATA, payload, no, ts)
+        if missing:
+            self._deliver(d, _GAP, missing, no, ts)
+        if self.dirs[d ^ 1].pending:
+            self._release(d ^ 1)
+
+    def _fin(self, d: int, no: int, ts: float) -> None:
+        me = self.dirs[d]
+        if me.closed:
+            return
+        me.closed = True
+        me.next = (me.next + 1) & MASK  # type: ignore[operator]
+        self._deliver(d, _FIN, None, no, ts)
+
+    def _drain(self, d: int) -> None:
+        me = self.dirs[d]
+        while me.ooo and not me.closed:
+            best = None
+            for s in me.ooo:
+                if not _behind(me.next, s):  # type: ignore[arg-type]
+                    best = s
+                    break
+            if best is None:
+                break
+            payload, missing, no, ts, fin = me.ooo.pop(best)
+            me.ooo_bytes -= len(payload)
+            back = (me.next - best) & MASK  # type: ignore[operator]
+            if back:
+                self._old(d, back, payload, missing, fin, no, ts)
+                continue
+            if payload or missing:
+                self._accept(d, payload, missing, no, ts)
+            if fin:
+                self._fin(d, no, ts)
+        if not me.has_hole():
+            me.hole_pkt = None
+
+    def _old(self, d: int, back: int, payload: bytes, missing: int, fin: bool, no: int, ts: float) -> None:
+        """A segment starting ``back`` bytes before ``next``: compare what is known, keep the rest."""
+        me = self.dirs[d]
+        size = len(payload)
+        seen = min(back, size)
+        recent = me.recent
+        if seen and back <= len(recent):
+            start = len(recent) - back
+            if recent[start : start + seen] != payload[:seen]:
+                self.sink.conflict(d, no, ts)
+        if back < size + missing and not me.closed:
+            self._accept(d, payload[back:], missing - max(0, back - size), no, ts)
+            if fin:
+                self._fin(d, no, ts)
+            if me.ooo:
+                self._drain(d)
+        elif fin and not me.closed and back == size + missing:
+            self._fin(d, no, ts)
+
+    def _release(self, d: int) -> None:
+        """Deliver what direction ``d`` held back, as far as the other side has caught up."""
+        me, other = self.dirs[d], self.dirs[d ^ 1]
+        pending = me.pending
+        while pending:
+            kind, value, no, ts, wait = pending[0]
+            if other.next is not None and wait is not None and _behind(other.next, wait):
+                return
+            pending.popleft()
+            if kind == _DATA:
+                me.pending_bytes -= len(value)
+            self._emit(d, kind, value, no, ts)
+
+    # -- holes ------------------------------------------------------------------------------------
+    def _check_holes(self, ts: float) -> None:
+        for d in (0, 1):
+            me = self.dirs[d]
+            if me.hole_pkt is None:
+                continue
+            if not me.has_hole():
+                me.hole_pkt = None
+                continue
+            age = self.packets - me.hole_pkt
+            if (me.acked_hole() and (age >= REORDER_PACKETS or ts - me.hole_ts >= REORDER_S)) \
+                    or age >= STALL_PACKETS or me.ooo_bytes > OOO_LIMIT:
+                self._declare_gap(d, ts)
+        self._holes = any(x.hole_pkt is not None for x in self.dirs)
+
+    def _declare_gap(self, d: int, ts: float) -> None:
+        """The bytes between ``next`` and the first waiting segment (or the other side's ACK) are missing."""
+        me = self.dirs[d]
+        if me.next is None:
+            return
+        end, after, best = None, me.hole_no, None
+        for s, item in me.ooo.items():
+            off = (s - me.next) & MASK
+            if off < HALF and (best is None or off < best):
+                best, end, after = off, s, item[2]
+        if end is None:
+            if not me.acked_hole():
+                me.hole_pkt = None
+                return
+            end = me.acked
+        nbytes = (end - me.next) & MASK  # type: ignore[operator]
+        before = me.last_no
+        me.next = end
+        me.recent.clear()
+        me.hole_pkt = None
+        if nbytes:
+            self.sink.gap(d, nbytes, before, after, ts)
+        self._drain(d)
+        if me.has_hole():  # more missing after what was waiting: due at once
+            me.hole_pkt, me.hole_ts = self.packets - REORDER_PACKETS, ts - REORDER_S
+            self._holes = True
+        if self.dirs[d ^ 1].pending:
+            self._release(d ^ 1)
+
+    def _flush_holes(self, ts: float) -> None:
+        for _ in range(1000):
+            busy = False
+            for d in (0, 1):
+                me = self.dirs[d]
+                if me.next is not None and me.has_hole():
+                    self._declare_gap(d, ts)
+                    busy = True
+            if not busy:
+                break
+        for d in (0, 1):
+            me = self.dirs[d]
+            while me.pending:  # the other side never caught up (no more of its bytes): release anyway
+                kind, value, no, t, _wait = me.pending.popleft()
+                self._emit(d, kind, value, no, t)
+            me.pending_bytes = 0
