@@ -43,9 +43,43 @@ class CaptureError(Exception):
     """The file cannot be read as a capture (one line, for exit status 2)."""
 
 
+class _PcapReader(RawPcapReader):
+    """scapy's pcap reader, returning a plain tuple ``(data, (sec, frac, wirelen, caplen))``."""
+
+    def __init__(self, filename: str, fdesc: Any = None, magic: Any = None) -> None:
+        super().__init__(filename, fdesc, magic)
+        self._record = struct.Struct(self.endian + "IIII").unpack
+
+    def _read_packet(self, size: int = _READ_SIZE) -> Any:
+        f = self.f
+        hdr = f.read(16)
+        if len(hdr) < 16:
+            raise EOFError
+        sec, frac, caplen, wirelen = self._record(hdr)
+        if caplen > MAX_CAPLEN:
+            return b"", (sec, frac, wirelen, caplen)
+        return f.read(caplen), (sec, frac, wirelen, caplen)
+
+
 class _NgReader(RawPcapNgReader):
     """scapy's pcapng reader with an Enhanced Packet Block reader that skips the options
-    and returns a plain tuple ``(data, (linktype, tsresol, tshigh, tslow, wirelen))``."""
+    and returns a plain tuple ``(data, (linktype, tsresol, tshigh, tslow, wirelen))``, and
+    a block reader that reads a block's body and trailer in one call (other blocks go to
+    scapy's own readers)."""
+
+    def _read_block(self, size: int = _READ_SIZE) -> Any:
+        f = self.f
+        head = f.read(8)
+        if len(head) < 8:
+            raise EOFError
+        blocktype, blocklen = struct.unpack(self.endian + "II", head)
+        if blocktype != 6 or blocklen < 32 or blocklen % 4:
+            f.seek(-8, 1)
+            return super()._read_block(size)
+        rest = f.read(blocklen - 8)
+        if len(rest) != blocklen - 8 or rest[-4:] != head[4:]:
+            raise EOFError
+        return self._read_block_epb(rest[:-4], size)
 
     def _read_block_epb(self, block: bytes, size: int) -> Any:
         try:
@@ -102,16 +136,16 @@ class CaptureReader:
         self._reader = self._open(magic)
         self.format = "pcapng" if isinstance(self._reader, RawPcapNgReader) else "pcap"
         self.frames = 0  #: packet records read so far
+        self.first_ts: float | None = None  #: time stamp of the first packet
 
     def _open(self, magic: bytes) -> Any:
-        cls = RawPcapReader if magic in PCAP_MAGICS else _NgReader
+        cls = _PcapReader if magic in PCAP_MAGICS else _NgReader
         try:
             if self.compressed:
                 reader = RawPcapReader(str(self.path))  # the metaclass falls back to pcapng
-                if isinstance(reader, RawPcapNgReader) and not isinstance(reader, _NgReader):
-                    reader.close()
-                    reader = _NgReader(str(self.path))
-                return reader
+                lean = _NgReader if isinstance(reader, RawPcapNgReader) else _PcapReader
+                reader.close()
+                return lean(str(self.path))
             return cls(str(self.path))
         except Scapy_Exception as exc:
             text = str(exc)
@@ -169,6 +203,8 @@ class CaptureReader:
                     if len(data) < caplen:
                         self.truncated = f"frame {number} is cut short ({len(data)} of {caplen} bytes)"
                         break
+                    if number == 1:
+                        self.first_ts = sec + frac * scale
                     yield number, sec + frac * scale, linktype, data
                 if self.truncated is None and not self.compressed and expected != self.size:
                     self.truncated = (f"{self.size - expected} stray bytes after frame {number}: the file is cut "
@@ -185,6 +221,8 @@ class CaptureReader:
                     else:  # a Simple or obsolete Packet Block: scapy's metadata
                         linktype, tsresol, high, low = meta.linktype, meta.tsresol, meta.tshigh, meta.tslow
                     ts = ((high << 32) | low) / tsresol if high is not None else 0.0
+                    if number == 1:
+                        self.first_ts = ts
                     yield number, ts, linktype, data
                 if self.truncated is None and not self.compressed and self.position < self.size:
                     self.truncated = f"unreadable block at byte {self.position} after frame {number}"

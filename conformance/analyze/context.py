@@ -83,8 +83,9 @@ class Context:
         self.vision_time_out_s = config.profile.vision_time_out_ms / 1000.0
         self.findings = Findings()
         self.stats = Stats()
-        self.latency = Series()  # every answered request, ms
-        self.pose_latency = Series()  # every answered pose, ms
+        self.latency = Series()  # every answered request but poses, ms
+        #: (max latency, label, series) of the stream whose poses were answered slowest
+        self.stream_plot: tuple[float, str, Series] | None = None
         self.intervals = Series()  # the robots' pose send intervals, ms
         self.now = 0.0  # time stamp of the packet being read
         self.frame = 0  # its frame number

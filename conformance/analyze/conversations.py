@@ -38,7 +38,7 @@ CANDIDATE_PACKETS = 16  # packets of an undecided conversation kept while its co
 CANDIDATE_PAYLOADS = 8  # payloads looked at before a conversation on another port is ignored
 MAX_CANDIDATES = 20000
 MAX_IGNORED = 200_000
-MAX_OPEN = 20000  # connections followed at once; past it the least recently active one ends
+MAX_OPEN = 20000  # connections followed at once; past it the one opened longest ago ends
 STRAY_S = 60.0  # packets of a closed connection within this time are its stragglers
 
 
@@ -54,15 +54,16 @@ class TcpConnection:
         robot, box = (a, b) if robot_dir == 0 else (b, a)
         self.robot, self.box = robot, box
         self.label = f"conn {self.number} ({format_endpoint(*robot)} → {format_endpoint(*box)})"
-        self.stream = TcpStream(self)
         self.judge = ConnJudge(ctx, self.label, "tcp", midstart=not handshake)
-        self.readers: list[FrameReader | None] = [None, None]
+        robot_reader = FrameReader(ctx.judged, TransferType.ROBOT_TO_BOX, self.judge.request)
+        box_reader = FrameReader(ctx.judged, TransferType.BOX_TO_ROBOT, self.judge.answer)
+        self.readers = [robot_reader, box_reader] if robot_dir == 0 else [box_reader, robot_reader]
+        self.stream = TcpStream(self, [r.feed for r in self.readers])
         self.t_open = ts
         self.handshake = handshake
         self.closes: dict[str, tuple[str, int, float]] = {}
         self.first_close: str | None = None
         self.gap_t: float | None = None
-        self.last_ts = ts
         self.session: Any = None
         self.open_frame = frame
         ctx.stats.tcp_connections += 1
@@ -75,15 +76,9 @@ class TcpConnection:
         return ROBOT if d == self.robot_dir else BOX
 
     # -- the reassembly's sink ----------------------------------------------------------------------
-    def data(self, d: int, payload: bytes, no: int, ts: float) -> None:
-        reader = self.readers[d]
-        if reader is None:
-            robot = d == self.robot_dir
-            reader = self.readers[d] = FrameReader(
-                self.ctx.judged, TransferType.ROBOT_TO_BOX if robot else TransferType.BOX_TO_ROBOT,
-                self.judge.request if robot else self.judge.answer, resync=self.stream.dirs[d].midstart)
-        self.ctx.now = ts
-        reader.feed(payload, no, ts)
+    def midstart(self, d: int) -> None:
+        """Direction ``d``'s first bytes did not follow its SYN: they may start inside a frame."""
+        self.readers[d].mark_midstart()
 
     def gap(self, d: int, nbytes: int, before: int, after: int, ts: float) -> None:
         stats = self.ctx.stats
@@ -91,11 +86,8 @@ class TcpConnection:
         stats.gap_bytes += nbytes
         if self.gap_t is None:
             self.gap_t = ts
-        reader = self.readers[d]
-        if reader is not None:
-            reader.gap(nbytes)
-        else:
-            self.stream.dirs[d].midstart = True  # its first bytes come after missing ones: resynchronise
+        self.ctx.now = ts
+        self.readers[d].gap(nbytes)
         self.judge.gap(self.side(d), before, after)
 
     def close(self, d: int, how: str, no: int, ts: float) -> None:
@@ -104,16 +96,11 @@ class TcpConnection:
             self.closes[side] = (how, no, ts)
             if self.first_close is None:
                 self.first_close = side
-        reader = self.readers[d]
-        if reader is not None:
-            if how == "fin":
-                reader.close(no, ts)
-            else:
-                reader.end()
-        if how == "rst":
-            other = self.readers[d ^ 1]
-            if other is not None:
-                other.end()
+        if how == "fin":
+            self.readers[d].close(no, ts)
+        else:
+            self.readers[d].end()
+            self.readers[d ^ 1].end()
 
     def conflict(self, d: int, no: int, ts: float) -> None:
         self.ctx.stats.conflicts += 1
@@ -126,10 +113,9 @@ class TcpConnection:
     def finish(self, t_end: float, frame_end: int) -> ConnOutcome:
         self.stream.finish(t_end)
         for reader in self.readers:
-            if reader is not None:
-                reader.end()
-                self.ctx.stats.cut_frames += reader.cut
-                self.ctx.stats.skipped_bytes += reader.skipped
+            reader.end()
+            self.ctx.stats.cut_frames += reader.cut
+            self.ctx.stats.skipped_bytes += reader.skipped
         closes, judge = self.closes, self.judge
         robot_close, box_close = closes.get(ROBOT), closes.get(BOX)
         if box_close is not None and self.first_close == BOX:
@@ -195,7 +181,8 @@ class Conversations:
         self.sessions = sessions
         self.ports = frozenset(ctx.config.ports)
         self.heuristic = ctx.config.heuristic
-        self.tcp: dict[bytes, tuple[TcpConnection, int]] = {}
+        #: both directions' keys -> (the connection's ``segment``, direction, connection)
+        self.tcp: dict[bytes, tuple[Any, int, TcpConnection]] = {}
         self.udp: dict[bytes, tuple[UdpConversation, int]] = {}
         self.open: dict[int, TcpConnection] = {}
         self.candidates: dict[bytes, _Candidate] = {}
@@ -208,14 +195,9 @@ class Conversations:
                    ts: float) -> None:
         entry = self.tcp.get(key)
         if entry is not None:
-            conn, d = entry
-            conn.last_ts = ts
-            if conn.stream.segment(d, seq, ack, flags, payload, missing, no, ts) is RESTART:
-                self._retire(conn, ts, no)
-                self._start(key, 0 if not flags & ACK else 1, [(key, seq, ack, flags, payload, missing, no, ts)],
-                            True)
-            elif conn.stream.done:
-                self._retire(conn, ts, no)
+            result = entry[0](entry[1], seq, ack, flags, payload, missing, no, ts)
+            if result is not None:
+                self.settle(entry[2], result, key, seq, ack, flags, payload, missing, no, ts)
             return
         if key in self.ignored:
             return
@@ -240,6 +222,13 @@ class Conversations:
             self._ignore(key)
             return
         self._candidate(key, packet)
+
+    def settle(self, conn: TcpConnection, result: str, key: bytes, seq: int, ack: int, flags: int, payload: bytes,
+               missing: int, no: int, ts: float) -> None:
+        """After ``segment`` returned DONE (the connection ended) or RESTART (a SYN reuses its ports)."""
+        self._retire(conn, ts, no)
+        if result is RESTART:
+            self._start(key, 0 if not flags & ACK else 1, [(key, seq, ack, flags, payload, missing, no, ts)], True)
 
     def _candidate(self, key: bytes, packet: tuple[Any, ...]) -> None:
         rev = reverse_key(key)
@@ -279,20 +268,19 @@ class Conversations:
         """A new connection; ``packets`` (its first ones, ``key``'s direction first) are fed to it."""
         ctx = self.ctx
         conn = TcpConnection(ctx, key, robot_dir, packets[0][7], packets[0][6], handshake)
-        self.tcp[key] = (conn, 0)
-        self.tcp[reverse_key(key)] = (conn, 1)
+        self.tcp[key] = (conn.stream.segment, 0, conn)
+        self.tcp[reverse_key(key)] = (conn.stream.segment, 1, conn)
         self.open[conn.number] = conn
         conn.session = self.sessions.attach(conn)
-        if len(self.open) > MAX_OPEN:
-            stale = min(self.open.values(), key=lambda c: c.last_ts)
-            self._retire(stale, ctx.now, ctx.frame)
+        if len(self.open) > MAX_OPEN:  # the connection opened longest ago ends (as if the capture ended)
+            self._retire(next(iter(self.open.values())), ctx.now, ctx.frame)
         for packet in packets:
             self.tcp_packet(*packet)
 
     def _retire(self, conn: TcpConnection, ts: float, no: int) -> None:
         rev = reverse_key(conn.key)
         for k in (conn.key, rev):
-            if self.tcp.get(k, (None,))[0] is conn:
+            if self.tcp.get(k, (None, 0, None))[2] is conn:
                 del self.tcp[k]
             self.closed[k] = ts
         if len(self.closed) > 50_000:

@@ -9,6 +9,7 @@ capture's size. ``progress(bytes_read)`` is called every few thousand packets.
 from __future__ import annotations
 
 import os
+import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ from .sessions import SessionTracker
 __all__ = ["Analysis", "CaptureError", "analyze"]
 
 PROGRESS_EVERY = 1 << 14
+_TCP_FIELDS = struct.Struct("!IIBB").unpack_from  # seq, ack, data offset, flags (at TCP offset 4)
 
 
 @dataclass
@@ -54,14 +56,31 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
         if reader.truncated and not config.accept_truncated:
             raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "
                                "frames before the cut)")
-        decode = PacketDecoder().decode
+        decoder = PacketDecoder()
+        decode = decoder.decode
         sessions = SessionTracker(ctx)
         conversations = Conversations(ctx, sessions)
-        tcp_packet, udp_packet = conversations.tcp_packet, conversations.udp_packet
+        tcp_packet, udp_packet, settle = conversations.tcp_packet, conversations.udp_packet, conversations.settle
+        known = conversations.tcp.get
         no, ts = 0, 0.0
         for no, ts, linktype, data in reader.packets():
-            if stats.first_ts is None:
-                stats.first_ts = ts
+            if not no % PROGRESS_EVERY:
+                if progress is not None:
+                    progress(reader.position, reader.size)
+                ctx.now, ctx.frame = ts, no
+            # the short path: Ethernet, IPv4 without options or fragments, TCP, a connection already followed
+            if (linktype == 1 and data[12] == 8 and data[13] == 0 and data[14] == 0x45 and data[23] == 6
+                    and not data[20] & 0x3F and not data[21]):
+                entry = known(data[26:38])
+                end = 14 + ((data[16] << 8) | data[17])
+                if entry is not None and end <= len(data):
+                    seq, ack, off, flags = _TCP_FIELDS(data, 38)
+                    result = entry[0](entry[1], seq, ack, flags & 0x3F, data[34 + ((off >> 4) << 2) : end], 0, no, ts)
+                    if result is not None:
+                        ctx.now, ctx.frame = ts, no
+                        settle(entry[2], result, data[26:38], seq, ack, flags & 0x3F,
+                               data[34 + ((off >> 4) << 2) : end], 0, no, ts)
+                    continue
             segment = decode(linktype, data)
             if segment is None:
                 continue
@@ -71,8 +90,7 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
                 tcp_packet(key, seq, ack, flags, payload, missing, no, ts)
             else:
                 udp_packet(key, payload, missing, no, ts)
-            if progress is not None and not no % PROGRESS_EVERY:
-                progress(reader.position, reader.size)
+        stats.first_ts = reader.first_ts
         if reader.truncated and not config.accept_truncated:
             raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "
                                "frames before the cut)")
@@ -81,7 +99,7 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
         stats.last_ts = ts if reader.frames else None
         ctx.now, ctx.frame = ts, no
         conversations.finish(ts, no)
-        stats.skipped = dict(decode.__self__.skipped)  # type: ignore[attr-defined]
+        stats.skipped = dict(decoder.skipped)
         if progress is not None:
             progress(reader.size, reader.size)
     finally:

@@ -34,7 +34,7 @@ from ..suite.verdicts import Verdict
 from .catalogue import spec_for
 from .context import Context
 from .findings import BOX, ROBOT, Series, frames_text
-from .timing import PoseClock, backlog
+from .timing import BLOCK, PoseClock, backlog
 
 __all__ = ["ConnJudge", "OK", "MALFORMED", "NOT_REQUEST", "SHOULD_REJECT", "TOLERATED", "BAD_DATAGRAM"]
 
@@ -48,7 +48,7 @@ _BOX_CLAUSE = {"A5": "A2", "B3": "E1", "B1": "A2", "B2": "A2", "B5": "A2"}
 POSE, CYCLE_ON, CYCLE_OFF, PROG_IDX, VISION_RESULT = (Action.POSE, Action.CYCLE_ON, Action.CYCLE_OFF,
                                                        Action.PROG_IDX, Action.VISION_RESULT)
 _SENDABLE = frozenset(SENDABLE_RESULTS)
-F4_SAMPLE = 64  # frames with values checked for the byte order, per connection and side
+F4_SAMPLE = 16  # frames with values checked for the byte order, per connection and side
 KEEP_REQUESTS = 2000  # non-pose requests kept per connection for the session judgement
 SKIPPED_KEEP = 64
 
@@ -85,6 +85,10 @@ class ConnJudge:
         self.box_errors = 0
         self.paired = 0
         self.paired_poses = 0
+        self.poses = 0  # well-formed pose requests
+        self.box_poses = 0  # well-formed pose answers taken by the short path
+        self.steady = False  # the short path for poses is open (F4 sampled, no gap)
+        self.t1_ms = ctx.time_out_s * 1000.0
         self.poses_ok = 0  # well-formed poses answered 0000 in time (the fast path)
         self.f4 = {ROBOT: 0, BOX: 0}
         self.seen_request = False
@@ -109,14 +113,27 @@ class ConnJudge:
 
     # -- the robot's events ----------------------------------------------------------------------
     def request(self, event: Any, raw: bytes, offset: int, first: int, last: int, t: float) -> None:
+        if type(event) is Frame and event.action is POSE and self.steady:
+            # the stream's pose (after the first ones): counted, timed and queued for its answer
+            self.poses += 1
+            times = self.clock.times
+            times.append(t)
+            if len(times) >= BLOCK:
+                self.clock.flush()
+            if self.want_pose_after is not None and self.pose_after is None and t > self.want_pose_after:
+                self.pose_after = (t, last, offset, event)
+            self.queue.append((t, POSE, first, last, OK, raw, event, None))
+            return
+        self._request(event, raw, offset, first, last, t)
+
+    def _request(self, event: Any, raw: bytes, offset: int, first: int, last: int, t: float) -> None:
         self.seen_request = True
         action: int | None
         if type(event) is Frame:
             action = event.action
-            counts = self.robot_counts
-            counts[action] = counts.get(action, 0) + 1
             kind = OK
             if action is POSE:
+                self.poses += 1
                 self.clock.add(t)
                 if self.first_pose is None:
                     self.first_pose = (t, last, offset, event)
@@ -125,7 +142,11 @@ class ConnJudge:
                     self.pose_after = (t, last, offset, event)
                 if self.f4[ROBOT] < F4_SAMPLE:
                     self._byte_order(ROBOT, event, raw, offset, t, last)
+                else:
+                    self.steady = self.desync is None
             else:
+                counts = self.robot_counts
+                counts[action] = counts.get(action, 0) + 1
                 self._note_action(action)
                 if self.f4[ROBOT] < F4_SAMPLE and event.blocks:
                     self._byte_order(ROBOT, event, raw, offset, t, last)
@@ -173,6 +194,22 @@ class ConnJudge:
 
     # -- the box's events ---------------------------------------------------------------------------
     def answer(self, event: Any, raw: bytes, offset: int, first: int, last: int, t: float) -> None:
+        queue = self.queue
+        if type(event) is Frame and event.action is POSE and not event.error_code and queue:
+            head = queue[0]
+            if head[1] is POSE and head[4] == OK:  # the stream's answer, 0000, to the pose it answers
+                latency = (t - head[0]) * 1000.0
+                if latency <= self.t1_ms:
+                    queue.popleft()
+                    self.box_poses += 1
+                    self.pose_latency.add(latency)
+                    self.paired += 1
+                    self.paired_poses += 1
+                    self.poses_ok += 1
+                    return
+        self._answer(event, raw, offset, first, last, t)
+
+    def _answer(self, event: Any, raw: bytes, offset: int, first: int, last: int, t: float) -> None:
         action: int | None
         if type(event) is Frame:
             action = event.action
@@ -236,15 +273,15 @@ class ConnJudge:
         t_req, r_action, r_first, r_last, kind, r_raw, r_event, exchange = req
         ctx = self.ctx
         latency = (t - t_req) * 1000.0
-        ctx.latency.add(latency)
         self.paired += 1
         if r_action is POSE:
             self.paired_poses += 1
             self.pose_latency.add(latency)
-            ctx.pose_latency.add(latency)
             if kind == OK and code == 0 and action is POSE and latency <= ctx.time_out_s * 1000.0:
                 self.poses_ok += 1
                 return  # the stream's answer: nothing more to judge
+        else:
+            ctx.latency.add(latency)
         frames = (r_last, last)
         limit = (ctx.vision_time_out_s if r_action == VISION_RESULT else ctx.time_out_s) * 1000.0
         if latency > limit:
@@ -411,6 +448,7 @@ class ConnJudge:
                     self.not_paired += 1
             self.queue.clear()
             self._refused(self.ctx.now, f"a gap in the capture ({where})")
+        self.steady = False
 
     def finish(self, end: str, t_end: float, box_closed: float | None, frame_end: int) -> None:
         """``end``: how observation ended: "box" (the box closed or reset first), "robot" (the robot
@@ -449,7 +487,7 @@ class ConnJudge:
             f.add("T1", BOX, INCONCLUSIVE, f"{label}: latency not measured after the gap: {self.desync}")
         f.check("S3", BOX, self.poses_ok)
         self._backlog()
-        f.check("A1", BOX, sum(self.robot_counts.values()))
+        f.check("A1", BOX, sum(self.robot_counts.values()) + self.poses)
         f.check("T1", BOX, self.paired)
         f.check("A2", BOX, self.paired)
         self._count_frames()
@@ -458,6 +496,9 @@ class ConnJudge:
         """T2 (box): on a stream connection (poses only), the answer latency does not grow."""
         if self.actions != [POSE] or self.transport != "tcp":
             return
+        series, ctx = self.pose_latency, self.ctx
+        if series.n and (ctx.stream_plot is None or series.max > ctx.stream_plot[0]):
+            ctx.stream_plot = (series.max, self.label, series)
         b = backlog(self.pose_latency, self.ctx.profile.pose_rate_hz)
         if b is None:
             if self.paired_poses:
@@ -474,7 +515,9 @@ class ConnJudge:
 
     def _count_frames(self) -> None:
         f = self.findings
-        rc, bc = self.robot_counts, self.box_counts
+        rc, bc = dict(self.robot_counts), dict(self.box_counts)
+        rc[POSE] = self.poses
+        bc[POSE] = bc.get(POSE, 0) + self.box_poses
         n_robot, n_box = sum(rc.values()) + self.robot_errors, sum(bc.values()) + self.box_errors
         tcp = self.transport == "tcp"
         for clause in ("F1", "F2", "F3", "F5", "A5", "B5"):

@@ -144,6 +144,21 @@ class Series:
                     self._peaks.append(p[-1])
                 self._width *= 2
 
+    def extend(self, values: list[float] | tuple[float, ...]) -> None:
+        """Add many values at once: count, mean, maximum and the sample (not the plot's buckets)."""
+        if not values:
+            return
+        n = self.n
+        top = max(values)
+        if top > self.max:
+            self.max, self.max_at = top, n + 1 + values.index(top)
+        self.total += sum(values)
+        self.n = n + len(values)
+        self._sample += values[(-(n + 1)) % self._step :: self._step]
+        while len(self._sample) >= self._cap:
+            del self._sample[::2]
+            self._step *= 2
+
     @property
     def sample(self) -> list[float]:
         """Every ``step``-th value (at most ``cap`` of them), in order."""

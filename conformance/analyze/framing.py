@@ -7,7 +7,8 @@ does it everywhere else. Fast path: while no partial frame is waiting, a segment
 holds whole frames is cut where each header says (the decoder's own rule: start word,
 version, at most the largest legal frame) and each frame goes straight to the codec's
 parser; anything else goes through the decoder (tests/test_analyze_framing.py checks
-that both give the same events for every split).
+that both give the same events for every split). A well-formed 14-byte frame (an
+answer without blocks: the stream's answers are all alike) is parsed once per reader.
 
 Where the bytes did not start at a frame (the capture began mid-connection) or after a
 gap, :class:`FrameReader` first skips to the next plausible header (start word,
@@ -42,6 +43,7 @@ from ..protocol.constants import MAX_BLOCK_COUNT, MAX_BLOCK_LEN
 __all__ = ["FrameReader", "plausible_header"]
 
 _MAX_BODY = MAX_BLOCK_COUNT * MAX_BLOCK_LEN
+_MAX_FRAME = _MAX_BODY + 14
 _TCP = Transport.TCP
 _ACTIONS = frozenset(int(a) for a in Action)
 _TRANSFER = frozenset(int(t) for t in TransferType)
@@ -72,6 +74,8 @@ class FrameReader:
         self.emit = emit
         self._parse = codec_for(profile).parse
         self._u16 = struct.Struct(">H" if profile.byte_order == "big" else "<H").unpack_from
+        self._big = profile.byte_order == "big"
+        self._known: dict[bytes, Any] = {}  # 14-byte frames already parsed (immutable Frames)
         self.decoder = StreamDecoder(profile, expect)
         self.offset = 0  # stream offset of the next byte to read (of the carry, while resynchronising)
         self._buf = bytearray()  # the bytes the decoder has not reported yet
@@ -83,9 +87,41 @@ class FrameReader:
         self.skipped = 0  # bytes skipped, not judged (before a plausible header)
         self.cut = 0  # frames cut by a gap or the capture's end, not judged
         self.eof = False
+        self._simple = False
+        self._settle()
+
+    def _settle(self) -> None:
+        """The short path is open when no partial frame waits, nothing is skipped, the stream is open
+        and headers are big-endian (the byte order the short path reads)."""
+        self._simple = not self._buf and not self.resync and not self.eof and self._big
+
+    def mark_midstart(self) -> None:
+        """The bytes do not start at a frame: skip to the first plausible header."""
+        self.resync = True
+        self._simple = False
 
     # -- input -------------------------------------------------------------------------------------
     def feed(self, data: bytes, no: int, ts: float) -> None:
+        n = len(data)
+        if (self._simple and n >= 14 and data[0] == 0xFE and data[1] == 0xFE and data[2] == 0 and data[3] == 1
+                and data[7] * ((data[8] << 8) | data[9]) + 14 == n and n <= _MAX_FRAME):
+            # one whole frame (big-endian header), no partial frame waiting: the codec judges it
+            offset = self.offset
+            self.offset = offset + n
+            event: Any = self._known.get(data) if n == 14 else None
+            if event is None:
+                try:
+                    event = self._parse(data, _TCP, self.expect)
+                    if n == 14 and len(self._known) < 256:
+                        self._known[data] = event  # an answer without blocks: the same bytes, the same frame
+                except ProtocolError as exc:
+                    exc.offset += offset
+                    event = exc
+            self.emit(event, data, offset, no, no, ts)
+            return
+        self._feed(data, no, ts)
+
+    def _feed(self, data: bytes, no: int, ts: float) -> None:
         if self.eof:
             return
         if self.resync:
@@ -110,6 +146,7 @@ class FrameReader:
                 pos += total
             if pos == n:
                 self.offset = offset + n
+                self._settle()
                 return
             if pos:
                 data = data[pos:]
@@ -125,6 +162,7 @@ class FrameReader:
         self._marks.append((self.offset, no))
         self.offset += len(data)
         self._drain(no, ts)
+        self._settle()
 
     def close(self, no: int, ts: float) -> None:
         """The sender closed its side (FIN): a frame left incomplete is an F5 error."""
@@ -134,9 +172,11 @@ class FrameReader:
         if self.resync:
             self.skipped += len(self._carry)
             self._carry = b""
+            self._settle()
             return
         self.decoder.receive_data(b"")
         self._drain(no, ts)
+        self._settle()
 
     def gap(self, nbytes: int) -> None:
         """``nbytes`` are missing here: drop the frame they cut, resynchronise after them."""
@@ -148,6 +188,7 @@ class FrameReader:
         self.offset += len(self._carry) + nbytes
         self._reset()
         self.resync = True
+        self._settle()
 
     def end(self) -> None:
         """The capture ended: a frame still incomplete is cut, not judged."""
@@ -156,6 +197,7 @@ class FrameReader:
         self.skipped += len(self._carry)
         self._reset()
         self.eof = True
+        self._settle()
 
     # -- internals ------------------------------------------------------------------------------------
     def _reset(self) -> None:

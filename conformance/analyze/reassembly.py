@@ -4,7 +4,7 @@
 its sink each direction's bytes in stream order, exactly once:
 
 * **retransmissions** (and duplicates, as a mirror port makes) are dropped; where the
-  bytes a retransmission repeats are still known (the last :data:`RECENT` bytes of
+  bytes a retransmission repeats are still known (the last :data:`RECENT` segments of
   the direction) they are compared, and a difference is reported (``conflict``);
 * **out-of-order** segments wait until the bytes before them arrive;
 * **gaps**: bytes the capture does not have. The evidence is the receiver's ACK: when
@@ -23,9 +23,12 @@ its sink each direction's bytes in stream order, exactly once:
 Everything held is bounded (out-of-order bytes, held-back bytes, the recent bytes),
 so the state of a connection does not grow with its length.
 
-The sink has ``data(d, payload, frame, ts)``, ``gap(d, nbytes, frame_before, frame_after, ts)``,
-``close(d, how, frame, ts)`` (``how`` is ``"fin"`` or ``"rst"``) and ``conflict(d, frame, ts)``;
-``d`` is 0 or 1, the direction of the connection's first packet or its reverse.
+The bytes go to ``feed[d](payload, frame, ts)``; the sink has ``gap(d, nbytes,
+frame_before, frame_after, ts)``, ``close(d, how, frame, ts)`` (``how`` is ``"fin"`` or
+``"rst"``), ``conflict(d, frame, ts)`` and ``midstart(d)`` (the direction's first bytes
+did not follow its SYN); ``d`` is 0 or 1, the direction of the
+connection's first packet or its reverse. The in-order case (nearly every segment)
+takes a short path at the top of :meth:`TcpStream.segment`.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from typing import Any
 
 from .packets import ACK, FIN, RST, SYN
 
-__all__ = ["RESTART", "TcpStream", "REORDER_PACKETS", "REORDER_S", "STALL_PACKETS", "OOO_LIMIT", "RECENT"]
+__all__ = ["DONE", "RESTART", "TcpStream", "REORDER_PACKETS", "REORDER_S", "STALL_PACKETS", "OOO_LIMIT", "RECENT"]
 
 MASK = 0xFFFFFFFF
 HALF = 1 << 31
@@ -44,9 +47,11 @@ REORDER_S = 0.5
 STALL_PACKETS = 4096
 OOO_LIMIT = 1 << 20
 PENDING_LIMIT = 1 << 18
-RECENT = 8192
+RECENT = 64  # segments kept per direction to compare retransmissions with
 #: ``segment`` returns this for a SYN that starts a new connection on the same addresses and ports
 RESTART = "restart"
+#: ``segment`` returns this when the connection has ended (reset, or closed both ways)
+DONE = "done"
 _DATA, _GAP, _FIN = 0, 1, 2
 
 
@@ -69,7 +74,7 @@ class Direction:
         self.hole_ts = 0.0
         self.hole_no = 0
         self.closed = False  # FIN reached
-        self.recent = bytearray()  # the last bytes delivered, ending at ``next``
+        self.recent: deque[tuple[int, bytes]] = deque(maxlen=RECENT)  # the last segments delivered
         #: held back for causal order: (kind, payload or byte count, frame, ts, sequence number the other side must reach)
         self.pending: deque[tuple[int, Any, int, float, int]] = deque()
         self.pending_bytes = 0
@@ -86,8 +91,9 @@ class Direction:
 
 
 class TcpStream:
-    def __init__(self, sink: Any) -> None:
+    def __init__(self, sink: Any, feed: list[Any]) -> None:
         self.sink = sink
+        self.feed = feed  # feed[d](payload, frame, ts)
         self.dirs = (Direction(), Direction())
         self.packets = 0
         self.client: int | None = None  # the direction whose SYN opened the connection
@@ -100,6 +106,23 @@ class TcpStream:
     # -- input -------------------------------------------------------------------------------
     def segment(self, d: int, seq: int, ack: int, flags: int, payload: bytes, missing: int, no: int,
                 ts: float) -> str | None:
+        me = self.dirs[d]
+        if not flags & 0x07 and seq == me.next and not missing and not self._holes and not me.pending:
+            other = self.dirs[d ^ 1]
+            onext = other.next
+            if not other.pending and (onext is None or not flags & ACK or not 0 < ((ack - onext) & MASK) < HALF):
+                self.packets += 1  # in order, nothing missing, nothing held: hand the bytes on
+                if payload:
+                    me.next = (seq + len(payload)) & MASK
+                    me.last_no = no
+                    me.recent.append((seq, payload))
+                    self.feed[d](payload, no, ts)
+                return None
+        result = self._segment(d, seq, ack, flags, payload, missing, no, ts)
+        return DONE if result is None and self.done else result
+
+    def _segment(self, d: int, seq: int, ack: int, flags: int, payload: bytes, missing: int, no: int,
+                 ts: float) -> str | None:
         self.packets += 1
         me, other = self.dirs[d], self.dirs[d ^ 1]
         me.seen = True
@@ -138,6 +161,7 @@ class TcpStream:
             if me.next is None:
                 me.next = seq
                 me.midstart = True
+                self.sink.midstart(d)
             off = (seq - me.next) & MASK
             fin = bool(flags & FIN)
             if off == 0:
@@ -169,7 +193,7 @@ class TcpStream:
     def _emit(self, d: int, kind: int, value: Any, no: int, ts: float) -> None:
         sink = self.sink
         if kind == _DATA:
-            sink.data(d, value, no, ts)
+            self.feed[d](value, no, ts)
         elif kind == _GAP:
             sink.gap(d, value, no, no, ts)
         else:
@@ -192,15 +216,11 @@ class TcpStream:
 
     def _accept(self, d: int, payload: bytes, missing: int, no: int, ts: float) -> None:
         me = self.dirs[d]
+        start = me.next
         me.next = (me.next + len(payload) + missing) & MASK  # type: ignore[operator]
         me.last_no = no
-        if missing:
-            me.recent.clear()
-        elif payload:
-            recent = me.recent
-            recent += payload
-            if len(recent) > 2 * RECENT:
-                del recent[:-RECENT]
+        if payload:
+            me.recent.append((start, payload))  # type: ignore[arg-type]
         if payload:
             self._deliver(d, _DATA, payload, no, ts)
         if missing:
@@ -243,12 +263,15 @@ class TcpStream:
         """A segment starting ``back`` bytes before ``next``: compare what is known, keep the rest."""
         me = self.dirs[d]
         size = len(payload)
-        seen = min(back, size)
-        recent = me.recent
-        if seen and back <= len(recent):
-            start = len(recent) - back
-            if recent[start : start + seen] != payload[:seen]:
+        nxt = me.next
+        start = (nxt - back) & MASK  # type: ignore[operator]
+        for s0, p0 in me.recent:  # positions relative to ``next``, shifted to stay positive
+            a0 = (s0 - nxt + HALF) & MASK  # type: ignore[operator]
+            a = (start - nxt + HALF) & MASK  # type: ignore[operator]
+            lo, hi = max(a, a0), min(a + min(size, back), a0 + len(p0))
+            if lo < hi and payload[lo - a : hi - a] != p0[lo - a0 : hi - a0]:
                 self.sink.conflict(d, no, ts)
+                break
         if back < size + missing and not me.closed:
             self._accept(d, payload[back:], missing - max(0, back - size), no, ts)
             if fin:

@@ -86,9 +86,9 @@ def _extras(case: CaseResult, tally: Tally | None, analysis: Analysis) -> None:
     if tally is not None:
         case.details.update(tally.details)
     if case.id == "OBS-T1-box" and ctx.latency.n:
-        _plot(case, ctx.latency, "every answered request")
-    elif case.id == "OBS-T2-box" and ctx.pose_latency.n:
-        _plot(case, ctx.pose_latency, "every answered pose")
+        _plot(case, ctx.latency, "every answered request but the poses (OBS-T2-box plots those)")
+    elif case.id == "OBS-T2-box" and ctx.stream_plot is not None:
+        _plot(case, ctx.stream_plot[2], f"the poses of {ctx.stream_plot[1]}, the stream with the highest latency")
     elif case.id == "OBS-T2-robot" and ctx.intervals.n:
         period = 1000.0 / ctx.profile.pose_rate_hz
         case.details["interval_histogram"] = {

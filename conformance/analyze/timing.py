@@ -56,15 +56,19 @@ class PoseClock:
         self.jitter_tolerance = jitter_tolerance
         self.intervals = intervals  # where every measured interval also goes (the report's histogram)
         self.block = block
-        self.times = array("d")
+        self.times = array("d")  # callers may append to it directly, then call flush() at BLOCK
         self.judgement = StreamJudgement()
         self.poses = 0
+        self._carried = False  # times[0] is the previous block's last pose
 
     def add(self, t: float) -> None:
-        self.poses += 1
         self.times.append(t)
         if len(self.times) >= self.block:
             self._judge(keep_last=True)
+
+    def flush(self) -> None:
+        """Judge the block so far; its last time stamp starts the next one."""
+        self._judge(keep_last=True)
 
     def cut(self) -> None:
         """A gap: the interval across it is not measured."""
@@ -78,6 +82,7 @@ class PoseClock:
     def _judge(self, keep_last: bool) -> None:
         times = self.times
         j = self.judgement
+        self.poses += len(times) - (1 if self._carried else 0)
         stats = stream_stats(times, self.rate_hz)  # None below MIN_POSES
         if stats is not None:
             j.blocks += 1
@@ -92,10 +97,9 @@ class PoseClock:
             if len(j.windows_hz) < 600:
                 j.windows_hz += [round(w.rate_hz, 2) for w in stats.windows][: 600 - len(j.windows_hz)]
             if self.intervals is not None:
-                add = self.intervals.add
-                for v in stats.intervals_ms:
-                    add(v)
-        self.times = array("d", [times[-1]]) if keep_last and times else array("d")
+                self.intervals.extend(stats.intervals_ms)
+        self._carried = keep_last and bool(times)
+        self.times = array("d", [times[-1]]) if self._carried else array("d")
 
 
 @dataclass(frozen=True)
