@@ -469,6 +469,9 @@ class ConnJudge:
             elif end in ("box", "robot"):
                 f.add("A1", BOX, FAIL, f"{label}: {action_name(action)} never answered: the box closed the "
                       f"connection {waited * 1000:.0f} ms later ({frames_text((frame_end,))})", (last,), robot=raw)
+                if waited >= limit:
+                    f.add("T1", BOX, FAIL, f"{label}: no answer to {action_name(action)} within "
+                          f"{limit * 1000:.0f} ms", (last,), robot=raw)
                 self._refused(t_req, f"the box did not answer {action_name(action)}")
             elif waited >= limit:
                 f.add("A1", BOX, FAIL, f"{label}: {action_name(action)} never answered in the {waited * 1000:.0f} "
