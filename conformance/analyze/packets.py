@@ -22,7 +22,7 @@ from __future__ import annotations
 import ipaddress
 import struct
 
-__all__ = ["PacketDecoder", "TCP", "UDP", "FIN", "SYN", "RST", "ACK", "endpoints", "reverse_key"]
+__all__ = ["ACK", "FIN", "PSH", "RST", "SYN", "TCP", "UDP", "PacketDecoder", "endpoints", "format_endpoint", "reverse_key"]
 
 TCP, UDP = 6, 17
 FIN, SYN, RST, PSH, ACK = 0x01, 0x02, 0x04, 0x08, 0x10

@@ -16,9 +16,10 @@ its sink each direction's bytes in stream order, exactly once:
   :data:`STALL_PACKETS` packets, or holds more than :data:`OOO_LIMIT` bytes waiting,
   is a gap too. Bytes cut by the snap length are a gap at once;
 * **causal order across directions**: bytes of one side whose segment acknowledges
-  bytes of the other side not yet seen are held back until those bytes arrive (or are
-  declared a gap), so an answer is never delivered before the request it answers even
-  when the capture shows them the other way round.
+  bytes of the other side not yet handed on are held back until those are (or are
+  declared a gap), so an answer is never delivered before the request it answers, nor
+  the next request before that answer, even when the capture shows them the other way
+  round.
 
 Everything held is bounded (out-of-order bytes, held-back bytes, the recent bytes),
 so the state of a connection does not grow with its length.
@@ -62,23 +63,26 @@ def _behind(a: int, b: int) -> bool:
 
 class Direction:
     __slots__ = ("next", "isn", "ooo", "ooo_bytes", "acked", "hole_pkt", "hole_ts", "hole_no", "closed",
-                 "recent", "pending", "pending_bytes", "last_no", "midstart", "seen")
+                 "recent", "pending", "pending_bytes", "emitted", "last_no", "midstart", "seen")
 
     def __init__(self) -> None:
         self.next: int | None = None  # next expected sequence number
         self.isn: int | None = None
-        self.ooo: dict[int, tuple[bytes, int, int, float, bool]] = {}  # seq -> (payload, missing, frame, ts, fin)
+        #: seq -> (payload, missing, frame, ts, fin, ack)
+        self.ooo: dict[int, tuple[bytes, int, int, float, bool, int | None]] = {}
         self.ooo_bytes = 0
         self.acked: int | None = None  # the other side's highest ACK of this direction
         self.hole_pkt: int | None = None  # packet count when the current hole was first seen
         self.hole_ts = 0.0
         self.hole_no = 0
         self.closed = False  # FIN reached
-        self.recent: deque[tuple[int, bytes]] = deque(maxlen=RECENT)  # the last segments delivered
-        #: held back for causal order: (kind, payload or byte count, frame, ts, sequence number the other side must reach)
-        self.pending: deque[tuple[int, Any, int, float, int]] = deque()
+        self.recent: deque[tuple[int, bytes]] = deque(maxlen=RECENT)  # the last segments accepted
+        #: held back for causal order: (kind, payload or byte count, frame, ts, the other side's
+        #: sequence number to wait for, this direction's sequence number after it)
+        self.pending: deque[tuple[int, Any, int, float, int | None, int]] = deque()
         self.pending_bytes = 0
-        self.last_no = 0  # frame of the last segment delivered
+        self.emitted: int | None = None  # handed on up to here (``next`` unless something is held back)
+        self.last_no = 0  # frame of the last segment accepted (or SYN)
         self.midstart = False  # the first bytes seen did not follow a SYN
         self.seen = False  # any segment of this direction seen
 
@@ -113,7 +117,7 @@ class TcpStream:
             if not other.pending and (onext is None or not flags & ACK or not 0 < ((ack - onext) & MASK) < HALF):
                 self.packets += 1  # in order, nothing missing, nothing held: hand the bytes on
                 if payload:
-                    me.next = (seq + len(payload)) & MASK
+                    me.next = me.emitted = (seq + len(payload)) & MASK
                     me.last_no = no
                     me.recent.append((seq, payload))
                     self.feed[d](payload, no, ts)
@@ -132,10 +136,11 @@ class TcpStream:
             if me.isn is not None:
                 if seq == me.isn:
                     return None  # a retransmitted SYN
-                if me.closed or self.done or other.closed or me.recent:
+                if me.closed or other.closed or me.recent:
                     return RESTART
             me.isn = seq
-            me.next = (seq + 1) & MASK
+            me.next = me.emitted = (seq + 1) & MASK
+            me.last_no = no
             seq = me.next
             if not flags & ACK:
                 self.client, self.syn_frame, self.syn_ts = d, no, ts
@@ -144,13 +149,13 @@ class TcpStream:
         elif self.done:
             return None
         if flags & RST:
-            if not self.done:
-                self._flush_holes(ts)
-                self.done = True
-                self.reset_by = d
-                self.sink.close(d, "rst", no, ts)
+            self._flush_holes(ts)
+            self.done = self._holes = True  # _holes: every later packet takes the long path
+            self.reset_by = d
+            self.sink.close(d, "rst", no, ts)
             return None
-        if flags & ACK and other.next is not None and _behind(other.next, ack) and \
+        got_ack = ack if flags & ACK else None
+        if got_ack is not None and other.next is not None and _behind(other.next, ack) and \
                 (other.acked is None or _behind(other.acked, ack)):
             other.acked = ack
             if other.hole_pkt is None:
@@ -159,7 +164,7 @@ class TcpStream:
         n = len(payload) + missing
         if n or flags & FIN:
             if me.next is None:
-                me.next = seq
+                me.next = me.emitted = seq
                 me.midstart = True
                 self.sink.midstart(d)
             off = (seq - me.next) & MASK
@@ -167,16 +172,16 @@ class TcpStream:
             if off == 0:
                 if not me.closed:
                     if n:
-                        self._accept(d, payload, missing, no, ts)
+                        self._accept(d, payload, missing, no, ts, got_ack)
                     if fin:
-                        self._fin(d, no, ts)
+                        self._fin(d, no, ts, got_ack)
                     if me.ooo:
                         self._drain(d)
             elif off >= HALF:
-                self._old(d, MASK + 1 - off, payload, missing, fin, no, ts)
+                self._old(d, MASK + 1 - off, payload, missing, fin, no, ts, got_ack)
             elif not me.closed:
                 if seq not in me.ooo or len(me.ooo[seq][0]) < len(payload):
-                    me.ooo[seq] = (payload, missing, no, ts, fin)
+                    me.ooo[seq] = (payload, missing, no, ts, fin, got_ack)
                     me.ooo_bytes += len(payload)
                 if me.hole_pkt is None:
                     me.hole_pkt, me.hole_ts, me.hole_no = self.packets, ts, no
@@ -190,51 +195,57 @@ class TcpStream:
         self._flush_holes(ts)
 
     # -- delivery ---------------------------------------------------------------------------------
-    def _emit(self, d: int, kind: int, value: Any, no: int, ts: float) -> None:
-        sink = self.sink
+    def _emit(self, d: int, kind: int, value: Any, no: int, ts: float, end: int) -> None:
+        me = self.dirs[d]
+        me.emitted = end
         if kind == _DATA:
             self.feed[d](value, no, ts)
         elif kind == _GAP:
-            sink.gap(d, value, no, no, ts)
+            self.sink.gap(d, value, no, no, ts)
         else:
-            sink.close(d, "fin", no, ts)
-            if self.dirs[d ^ 1].closed and not self.dirs[d ^ 1].pending:
-                self.done = True
+            self.sink.close(d, "fin", no, ts)
+            other = self.dirs[d ^ 1]
+            if other.closed and not other.pending:
+                self.done = self._holes = True
+        if self.dirs[d ^ 1].pending:
+            self._release(d ^ 1)
 
-    def _deliver(self, d: int, kind: int, value: Any, no: int, ts: float) -> None:
-        """Hand on now, or hold back while the other side has acknowledged bytes not yet seen."""
+    def _deliver(self, d: int, kind: int, value: Any, no: int, ts: float, ack: int | None, end: int) -> None:
+        """Hand on now, or hold back while the segment acknowledges bytes of the other side
+        that are not handed on yet (or something of this side is held back already)."""
         me, other = self.dirs[d], self.dirs[d ^ 1]
-        if not me.pending and not other.acked_hole():
-            self._emit(d, kind, value, no, ts)
+        wait = ack if ack is not None and other.emitted is not None and _behind(other.emitted, ack) else None
+        if wait is None and not me.pending:
+            self._emit(d, kind, value, no, ts, end)
             return
-        wait = other.acked if other.acked_hole() else (me.pending[-1][4] if me.pending else other.next)
-        me.pending.append((kind, value, no, ts, wait))  # type: ignore[arg-type]
+        if wait is None:
+            wait = me.pending[-1][4]
+        me.pending.append((kind, value, no, ts, wait, end))
         if kind == _DATA:
             me.pending_bytes += len(value)
             if me.pending_bytes > PENDING_LIMIT or len(me.pending) > 4096:
                 self._declare_gap(d ^ 1, ts)
+                if me.pending:  # still held: the other side is not missing anything; let go
+                    self._release(d, force=True)
 
-    def _accept(self, d: int, payload: bytes, missing: int, no: int, ts: float) -> None:
+    def _accept(self, d: int, payload: bytes, missing: int, no: int, ts: float, ack: int | None) -> None:
         me = self.dirs[d]
         start = me.next
-        me.next = (me.next + len(payload) + missing) & MASK  # type: ignore[operator]
+        me.next = (start + len(payload) + missing) & MASK  # type: ignore[operator]
         me.last_no = no
         if payload:
             me.recent.append((start, payload))  # type: ignore[arg-type]
-        if payload:
-            self._deliver(d, _DATA, payload, no, ts)
+            self._deliver(d, _DATA, payload, no, ts, ack, (start + len(payload)) & MASK)  # type: ignore[operator]
         if missing:
-            self._deliver(d, _GAP, missing, no, ts)
-        if self.dirs[d ^ 1].pending:
-            self._release(d ^ 1)
+            self._deliver(d, _GAP, missing, no, ts, ack, me.next)
 
-    def _fin(self, d: int, no: int, ts: float) -> None:
+    def _fin(self, d: int, no: int, ts: float, ack: int | None) -> None:
         me = self.dirs[d]
         if me.closed:
             return
         me.closed = True
         me.next = (me.next + 1) & MASK  # type: ignore[operator]
-        self._deliver(d, _FIN, None, no, ts)
+        self._deliver(d, _FIN, None, no, ts, ack, me.next)
 
     def _drain(self, d: int) -> None:
         me = self.dirs[d]
@@ -246,20 +257,21 @@ class TcpStream:
                     break
             if best is None:
                 break
-            payload, missing, no, ts, fin = me.ooo.pop(best)
+            payload, missing, no, ts, fin, ack = me.ooo.pop(best)
             me.ooo_bytes -= len(payload)
             back = (me.next - best) & MASK  # type: ignore[operator]
             if back:
-                self._old(d, back, payload, missing, fin, no, ts)
+                self._old(d, back, payload, missing, fin, no, ts, ack)
                 continue
             if payload or missing:
-                self._accept(d, payload, missing, no, ts)
+                self._accept(d, payload, missing, no, ts, ack)
             if fin:
-                self._fin(d, no, ts)
+                self._fin(d, no, ts, ack)
         if not me.has_hole():
             me.hole_pkt = None
 
-    def _old(self, d: int, back: int, payload: bytes, missing: int, fin: bool, no: int, ts: float) -> None:
+    def _old(self, d: int, back: int, payload: bytes, missing: int, fin: bool, no: int, ts: float,
+             ack: int | None) -> None:
         """A segment starting ``back`` bytes before ``next``: compare what is known, keep the rest."""
         me = self.dirs[d]
         size = len(payload)
@@ -273,26 +285,30 @@ class TcpStream:
                 self.sink.conflict(d, no, ts)
                 break
         if back < size + missing and not me.closed:
-            self._accept(d, payload[back:], missing - max(0, back - size), no, ts)
+            self._accept(d, payload[back:], missing - max(0, back - size), no, ts, ack)
             if fin:
-                self._fin(d, no, ts)
+                self._fin(d, no, ts, ack)
             if me.ooo:
                 self._drain(d)
         elif fin and not me.closed and back == size + missing:
-            self._fin(d, no, ts)
+            self._fin(d, no, ts, ack)
 
-    def _release(self, d: int) -> None:
-        """Deliver what direction ``d`` held back, as far as the other side has caught up."""
+    def _release(self, d: int, force: bool = False) -> None:
+        """Hand on what direction ``d`` held back, as far as the other side has been handed on."""
         me, other = self.dirs[d], self.dirs[d ^ 1]
         pending = me.pending
         while pending:
-            kind, value, no, ts, wait = pending[0]
-            if other.next is not None and wait is not None and _behind(other.next, wait):
+            kind, value, no, ts, wait, end = pending[0]
+            # wait, unless both sides wait for each other (acknowledgements the capture contradicts):
+            # then the earlier frame goes first
+            if not force and other.emitted is not None and wait is not None and _behind(other.emitted, wait) \
+                    and not (other.pending and other.pending[0][4] is not None and me.emitted is not None
+                             and _behind(me.emitted, other.pending[0][4]) and no < other.pending[0][2]):
                 return
             pending.popleft()
             if kind == _DATA:
                 me.pending_bytes -= len(value)
-            self._emit(d, kind, value, no, ts)
+            self._emit(d, kind, value, no, ts, end)
 
     # -- holes ------------------------------------------------------------------------------------
     def _check_holes(self, ts: float) -> None:
@@ -307,7 +323,7 @@ class TcpStream:
             if (me.acked_hole() and (age >= REORDER_PACKETS or ts - me.hole_ts >= REORDER_S)) \
                     or age >= STALL_PACKETS or me.ooo_bytes > OOO_LIMIT:
                 self._declare_gap(d, ts)
-        self._holes = any(x.hole_pkt is not None for x in self.dirs)
+        self._holes = self.done or any(x.hole_pkt is not None for x in self.dirs)
 
     def _declare_gap(self, d: int, ts: float) -> None:
         """The bytes between ``next`` and the first waiting segment (or the other side's ACK) are missing."""
@@ -330,13 +346,17 @@ class TcpStream:
         me.recent.clear()
         me.hole_pkt = None
         if nbytes:
-            self.sink.gap(d, nbytes, before, after, ts)
+            if me.pending:
+                me.pending.append((_GAP, nbytes, before, ts, me.pending[-1][4], end))  # type: ignore[arg-type]
+            else:
+                me.emitted = end
+                self.sink.gap(d, nbytes, before, after, ts)
+                if self.dirs[d ^ 1].pending:
+                    self._release(d ^ 1)
         self._drain(d)
         if me.has_hole():  # more missing after what was waiting: due at once
             me.hole_pkt, me.hole_ts = self.packets - REORDER_PACKETS, ts - REORDER_S
             self._holes = True
-        if self.dirs[d ^ 1].pending:
-            self._release(d ^ 1)
 
     def _flush_holes(self, ts: float) -> None:
         for _ in range(1000):
@@ -348,9 +368,6 @@ class TcpStream:
                     busy = True
             if not busy:
                 break
-        for d in (0, 1):
-            me = self.dirs[d]
-            while me.pending:  # the other side never caught up (no more of its bytes): release anyway
-                kind, value, no, t, _wait = me.pending.popleft()
-                self._emit(d, kind, value, no, t)
-            me.pending_bytes = 0
+        for d in (0, 1):  # the other side will show nothing more: let go of everything held
+            if self.dirs[d].pending:
+                self._release(d, force=True)
