@@ -8,7 +8,9 @@ from scapy.layers.inet6 import IPv6, IPv6ExtHdrDestOpt
 from scapy.layers.l2 import CookedLinux, Dot1Q, Ether
 from scapy.packet import Raw
 
-from conformance.analyze.packets import ACK, FIN, PSH, SYN, TCP as P_TCP, UDP as P_UDP, PacketDecoder, endpoints, reverse_key
+from conformance.analyze.packets import ACK, FIN, PSH, SYN, PacketDecoder, endpoints, reverse_key
+from conformance.analyze.packets import TCP as P_TCP
+from conformance.analyze.packets import UDP as P_UDP
 
 MACS = {"src": "02:00:00:00:00:01", "dst": "02:00:00:00:00:02"}
 
