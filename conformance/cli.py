@@ -10,7 +10,8 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from . import __version__
+from . import __version__, clauses_cli, wireshark_cli
+from .analyze import cli as analyze_cli
 from .options import add_profile_options, profile_from_options
 from .protocol import (
     ProtocolError,
@@ -78,9 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=f"{text} [not yet implemented: arrives with {milestone}]")
         p.set_defaults(func=_planned(name, milestone))
     _add_fuzz_and_replay(sub)
-    from .analyze.cli import add_parser as add_analyze
-
-    add_analyze(sub)
+    clauses_cli.add_parser(sub)
+    wireshark_cli.add_parser(sub)
+    analyze_cli.add_parser(sub)
     return parser
 
 

@@ -22,6 +22,7 @@ class Option:
     type: Callable[[str], Any] = str
     choices: tuple[Any, ...] | None = None
     metavar: str | None = None
+    shown_default: str | None = None  # how --help shows the default, when not str(default)
 
     @property
     def dest(self) -> str:
@@ -34,7 +35,7 @@ class Option:
         out: dict[str, Any] = {
             "dest": self.dest,
             "default": None,
-            "help": f"{self.help} (default: {default})",
+            "help": f"{self.help} (default: {self.shown_default or default})",
         }
         if self.type is not str:
             out["type"] = self.type
@@ -71,8 +72,9 @@ PROFILE_OPTIONS: tuple[Option, ...] = (
     Option("--pose-rate", "pose_rate_hz", "[T2] pose stream rate in Hz", type=float, metavar="HZ"),
     Option("--progidx-conflict", "progidx_conflict", "[E2] where a ProgIdx 409 travels",
            choices=("block", "error-code")),
-    Option("--checking", "strict", "strict also enforces SHOULD rules (B4); lenient accepts them",
-           type=_bool, metavar="strict|lenient"),
+    Option("--checking", "strict", "strict also enforces SHOULD rules (B4: no NaN or infinity); lenient accepts them, and "
+           "a first block index of 0 or 1 (B3)",
+           type=_bool, metavar="strict|lenient", shown_default="strict"),
 )
 
 

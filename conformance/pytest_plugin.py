@@ -1,11 +1,18 @@
 """The pytest plugin (entry point ``pytest11: isight``): thin, like pytest-timeout.
 
-- options in one group (``isight``), resolved once into :class:`SuiteSettings`;
-- ``isight`` fixture: a :class:`CaseContext` per case, its transcript recorded to a pcap;
-- a ``pytest_pyfunc_call`` wrapper runs the liveness check after malformed input (R2);
-- ``pytest_runtest_makereport`` turns what the case raised into a verdict, attaches
-  the evidence (pcap path, wire log, hex) to the report, and keeps the CaseResult;
-- reports are written at session end when ``--report-dir`` is given.
+Options live in one group (``isight``) and are resolved once, in ``pytest_configure``,
+into :class:`~conformance.suite.settings.SuiteSettings` (``isight-conformance run``
+passes its settings as the same flags). Every hook forwards:
+
+* the ``isight`` fixture makes the case's :class:`~conformance.suite.context.CaseContext`
+  (its transcript recorded to a pcap) and asks the session whether the case may run
+  (:meth:`~conformance.suite.session.SessionState.before_case`);
+* ``pytest_pyfunc_call`` closes the case's connections and hands what it raised to
+  :meth:`~conformance.suite.session.SessionState.after_case` (liveness, R2/S5);
+* ``pytest_runtest_makereport`` turns it into a CaseResult (:mod:`conformance.suite.results`)
+  and shapes pytest's report (verdict words, the evidence section);
+* ``pytest_sessionfinish`` finds the root causes and writes the reports, also for a run
+  cut short by Ctrl-C, SIGTERM or SIGHUP (marked INCOMPLETE, the cases not run listed).
 
 Only items marked with :func:`conformance.suite.catalogue.case` are touched, so the
 plugin is inert in any other test session.
@@ -18,26 +25,26 @@ import fnmatch
 import shlex
 import sys
 import time
-import traceback
 from collections.abc import Generator
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from . import __version__
-from .harness.target import Unreachable
 from .harness.transcript import Transcript
-from .suite.catalogue import CaseInfo, info_of
-from .suite.context import DEAD_RECHECK_S, CaseContext, SessionState, responsive
-from .suite.judge import CaseVerdict, Inconclusive
+from .suite import signals
+from .suite.catalogue import info_of
+from .suite.context import CaseContext
+from .suite.results import attach_evidence, result_of
+from .suite.rootcause import SessionFacts, find_root_causes
+from .suite.session import SessionState
 from .suite.settings import SuiteSettings, add_suite_options
-from .suite.verdicts import CaseResult, SuiteInfo, Verdict
-from .suite.wirelog import wire_lines
+from .suite.verdicts import CaseResult, RootCause, SuiteInfo, Verdict
 
 STATE = pytest.StashKey[SessionState]()
 RESULTS = pytest.StashKey[list[CaseResult]]()
 STARTED = pytest.StashKey[float]()
+SELECTED = pytest.StashKey[list[str]]()
 CTX = pytest.StashKey[CaseContext]()
 CASE_START = pytest.StashKey[float]()
 
@@ -49,18 +56,20 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "isight_case(info): an iSight conformance case (set by @case)")
-    injected = [p.isight_settings for p in config.pluginmanager.get_plugins()
-                if isinstance(getattr(p, "isight_settings", None), SuiteSettings)]
     try:
-        settings = injected[0] if injected else SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
+        settings = SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
     except ValueError as exc:
         raise pytest.UsageError(str(exc)) from None
     config.stash[STATE] = SessionState(settings)
     config.stash[RESULTS] = []
+    config.stash[SELECTED] = []
     config.stash[STARTED] = time.time()
+    if _wants_suite(config):
+        signals.install()  # SIGTERM and SIGHUP end the run like Ctrl-C: the reports are still written
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
+    signals.restore()
     state = config.stash.get(STATE, None)
     if state is not None:
         state.stop()
@@ -86,22 +95,32 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     # profile discovery first: its hints matter most when everything else fails
     items.sort(key=lambda item: 0 if (info := info_of(item)) is not None and "any-profile" in info.needs else 1)
     settings = config.stash[STATE].settings
-    if not (settings.cases or settings.exclude):
-        return
-    keep: list[pytest.Item] = []
-    drop: list[pytest.Item] = []
+    if settings.cases or settings.exclude:
+        keep: list[pytest.Item] = []
+        drop: list[pytest.Item] = []
+        for item in items:
+            info = info_of(item)
+            # the baseline ("always") runs whatever --cases says; only --exclude drops it
+            always = info is not None and "always" in info.needs and not any(
+                fnmatch.fnmatchcase(info.id, g) for g in settings.exclude)
+            (keep if info is None or always or settings.selects(info.id) else drop).append(item)
+        if drop:
+            config.hook.pytest_deselected(items=drop)
+            items[:] = keep
+    config.stash[SELECTED] = [info.id for item in items if (info := info_of(item)) is not None]
     for item in items:
-        info = info_of(item)
-        # the baseline ("always") runs whatever --cases says; only --exclude drops it
-        always = info is not None and "always" in info.needs and not any(
-            fnmatch.fnmatchcase(info.id, g) for g in settings.exclude)
-        (keep if info is None or always or settings.selects(info.id) else drop).append(item)
-    if drop:
-        config.hook.pytest_deselected(items=drop)
-        items[:] = keep
+        if info_of(item) is not None:
+            # a verdict carries its own evidence (the report's longrepr is replaced by it): spare pytest from
+            # parsing sources for a traceback of every INCONCLUSIVE and FAIL (seconds on a dead box's run)
+            item.repr_failure = _plain_repr  # type: ignore[method-assign]
+            item._repr_failure_py = _plain_repr  # type: ignore[method-assign,assignment]
 
 
-# -- the fixture ---------------------------------------------------------------------------
+def _plain_repr(excinfo: pytest.ExceptionInfo[BaseException], style: object = None) -> str:
+    return f"{excinfo.typename}: {excinfo.value}"
+
+
+# -- the fixture and the case run ----------------------------------------------------------------
 
 
 @pytest.fixture
@@ -116,73 +135,13 @@ def isight(request: pytest.FixtureRequest) -> Generator[CaseContext, None, None]
     transcript = Transcript(case_id=info.id)
     ctx = CaseContext(state, info, transcript)
     item.stash[CTX] = ctx
-    _attach_evidence(ctx, state.settings)
-    _baseline(ctx, state)
-    if "any-profile" not in info.needs:
-        _refuse_if_dead(ctx, state)
+    ctx.pcap = attach_evidence(transcript, state.settings, info.id)
     try:
+        state.before_case(info.id, transcript, any_profile="any-profile" in info.needs)
         yield ctx
     finally:
         ctx.close_all()
         transcript.close()
-
-
-def _attach_evidence(ctx: CaseContext, settings: SuiteSettings) -> None:
-    if settings.pcap_dir is None or settings.capture == "off":
-        return
-    settings.pcap_dir.mkdir(parents=True, exist_ok=True)
-    path = settings.pcap_dir / f"{_safe(ctx.info.id)}.pcapng"
-    if settings.capture == "live":
-        from .evidence.live import LiveCapture  # needs privileges; says so clearly
-
-        capture = LiveCapture(path=path, case_id=ctx.info.id)
-        ctx.transcript.listeners.append(capture)  # type: ignore[arg-type]
-        capture.start()
-    else:
-        from .evidence.pcap import PcapRecorder
-
-        ctx.transcript.listeners.append(PcapRecorder(path, case_id=ctx.info.id))
-    ctx.pcap = path
-
-
-def _safe(case_id: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in case_id)
-
-
-def _baseline(ctx: CaseContext, state: SessionState) -> None:
-    """Once per session: does the box answer NONE at all, in this profile?"""
-    if state.baseline is not None:
-        return
-    try:
-        ctx.target  # noqa: B018 - resolves (and may start) the target
-    except Exception as exc:  # the bundled box failed to start: the suite's fault
-        raise RuntimeError(f"could not start the bundled reference box: {exc}") from exc
-    state.baseline = ctx.check_alive()
-    if not responsive(state.baseline):
-        state.health.dead_since_case = "session start"
-        state.health.reason = (
-            f"the box does not answer a NONE request (it {state.baseline.describe()}); "
-            "PROFILE-01 tells which profile it appears to use"
-        )
-        state.health.last_check = time.monotonic()
-
-
-def _refuse_if_dead(ctx: CaseContext, state: SessionState) -> None:
-    health = state.health
-    if health.dead_since_case is None:
-        return
-    now = time.monotonic()
-    if now - health.last_check >= DEAD_RECHECK_S:
-        health.last_check = now
-        outcome = ctx.check_alive()
-        if responsive(outcome):
-            health.dead_since_case = None
-            ctx.transcript.note("the box answers again")
-            return
-    raise Inconclusive(f"box unreachable since case {health.dead_since_case} ({health.reason})")
-
-
-# -- liveness after malformed input (R2) ----------------------------------------------------
 
 
 @pytest.hookimpl(wrapper=True)
@@ -194,60 +153,14 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, o
     result: object = None
     try:
         result = yield
-    except BaseException as exc:  # re-raised below, after the liveness check
+    except Exception as exc:  # handed to the session below, then re-raised
         error = exc
-    if (ctx.needs_liveness or ctx.transcript.timeouts) and not isinstance(error, Inconclusive):
-        alive = ctx.check_alive()
-        ok = responsive(alive)
-        if not ok:
-            health = ctx.session.health
-            health.dead_since_case = ctx.info.id
-            health.reason = f"a fresh connection {alive.describe()}"
-            health.last_check = time.monotonic()
-        if not ok and ctx.needs_liveness and state_baseline_ok(ctx.session):
-            dead = CaseVerdict(
-                Verdict.FAIL,
-                f"R2: after this case's input the box no longer answers a fresh connection (it {alive.describe()})",
-                requirement="R2: whatever bytes one connection sends, the box keeps accepting and answering new connections",
-                expected="a fresh connection's NONE request answered",
-                observed=alive.describe(),
-                sent=ctx.last_sent,
-            )
-            if not (isinstance(error, CaseVerdict) and error.verdict is Verdict.FAIL):
-                error = dead
-            else:
-                error.message += f" (and then the box stopped answering new connections: {alive.describe()})"
+    ctx.close_all()  # first: a box that serves one connection at a time is then free for the liveness check
+    error = ctx.session.after_case(ctx.info.id, ctx.transcript, malformed_input=ctx.needs_liveness,
+                                   last_sent=ctx.last_sent, error=error)
     if error is not None:
         raise error
     return result
-
-
-def state_baseline_ok(state: SessionState) -> bool:
-    return state.baseline is not None and responsive(state.baseline)
-
-
-# -- verdicts and evidence ------------------------------------------------------------------
-
-
-def _classify(excinfo: pytest.ExceptionInfo[BaseException] | None, info: CaseInfo, ctx: CaseContext | None) -> tuple[Verdict, dict[str, Any]]:
-    if excinfo is None:
-        if ctx is not None and ctx.informational is not None:
-            return Verdict.INFORMATIONAL, {"message": ctx.informational, "observed": ctx.informational}
-        return Verdict.PASS, {"message": ""}
-    exc = excinfo.value
-    if isinstance(exc, CaseVerdict):
-        return exc.verdict, {
-            "message": exc.message, "requirement": exc.requirement, "expected": exc.expected,
-            "observed": exc.observed, "sent_hex": exc.sent.hex(" "), "received_hex": exc.received.hex(" "),
-        }
-    if isinstance(exc, Unreachable):
-        return Verdict.INCONCLUSIVE, {"message": f"box unreachable: {exc}"}
-    if excinfo.errisinstance(pytest.skip.Exception):
-        return Verdict.SKIP, {"message": str(getattr(exc, "msg", exc))}
-    if isinstance(exc, AssertionError):
-        return info.level.broken_verdict, {"message": str(exc).splitlines()[0] if str(exc) else "assertion failed"}
-    tb = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-3:])
-    return Verdict.ERROR, {"message": f"suite error: {type(exc).__name__}: {exc}", "observed": tb}
 
 
 @pytest.hookimpl(wrapper=True)
@@ -257,25 +170,11 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     if info is None or rep.when == "teardown" or (rep.when == "setup" and rep.passed):
         return rep
     ctx = item.stash.get(CTX, None)
-    verdict, fields = _classify(call.excinfo, info, ctx)
-    if verdict is not Verdict.PASS:
-        # every non-PASS verdict carries the requirement and the bytes (defaults from the case)
-        fields["requirement"] = fields.get("requirement") or f"{', '.join(info.clauses)} ({info.level.value}): {info.title}"
-        if ctx is not None and not fields.get("sent_hex") and ctx.last_sent:
-            fields["sent_hex"] = ctx.last_sent.hex(" ")
-
+    exc = call.excinfo.value if call.excinfo is not None else None
+    skipped = call.excinfo is not None and call.excinfo.errisinstance(pytest.skip.Exception)
     start = item.stash.get(CASE_START, None)
-    result = CaseResult(
-        id=info.id, title=info.title, clauses=info.clauses, level=info.level, verdict=verdict,
-        duration_s=(time.monotonic() - start) if start is not None else rep.duration,
-        expected=fields.pop("expected", "") or info.expect,
-        pcap=str(ctx.pcap) if ctx is not None and ctx.pcap is not None else None,
-        **fields,
-    )
-    if ctx is not None:
-        result.wire = wire_lines(ctx.transcript, ctx.profile)
-        result.latencies_ms = list(ctx.latencies_ms)
-        result.details = dict(ctx.details)
+    duration = (time.monotonic() - start) if start is not None else rep.duration
+    result = result_of(info, ctx, exc, duration, skipped)
     item.config.stash[RESULTS].append(result)
     _shape_report(rep, item, result)
     return rep
@@ -325,12 +224,15 @@ def pytest_report_teststatus(report: pytest.TestReport, config: pytest.Config) -
     return None
 
 
-# -- session end ---------------------------------------------------------------------------
+# -- session end ---------------------------------------------------------------------------------
 
 
-def suite_info(config: pytest.Config) -> SuiteInfo:
+def suite_info(config: pytest.Config, interrupted: bool = False) -> SuiteInfo:
     state = config.stash[STATE]
     started = config.stash[STARTED]
+    done = {c.id for c in results(config)}
+    selected = config.stash.get(SELECTED, [])
+    not_run = [case_id for case_id in selected if case_id not in done]
     return SuiteInfo(
         version=__version__,
         started=_dt.datetime.fromtimestamp(started, _dt.timezone.utc).isoformat(timespec="seconds"),
@@ -340,7 +242,17 @@ def suite_info(config: pytest.Config) -> SuiteInfo:
         udp_target=str(state.udp_target()) if state._target is not None and state.udp_target() else None,
         extension=state.extension_how or ("not checked" if state.settings.extension == "auto" else state.settings.extension),
         command=" ".join(shlex.quote(a) for a in sys.argv),
+        complete=not (interrupted or not_run),
+        cases_total=max(len(selected), len(done)),
+        not_run=not_run,
+        registry_version=_registry_version(),
     )
+
+
+def _registry_version() -> str:
+    from .protocol.clauses import REGISTRY_VERSION
+
+    return REGISTRY_VERSION
 
 
 def results(config: pytest.Config) -> list[CaseResult]:
@@ -348,12 +260,32 @@ def results(config: pytest.Config) -> list[CaseResult]:
     return list(found)
 
 
+def root_causes(config: pytest.Config) -> list[RootCause]:
+    """The run's root causes (and each explained case marked with its id)."""
+    state = config.stash[STATE]
+    facts = SessionFacts(
+        unresponsive=next((d.detail for d in state.deaths if d.kind == "unresponsive"), ""),
+        one_at_a_time=state.concurrency_note if state.concurrent is False else "",
+        deaths=tuple((d.case_id, d.kind, d.detail, d.opened, d.closed) for d in state.deaths if d.kind != "unresponsive"),
+    )
+    return find_root_causes(results(config), facts)
+
+
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     config = session.config
     state = config.stash.get(STATE, None)
     cases = results(config)
-    if state is None or not cases or state.settings.report_dir is None:
+    if state is None or not cases:
+        return
+    causes = root_causes(config)
+    config.stash[CAUSES] = causes
+    if state.settings.report_dir is None:
         return
     from .report import write_reports
 
-    write_reports(Path(state.settings.report_dir), suite_info(config), cases)
+    with signals.deferred():  # a second signal does not cut the reports short
+        info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED)
+        write_reports(Path(state.settings.report_dir), info, cases, causes)
+
+
+CAUSES = pytest.StashKey[list[RootCause]]()

@@ -1,21 +1,21 @@
 """``isight-conformance run``: the suite as one command.
 
-A thin driver around pytest: it resolves the settings once (the same options the
-pytest plugin offers), starts the bundled reference box when no ``--target`` is
-given, checks that the target is reachable (one clear line and exit 2 if not),
-runs ``conformance.cases`` through :func:`pytest.main` with the settings injected,
-shows progress, applies the expected-failures list and sets the exit code:
-0 nothing FAILed or ERRORed (or the failing set equals the expected-failures list),
-1 something did, 2 usage error or unreachable target.
+A thin driver around pytest: it reads the same options the pytest plugin offers,
+starts the bundled reference box when no ``--target`` is given, checks that the
+target is reachable (one clear line and exit 2 if not), runs ``conformance.cases``
+through :func:`pytest.main` with its settings passed as the plugin's flags (so they
+are resolved in one place), shows progress, applies the expected-failures list and
+sets the exit code: 0 nothing FAILed or ERRORed (or the failing set equals the
+expected-failures list), 1 something did, 2 usage error or unreachable target, 3 the
+run was cut short (Ctrl-C, SIGTERM, SIGHUP: the reports cover the cases that ran and
+say INCOMPLETE).
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import json
 import os
-import socket
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -23,13 +23,16 @@ from typing import Any
 
 import pytest
 
-from .harness.target import Target
-from .pytest_plugin import results, suite_info
+from .harness.target import check_reachable
+from .protocol.clauses import all_clauses, clause_ids
+from .protocol.clauses import families as registry_families
+from .pytest_plugin import CAUSES, results, suite_info
+from .rundirs import default_run_dirs
 from .suite.catalogue import CaseInfo, info_of
 from .suite.settings import SuiteSettings, add_suite_options
-from .suite.verdicts import CaseResult, Verdict
+from .suite.verdicts import CaseResult, RootCause, Verdict
 
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INCOMPLETE = 0, 1, 2, 3
 
 
 def add_run_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,6 +45,11 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
                        help="case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
                             "only when the failing set equals the list")
     group.add_argument("--quiet", action="store_true", help="no live progress line (for CI logs)")
+    fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
+    fleet.add_argument("--targets", metavar="FILE", default=None,
+                       help="test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
+                            "into --report-dir (default reports/fleet-<timestamp>), each box's reports in DIR/<name>/")
+    fleet.add_argument("--jobs", type=int, metavar="N", default=None, help="with --targets: boxes tested at once (default 1)")
 
 
 def read_expected_failures(path: Path) -> set[str]:
@@ -54,10 +62,9 @@ def read_expected_failures(path: Path) -> set[str]:
 
 
 class _RunPlugin:
-    """Carries the resolved settings into the plugin and reports progress."""
+    """Watches the run: the catalogue collected, progress, collection errors."""
 
-    def __init__(self, settings: SuiteSettings, progress: Any = None) -> None:
-        self.isight_settings = settings  # found by the isight plugin's pytest_configure
+    def __init__(self, progress: Any = None) -> None:
         self.progress = progress
         self.config: pytest.Config | None = None
         self.collected: list[CaseInfo] = []
@@ -88,32 +95,19 @@ class _RunPlugin:
 
 
 def _pytest_args(settings: SuiteSettings, collect_only: bool = False) -> list[str]:
-    # -c devnull: the user's own pytest configuration (addopts, plugins) stays out of the run
+    # -c devnull: the user's own pytest configuration (addopts, plugins) stays out of the run;
+    # --assert=plain: verdicts carry their own evidence, pytest need not rewrite the cases' asserts
     args = ["-c", os.devnull, "--rootdir", os.getcwd(), "--pyargs", "conformance.cases",
-            "-p", "no:cacheprovider", "-p", "no:terminal", "-p", "no:warnings"]
+            "-p", "no:cacheprovider", "-p", "no:terminal", "-p", "no:warnings", "--assert=plain",
+            *settings.to_args()]
     if collect_only:
         args.append("--collect-only")
     return args
 
 
-def check_reachable(target: Target, time_out_s: float) -> str | None:
-    """None when a TCP connection opens within time_out, else one line saying why not."""
-    try:
-        with socket.create_connection((target.host, target.port), timeout=time_out_s):
-            return None
-    except ConnectionRefusedError:
-        return f"target {target} unreachable: connection refused (nothing listens on that port)"
-    except TimeoutError:
-        return f"target {target} unreachable: no answer to the connection request within {time_out_s * 1000:.0f} ms"
-    except socket.gaierror as exc:
-        return f"target {target} unreachable: host name does not resolve ({exc.strerror})"
-    except OSError as exc:
-        return f"target {target} unreachable: {exc.strerror or exc}"
-
-
 def collect(settings: SuiteSettings) -> list[CaseInfo] | None:
     """The selected cases' metadata (None if the catalogue fails to load)."""
-    plugin = _RunPlugin(settings)
+    plugin = _RunPlugin()
     code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
     return None if code not in (0, 5) or plugin.collect_errors else plugin.collected
 
@@ -127,21 +121,25 @@ def catalogue_markdown(cases: list[CaseInfo]) -> str:
             rows[base] = (info, [])
         if param:
             rows[base][1].append(param.rstrip("]"))
-    families = {"F": "Frame", "B": "Data blocks", "A": "Actions and answers", "S": "State and sequences",
-                "T": "Timing", "R": "Robustness", "E": "Extension (program index, vision result)"}
+    families = registry_families()
     out = ["# Case catalogue", "",
            "Generated by `isight-conformance run --list --list-format markdown` from the cases themselves; "
-           "do not edit by hand. Levels: a MUST broken is FAIL, a SHOULD broken NON-STRICT, a MAY is INFORMATIONAL.",
+           "do not edit by hand. The clauses are those of [PROTOCOL.md](PROTOCOL.md) "
+           "(`isight-conformance clauses ID` prints one). Levels: a MUST broken is FAIL, a SHOULD broken "
+           "NON-STRICT, a MAY is INFORMATIONAL.",
            "", f"{len(rows)} cases ({len(cases)} with every parameter).", ""]
     by_family: dict[str, list[tuple[str, CaseInfo, list[str]]]] = {}
     for base, (info, params) in rows.items():
-        family = base[0] if base[0] in families else "other"
+        family = base[0] if base.split("-", 1)[0] in clause_ids() else "other"  # "F1-01" is F; "FUZZ-01" other
         by_family.setdefault(family, []).append((base, info, params))
     for family in [*families, "other"]:
         if family not in by_family:
             continue
-        out += [f"## {families.get(family, 'Discovery, sequences and other cases')}", "",
-                "| ID | Clauses | Level | Case | Acceptable outcomes |", "|---|---|---|---|---|"]
+        out += [f"## {families.get(family, 'Discovery, sequences and other cases')}", ""]
+        if family in families:
+            out += ["Clauses: " + "; ".join(f"**{c.id}** {c.title} ({'/'.join(c.levels)})" for c in all_clauses().values()
+                                           if c.id[0] == family) + ".", ""]
+        out += ["| ID | Clauses | Level | Case | Acceptable outcomes |", "|---|---|---|---|---|"]
         for base, info, params in sorted(by_family[family], key=lambda row: row[0]):
             variants = f" ({len(params)} variants: {', '.join(params[:6])}{', …' if len(params) > 6 else ''})" if params else ""
             cell = (info.title + variants).replace("|", "\\|")
@@ -169,6 +167,10 @@ def list_cases(settings: SuiteSettings, fmt: str = "text") -> int:
 
 
 def main_run(args: argparse.Namespace) -> int:
+    if getattr(args, "targets", None):
+        from .fleet import main_fleet
+
+        return main_fleet(args)
     try:
         settings = SuiteSettings.resolve(lambda dest: getattr(args, dest, None))
         expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
@@ -178,25 +180,19 @@ def main_run(args: argparse.Namespace) -> int:
     if args.list:
         return list_cases(settings, args.list_format)
 
-    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    settings = replace(
-        settings,
-        report_dir=settings.report_dir or Path("reports") / stamp,
-        pcap_dir=None if settings.capture == "off" else (settings.pcap_dir or Path("pcaps") / stamp),
-    )
+    try:
+        report_dir, pcap_dir = default_run_dirs(settings.report_dir, settings.pcap_dir, settings.capture != "off")
+    except OSError as exc:
+        print(f"isight-conformance run: cannot create the report directory: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    settings = replace(settings, report_dir=report_dir, pcap_dir=pcap_dir)
     embedded = None
     if settings.target is None:
-        from .endpoints.behaviour import BoxConfig
-        from .endpoints.box import BoxThread
+        from .endpoints.bundled import start_bundled
 
-        embedded = BoxThread(BoxConfig(profile=settings.profile), host="127.0.0.1", port=0).start()
-        udp = Target("127.0.0.1", embedded.udp_port) if embedded.udp_port else None
-        settings = replace(
-            settings,
-            target=Target("127.0.0.1", embedded.tcp_port),
-            udp_target=settings.udp_target or udp,
-            target_label=settings.target_label or f"bundled reference box at 127.0.0.1:{embedded.tcp_port}",
-        )
+        embedded = start_bundled(settings.profile)
+        settings = replace(settings, target=embedded.target, udp_target=settings.udp_target or embedded.udp_target,
+                           target_label=settings.target_label or embedded.label)
     else:
         problem = check_reachable(settings.target, settings.time_out_s)
         if problem:
@@ -216,9 +212,11 @@ def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool) -> int
 
     console = Console(stderr=False)
     progress = Progress(console=console, quiet=quiet)
-    plugin = _RunPlugin(settings, progress)
+    plugin = _RunPlugin(progress)
     try:
         code = pytest.main(_pytest_args(settings), plugins=[plugin])
+    except KeyboardInterrupt:  # a signal between pytest's own handlers: the plugin wrote what it could
+        code = pytest.ExitCode.INTERRUPTED
     finally:
         progress.stop()
     if plugin.collect_errors:
@@ -233,7 +231,9 @@ def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool) -> int
     if expected is not None:
         _write_lines(report_dir / "failing_cases.txt", sorted(failing))
         _write_lines(report_dir / "unexpectedly_passing.txt", sorted(expected - failing))
-    info = suite_info(plugin.config)
+    interrupted = code == pytest.ExitCode.INTERRUPTED
+    info = suite_info(plugin.config, interrupted=interrupted)
+    causes: list[RootCause] = plugin.config.stash.get(CAUSES, [])
     reports: dict[str, Any] = {
         "HTML report": report_dir / "report.html",
         "JSON summary": report_dir / "summary.json",
@@ -241,10 +241,11 @@ def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool) -> int
     }
     if settings.pcap_dir is not None:
         reports["pcaps"] = settings.pcap_dir
-    print_final_table(info, cases, console, reports=reports)
-    if code == pytest.ExitCode.INTERRUPTED:
-        print("isight-conformance run: interrupted; the reports cover the cases that finished", file=sys.stderr)
-        return EXIT_FAILED
+    print_final_table(info, cases, console, reports=reports, root_causes=causes)
+    if interrupted or not info.complete:
+        print(f"isight-conformance run: interrupted after {len(cases)} of {info.cases_total} cases; the reports "
+              "cover the cases that ran and say INCOMPLETE", file=sys.stderr)
+        return EXIT_INCOMPLETE
     if code in (pytest.ExitCode.USAGE_ERROR, pytest.ExitCode.INTERNAL_ERROR):
         print(f"isight-conformance run: pytest stopped with exit code {int(code)}", file=sys.stderr)
         return EXIT_USAGE

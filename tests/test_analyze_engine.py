@@ -107,7 +107,6 @@ def _each_answer(data: bytes, change) -> bytes:
     ("check", lambda f: f[:-2] + b"\x12\x34", "OBS-F6-box"),
     ("echo", lambda f: f[:5] + (b"\x24" if f[5] == 0x23 else f[5:6]) + f[6:], "OBS-A2-box"),
     ("pose-error", lambda f: f[:10] + (b"\x10\x01" if f[5] == 0x23 else f[10:12]) + f[12:], "OBS-S3-box"),
-    ("cycle-on-error", lambda f: f[:10] + (b"\x00\x03" if f[5] == 0x01 else f[10:12]) + f[12:], "OBS-S2-box"),
 ])
 def test_a_broken_box_fails_its_clause_and_the_robot_is_not_blamed(runs, name, edit, clause):
     path = runs(f"box-{name}", tamper=_tamper_answers(lambda d: _each_answer(d, edit)),
@@ -118,6 +117,35 @@ def test_a_broken_box_fails_its_clause_and_the_robot_is_not_blamed(runs, name, e
     assert c[clause].received_hex  # the box's bytes
     robot_fails = {k for k, x in c.items() if x.verdict is Verdict.FAIL and k.endswith("-robot")}
     assert robot_fails == set()
+
+
+def test_cycle_on_answered_0003_fails_s2_once_the_capture_shows_the_box_idle(runs):
+    seen = {"cycle_on": 0}
+
+    def second_cycle_on(f: bytearray) -> bytes:
+        if f[5] == 0x01:
+            seen["cycle_on"] += 1
+            if seen["cycle_on"] == 2:  # the first session ended with CycleOff 0000: the box is idle
+                return bytes(f[:10]) + b"\x00\x03" + bytes(f[12:])
+        return bytes(f)
+
+    path = runs("box-cycle-on", tamper=_tamper_answers(lambda d: _each_answer(d, second_cycle_on)),
+                robots=[{}, {"stop_on_error": False}])
+    c = cases(path)
+    assert c["OBS-S2-box"].verdict is Verdict.FAIL and "0003" in c["OBS-S2-box"].message
+    assert c["OBS-S2-box"].observed.count("FAIL (1)") == 1
+    # the first CycleOn of a capture finds the box in an unknown cycle state: any answer is allowed (a MAY)
+    first = {"n": 0}
+
+    def first_cycle_on(f: bytearray) -> bytes:
+        if f[5] == 0x01 and not first["n"]:
+            first["n"] = 1
+            return bytes(f[:10]) + b"\x00\x03" + bytes(f[12:])
+        return bytes(f)
+
+    once = cases(runs("box-first-cycle-on", tamper=_tamper_answers(lambda d: _each_answer(d, first_cycle_on)),
+                      robots=[{"stop_on_error": False}]))
+    assert once["OBS-S2-box"].verdict is Verdict.INFORMATIONAL and "cycle state" in once["OBS-S2-box"].message
 
 
 def test_a_box_that_drops_an_answer_fails_a1(runs):

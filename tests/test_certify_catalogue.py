@@ -43,3 +43,15 @@ def test_every_clause_a_request_can_break_has_a_frame_case():
     assert reachable <= set(FRAME_SPECS), reachable - set(FRAME_SPECS)
     assert set(APPLIES) <= set(FRAME_SPECS)
     assert set(INJECT_SPECS) == set(INJECTIONS)
+
+
+def test_frame_cases_take_the_clause_wording_from_the_registry():
+    from conformance.protocol.clauses import clause
+
+    for cid in ("F2", "F5", "F7", "B1", "B2", "B5", "E1"):
+        spec = FRAME_SPECS[cid]
+        assert spec.title == clause(cid).title
+        assert spec.requirement == f"{cid}: {clause(cid).text}"
+    # where the robot's side needs its own words, they stay (and still name the clause)
+    assert FRAME_SPECS["F6"].requirement.startswith("F6 ") and "sender" in FRAME_SPECS["F6"].requirement
+    assert all(s.requirement.startswith(s.clauses[0]) for s in FRAME_SPECS.values())

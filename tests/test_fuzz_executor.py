@@ -73,7 +73,8 @@ def test_a_silent_box_fails_within_the_time_out() -> None:
         result = ex.run(S.case("t", "", POSE, "t"))
         ex.close()
     assert result.verdict is Verdict.FAIL and isinstance(result.end, Silence)
-    assert {f.clause for f in result.judgement.failures} == {"T1", "A1"}
+    # one finding: the box stopped answering at the first request (T1), not one per request it never reached
+    assert {f.clause for f in result.judgement.failures} == {"T1"}
     assert result.liveness is not None and not alive(result.liveness)
 
 

@@ -14,7 +14,7 @@ import pytest
 
 from conformance.protocol import DEFAULT_PROFILE
 from conformance.report import by_clause, conforms, overall_line, totals, write_summary
-from conformance.report.summary import CLAUSES, clean_text, format_duration, group_hex, hex_bytes, worst
+from conformance.report.summary import CLAUSES, FAMILIES, clean_text, format_duration, group_hex, hex_bytes, worst
 from conformance.suite.verdicts import VERDICT_ORDER, CaseResult, Level, SuiteInfo, Verdict, WireLine
 
 HOSTILE = "<script>alert('x')</script> & \x00\x1b[31m\ud800 ]]> [bold]markup[/]"
@@ -88,6 +88,14 @@ def test_clause_catalogue_matches_the_suites_clause_ids():
     assert all(_CLAUSE.match(c) for c in CLAUSES)
     expected = [f"{f}{i}" for f, n in zip("FBASTRE", (7, 5, 5, 6, 2, 7, 5)) for i in range(1, n + 1)]
     assert list(CLAUSES) == expected
+    assert not _CLAUSE.match("Z9") and not _CLAUSE.match("F8") and not _CLAUSE.match("F1 ")
+
+
+def test_clause_table_is_a_view_of_the_registry():
+    from conformance.protocol.clauses import all_clauses, families
+
+    assert CLAUSES == {c.id: c.title for c in all_clauses().values()}
+    assert FAMILIES == families() and list(FAMILIES) == list("FBASTRE")
 
 
 def test_by_clause_worst_verdict_case_ids_and_untested():
@@ -131,10 +139,12 @@ def test_write_summary_shape(tmp_path):
     returned = write_summary(path, suite, cases)
     doc = json.loads(path.read_text(encoding="utf-8"))
     assert doc == returned
-    assert list(doc) == ["suite", "cases", "totals"]
+    assert list(doc) == ["suite", "root_causes", "cases", "totals"]
+    assert doc["root_causes"] == []
     assert list(doc["suite"])[:5] == ["version", "started", "duration_s", "target", "profile"]
     assert set(doc["suite"]) == {"version", "started", "duration_s", "target", "profile", "udp_target", "extension",
-                                 "expected_failures", "command", "role"}
+                                 "expected_failures", "command", "role", "complete", "cases_total", "not_run",
+                                 "registry_version"}
     assert doc["suite"]["profile"]["tcp_check"] == "zero-or-crc"
     assert doc["suite"]["profile"]["first_index"] == 1
     assert doc["cases"] == json.loads(json.dumps([c.to_summary() for c in cases]))

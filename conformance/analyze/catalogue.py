@@ -19,6 +19,8 @@ from ..certify.catalogue import (
     S1_SPEC,
     Spec,
 )
+from ..protocol.clauses import clause as registry_clause
+from ..protocol.clauses import clause_ids, text_of
 from ..suite.verdicts import Level
 from .findings import BOX, ROBOT
 
@@ -71,6 +73,10 @@ _BOX_SPECS = (
          clauses=("A3",)),
     _box("A4", "NONE is answered NONE with 0000", "A4: action 00 is answered with action 00 and error 0000",
          "every NONE request's answer is NONE 0000"),
+    _box("B4", "NaN or infinity treated as a parse error",
+         "B4 [decision]: NaN or infinity in a pose or tolerance SHOULD be treated as a parse error (answered "
+         "1001/1002, never 0000)", "every request with a non-finite float the robot sent answered with an error",
+         SHOULD),
     _box("R1", "Never 0000 to malformed input",
          "R1/A5: a frame that breaks F, B or A5 (a parse error or not a request) is never answered 0000",
          "silence, a non-zero error or a close after every malformed frame the robot sent", clauses=("R1", "A5")),
@@ -81,8 +87,10 @@ _BOX_SPECS = (
          "R7: a datagram with a wrong CRC or not one frame long MUST NOT be answered 0000 and SHOULD be dropped",
          "no answer to a bad datagram (a non-zero error is NON-STRICT, 0000 is FAIL)"),
     _box("S2", "CycleOn answered 0000, or 0001 when not ready",
-         "S2: CycleOn is answered 0000, or 0001 when the box is not ready (then the cycle is inconclusive)",
-         "every CycleOn answered 0000 or 0001 (0001 is reported)"),
+         "S2: CycleOn is answered 0000, or 0001 when the box is not ready (then the cycle is inconclusive); S3: "
+         "CycleOn while a cycle is on MAY be answered anything",
+         "every CycleOn the capture shows the box idle for answered 0000 or 0001 (0001 is reported; others, when "
+         "the cycle state is not known, are INFORMATIONAL)"),
     _box("S3", "Poses answered 0000 whether or not a cycle is on",
          "S3 [decision]: poses (23) and register poses (24) are accepted and answered 0000 in any cycle state",
          "every well-formed pose answered 0000"),
@@ -124,9 +132,12 @@ SPECS: dict[tuple[str, str], Spec] = {
 
 def spec_for(clause: str, side: str) -> Spec:
     """The spec of (clause, side); a clause without one (a codec error naming an unusual
-    clause) gets a generic spec so no finding is ever dropped."""
+    clause) gets one from the clause registry, so no finding is ever dropped."""
     spec = SPECS.get((clause, side))
     if spec is None:
-        spec = Spec(case_id(clause, side), (clause,), MUST, f"{clause} ({side}'s frames)",
-                    f"{clause} as PROTOCOL.md states it", f"every {side} frame satisfies {clause}")
+        known = clause in clause_ids()
+        level = Level(registry_clause(clause).level) if known else MUST
+        spec = Spec(case_id(clause, side), (clause,), level,
+                    f"{registry_clause(clause).title if known else clause} ({side})",
+                    f"{clause}: {text_of(clause) or 'as PROTOCOL.md states it'}", f"the {side} satisfies {clause}")
     return spec

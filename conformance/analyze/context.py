@@ -8,6 +8,7 @@ from pathlib import Path
 from ..certify.traffic import judge_profile
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile
 from .findings import Findings, Series
+from .judging import Cycles
 
 __all__ = ["AnalyzeConfig", "Context", "Stats"]
 
@@ -87,6 +88,7 @@ class Context:
         #: (max latency, label, series) of the stream whose poses were answered slowest
         self.stream_plot: tuple[float, str, Series] | None = None
         self.intervals = Series()  # the robots' pose send intervals, ms
+        self.cycles = Cycles()  # the boxes' cycle states, as the capture shows them
         self.now = 0.0  # time stamp of the packet being read
         self.frame = 0  # its frame number
         self._labels = 0

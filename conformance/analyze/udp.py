@@ -58,7 +58,7 @@ class UdpConversation:
         robot, box = (a, b) if robot_dir == 0 else (b, a)
         self.number = ctx.label()
         self.label = f"udp {self.number} ({format_endpoint(*robot)} → {format_endpoint(*box)})"
-        self.judge = ConnJudge(ctx, self.label, "udp")
+        self.judge = ConnJudge(ctx, self.label, "udp", box=box)
         self.offsets = [0, 0]  # datagram number per direction
         self.last: list[tuple[bytes, float] | None] = [None, None]
         self.reading: Profile | None = None  # another CRC the datagrams fit

@@ -12,7 +12,8 @@ from conformance.harness.client import Answer
 from conformance.protocol import Action, encode, request
 from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext, answers_none
-from conformance.suite.judge import CaseVerdict
+from conformance.suite.judge import CaseVerdict, answered, check
+from conformance.suite.session import responsive
 from conformance.suite.verdicts import Level, Verdict
 
 
@@ -27,6 +28,9 @@ def test_baseline(isight: CaseContext) -> None:
     if answers_none(outcome):
         return
     isight.last_sent = encode(request(Action.NONE), isight.profile)
+    if responsive(outcome):  # it answers, wrongly: judged like any answer (a malformed one fails on its format)
+        check(outcome, answered(Action.NONE, [0]), Level.MUST,
+              "A4/T1: action 00 is answered with action 00 and error 0000 within time_out", sent=isight.last_sent)
     raise CaseVerdict(
         Verdict.FAIL,
         f"A4/T1: the box does not answer a NONE request in this profile (it {outcome.describe()}); every other "
@@ -36,4 +40,5 @@ def test_baseline(isight: CaseContext) -> None:
         observed=outcome.describe(),
         sent=isight.last_sent,
         received=outcome.raw if isinstance(outcome, Answer) else b"",
+        signature="unreachable:session start",
     )

@@ -26,7 +26,6 @@ from conformance.suite.context import CaseContext
 from conformance.suite.judge import fail
 from conformance.suite.verdicts import Level
 
-SEED = 20240601
 FRAMES_S = 2.0
 SESSION_S = 1.0
 
@@ -37,7 +36,7 @@ def _campaign(isight: CaseContext, name: str, seconds: float, stateful_share: fl
     isight.needs_liveness = True
     config = CampaignConfig(
         target=isight.target, profile=isight.profile, udp_target=isight.session.udp_target(),
-        stream_target=isight.session.stream_target(), seed=SEED, duration_s=seconds, stateful_share=stateful_share,
+        stream_target=isight.session.stream_target(), seed=settings.seed, duration_s=seconds, stateful_share=stateful_share,
         report_dir=settings.report_dir / "fuzz" if settings.report_dir is not None else None,
         pcap_dir=settings.pcap_dir, capture="failures" if settings.pcap_dir is not None else "off",
         database=None, extension=extension, settle_s=settings.settle_s, log=lambda line: None,
@@ -58,14 +57,17 @@ def _judge(summary: dict[str, Any]) -> None:
         more = f" (and {len(failures) - 1} more distinct failures)" if len(failures) > 1 else ""
         where = f"; vector {first['vector']}" if first["vector"] else ""
         sent = bytes.fromhex(first["cases"][0]["hex"]) if first["cases"] else b""
+        clause = first["clauses"][0] if first["clauses"] else "R1"
+        # a malformed answer found by fuzzing groups with the cases that found the same malformation
+        signature = f"fuzz:answer/{clause}" if "conforming frames" in first["message"] else f"fuzz:{clause}"
         raise fail(Level.MUST, f"{', '.join(first['clauses'])}: {first['message']}{more}",
                    "no failure: every example answered as PROTOCOL.md allows",
-                   f"fuzz failure ({first['kind']}, seed {summary['seed']}){where}", sent=sent)
+                   f"fuzz failure ({first['kind']}, seed {summary['seed']}){where}", sent=sent, signature=signature)
     if summary["non_strict"]:
         obs = summary["non_strict"][0]
         raise fail(Level.SHOULD, f"[{obs['clause']}] {obs['requirement']}",
                    "every SHOULD of PROTOCOL.md kept", f"the box {obs['observed']} (×{obs['count']})",
-                   sent=bytes.fromhex(obs["hex"]))
+                   sent=bytes.fromhex(obs["hex"]), signature=f"fuzz:{obs['key']}")
 
 
 @case("FUZZ-01", ["R1", "R2", "A1", "A3", "A5", "B3", "B4", "B5", "F5", "R6"], Level.MUST,

@@ -8,6 +8,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from ..protocol import Action
+from ..protocol.clauses import clause as registry_clause
+from ..protocol.clauses import text_of
 from ..suite.verdicts import Level
 from .traffic import FrameRecord
 
@@ -24,35 +26,37 @@ class Spec:
     expect: str
 
 
-def _frame_spec(clause: str, title: str, requirement: str, level: Level = MUST) -> Spec:
-    return Spec(f"RB-{clause}-01", (clause,), level, title, requirement,
+def _frame_spec(clause: str, title: str | None = None, requirement: str | None = None, level: Level = MUST) -> Spec:
+    """A frame case; the title and requirement are the clause's own (from the registry) unless
+    the robot's side of it needs other words."""
+    return Spec(f"RB-{clause}-01", (clause,), level, title or registry_clause(clause).title,
+                requirement or f"{clause}: {text_of(clause)}",
                 f"every frame the robot sends satisfies {clause}" if level is MUST else
                 f"every frame satisfies {clause} (a SHOULD: NON-STRICT otherwise)")
 
 
 #: Frame cases, keyed by the clause a decoder error names (F4 is the heuristic's).
 FRAME_SPECS: dict[str, Spec] = {s.clauses[0]: s for s in (
-    _frame_spec("F1", "Every frame starts with FE FE", "F1: the start word is FE FE; no bytes between frames"),
-    _frame_spec("F2", "Version 00 01", "F2: the version field is 00 01"),
-    _frame_spec("F3", "Transfer type 01 on every robot→box frame", "F3: transfer type is 01 robot→box"),
+    _frame_spec("F1", requirement="F1: the start word is FE FE; no bytes between frames"),
+    _frame_spec("F2"),
+    _frame_spec("F3", "Transfer type 01 on every robot→box frame"),
     Spec("RB-F4-01", ("F4", "B4"), MUST, "Big-endian header fields and floats",
          "F4/B4 [decision]: multi-byte fields and float32/int32 values are big-endian (the profile's byte order)",
          "no frame reads as absurd values that become plausible byte-swapped"),
-    _frame_spec("F5", "Frame length 12 + N×L + 2", "F5: a frame is exactly 12 + N×L + 2 bytes"),
-    _frame_spec("F6", "TCP check field 00 00", "F6 [decision]: a TCP sender MUST send 00 00 in the check field"),
-    _frame_spec("F7", "UDP: one frame per datagram with the CRC-16", "F7: one frame per datagram, CRC-16 check"),
+    _frame_spec("F5"),
+    _frame_spec("F6", requirement="F6 [decision]: a TCP sender MUST send 00 00 in the check field"),
+    _frame_spec("F7"),
     _frame_spec("A5", "Only request actions", "A5: the action is one PROTOCOL.md defines"),
-    _frame_spec("B1", "Pose block: index + 6 × float32, L = 25", "B1: pose blocks are 25 bytes (L = 25)"),
-    _frame_spec("B2", "Tolerance block: index + float32, L = 5", "B2: tolerance blocks are 5 bytes (L = 5)"),
-    _frame_spec("B3", "Block indexes from the first index, rising by one",
-                "B3: indexes start at the profile's first index (default 00) and rise by one"),
+    _frame_spec("B1"),
+    _frame_spec("B2"),
+    _frame_spec("B3", "Block indexes from the first index, rising by one"),
     _frame_spec("B4", "Finite floats (no NaN or infinity)", "B4 [decision]: NaN or infinity SHOULD not be sent", SHOULD),
-    _frame_spec("B5", "Block type and count match the action", "B5: the action fixes block type, count and length"),
-    _frame_spec("E1", "Type-03 block: index + int32, L = 5", "E1: a type-03 block is index + int32 (L = 5)"),
+    _frame_spec("B5"),
+    _frame_spec("E1"),
     _frame_spec("E2", "ProgIdx request: one type-03 block", "E2: ProgIdx (26) carries the program index as one type-03 block"),
     _frame_spec("E3", "Result request: no blocks", "E3: the result request (27) carries no blocks"),
 )}
-FALLBACK = _frame_spec("F5", "Frame length 12 + N×L + 2", "F5: a frame is exactly 12 + N×L + 2 bytes")
+FALLBACK = _frame_spec("F5")
 
 _BLOCKS = {Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE, Action.PROG_IDX}
 _POSES = (Action.POSE, Action.REGISTER_POSE)
@@ -72,11 +76,14 @@ APPLIES: dict[str, tuple[Callable[[FrameRecord], bool], str]] = {
 ANY_FRAME: tuple[Callable[[FrameRecord], bool], str] = (lambda r: True, "frame")
 
 S1_SPEC = Spec("RB-S1-01", ("S1",), MUST, "Canonical session order (S1), both connections",
-               "S1: command connect → Send_Pos_On (stream connect, poses flow) → CycleOn → poses → CycleOff → "
-               "Send_Pos_Off (stream closes) → command disconnect", "every step, in that order, each command once")
+               "S1: the milestones command connect → Send_Pos_On (stream connect) → CycleOn → CycleOff → "
+               "Send_Pos_Off (stream closes) → command disconnect, in that order",
+               "every milestone, in that order, each command once; NONE, poses (ISIGHT(3,35)), register poses "
+               "(ISIGHT(3,36)) and tolerances may come in between on the command connection")
 E4_SPEC = Spec("RB-E4-01", ("E4", "S1"), MUST, "Canonical session order of the revision (E4), both connections",
                "E4: connect → ProgIdx → Send_Pos_On → CycleOn → trajectory → CycleOff → Send_Pos_Off → wait 1 s → "
-               "result request → disconnect", "every step, in that order, each command once (27 may repeat after 202)")
+               "result request → disconnect", "every milestone, in that order, each command once (27 may repeat after "
+               "202); NONE, poses, register poses and tolerances may come in between on the command connection")
 AWAIT_SPEC = Spec("RB-A1-01", ("A1", "T1"), MUST, "Each answer awaited on the command connection",
                   "A1/T1: the robot waits for each answer (up to time_out; vision_time_out for 27) before its next "
                   "request; the stream may pipeline (S6)",

@@ -12,13 +12,13 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
-import datetime as _dt
 import shlex
 import signal
 import sys
 from pathlib import Path
 
 from ..options import add_profile_options, profile_from_options
+from ..rundirs import default_run_dirs
 from .records import INJECTIONS, CertifyConfig
 from .runner import EXIT_USAGE, CertifyOutcome, ListenError, certify
 
@@ -83,13 +83,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def config_from_args(args: argparse.Namespace) -> CertifyConfig:
     host, port = parse_listen(args.listen)
-    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir)
     return CertifyConfig(
         host=host, port=port, udp=not args.no_udp, profile=profile_from_options(args), sessions=args.sessions,
         wait_s=args.wait, linger_s=args.linger, max_session_s=args.max_session, extension=args.extension,
         inject=tuple(dict.fromkeys(args.inject)), rate_tolerance=args.rate_tolerance / 100.0,
         jitter_tolerance=args.jitter_tolerance / 100.0,
-        report_dir=args.report_dir or Path("reports") / stamp, pcap_dir=args.pcap_dir or Path("pcaps") / stamp,
+        report_dir=report_dir, pcap_dir=pcap_dir,
         command=" ".join(shlex.quote(a) for a in sys.argv),
     )
 
@@ -126,7 +126,7 @@ def main_certify(args: argparse.Namespace) -> int:
 
     try:
         config = config_from_args(args)
-    except ValueError as exc:
+    except (ValueError, OSError) as exc:  # OSError: the report directories cannot be created
         print(f"isight-conformance certify-robot: {exc}", file=sys.stderr)
         return EXIT_USAGE
     try:

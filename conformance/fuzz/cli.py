@@ -7,22 +7,26 @@ still fails (replay), 2 usage error or unreachable target.
 from __future__ import annotations
 
 import argparse
-import datetime as _dt
 import shlex
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
-from ..harness.target import Target
+from ..endpoints.bundled import Bundled, start_bundled
+from ..harness.client import TcpConnection
+from ..harness.target import Target, Unreachable, check_reachable
 from ..harness.transcript import Transcript
 from ..options import add_profile_options, profile_from_options
 from ..protocol import DEFAULT_PORT, Profile
+from ..rundirs import default_run_dirs
+from ..suite.extension import detect_extension
+from .database import DEFAULT_DATABASE, resolve_database
+
+__all__ = ["DEFAULT_DATABASE", "add_fuzz_arguments", "add_replay_arguments", "main_fuzz", "main_replay",
+           "resolve_database"]
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
-#: Where the example database lives by default (relative to the current directory).
-DEFAULT_DATABASE = Path(".hypothesis") / "isight-fuzz"
 
 
 def _targets(p: argparse.ArgumentParser | Any) -> None:
@@ -47,9 +51,13 @@ def add_fuzz_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--capture", choices=("failures", "all", "off"), default="failures",
                    help="pcaps of the failing examples (default), also every case of the campaign (all: "
                         "campaign-NNN.pcapng, about 0.8 KB per case), or none")
-    p.add_argument("--database", metavar="DIR|none", help="hypothesis example database: failures found before are "
-                   f"replayed first (default: {DEFAULT_DATABASE}, or none when the active hypothesis profile, "
-                   "e.g. its built-in 'ci' profile, switches the database off)")
+    p.add_argument("--database", metavar="DIR|none|redis://HOST:PORT/DB",
+                   help="hypothesis example database: failures found before are replayed first; a directory, none, "
+                   f"or a redis URL shared by several machines (default: {DEFAULT_DATABASE}, or none when the active "
+                   "hypothesis profile, e.g. its built-in 'ci' profile, switches the database off)")
+    p.add_argument("--database-shared", metavar="URL|DIR",
+                   help="also replay the failures saved in this store (a redis URL or a directory), read-only: "
+                   "nothing is ever written to it (e.g. CI's corpus on a developer's machine)")
     p.add_argument("--stateful-share", type=float, default=0.2, metavar="F",
                    help="share of the budget for the session state machine (default: 0.2; 0: frames only)")
     p.add_argument("--categories", metavar="LIST", help="only these case categories, comma-separated "
@@ -82,31 +90,9 @@ def _parse_target(text: str | None) -> Target | None:
     return Target.parse(text, DEFAULT_PORT) if text else None
 
 
-class _Box:
-    """The bundled reference box for a command without --target (restartable: R2 identification)."""
-
-    def __init__(self, profile: Profile) -> None:
-        from ..endpoints.behaviour import BoxConfig
-        from ..endpoints.box import BoxThread
-
-        self._make = lambda port: BoxThread(BoxConfig(profile=profile), host="127.0.0.1", port=port).start()
-        self.thread = self._make(0)
-        self.port = self.thread.tcp_port
-        self.udp_port = self.thread.udp_port
-
-    def restart(self) -> None:
-        self.thread.stop()
-        self.thread = self._make(self.port)
-
-    def stop(self) -> None:
-        self.thread.stop()
-
-
 @contextmanager
-def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tuple[Target, Target | None, _Box | None]]:
+def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tuple[Target, Target | None, Bundled | None]]:
     """(target, udp target, the bundled box if started); raises SystemExit(2) when unreachable."""
-    from ..runner import check_reachable
-
     target, udp = _parse_target(args.target), _parse_target(args.udp_target)
     if target is not None:
         problem = check_reachable(target, profile.time_out_ms / 1000)
@@ -115,34 +101,25 @@ def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tupl
             raise SystemExit(EXIT_USAGE)
         yield target, udp, None
         return
-    box = _Box(profile)
+    box = start_bundled(profile)
     try:
-        yield Target("127.0.0.1", box.port), udp or (Target("127.0.0.1", box.udp_port) if box.udp_port else None), box
+        yield box.target, udp or box.udp_target, box
     finally:
         box.stop()
 
 
 def _extension(mode: str, target: Target, profile: Profile, transcript: Transcript) -> tuple[bool, str]:
-    from ..suite.context import SessionState
-    from ..suite.settings import SuiteSettings
-
-    state = SessionState(SuiteSettings(target=target, profile=profile, extension=mode))
-    supported = state.detect_extension(transcript)
-    return supported, state.extension_how
-
-
-def resolve_database(value: str | None) -> tuple[Any, str]:
-    """(ExampleDatabase or None, how to describe it)."""
-    from hypothesis import settings
-    from hypothesis.database import DirectoryBasedExampleDatabase
-
-    if value is not None and value.lower() == "none":
-        return None, "off (--database none)"
-    active = settings.default
-    if value is None and active is not None and active.database is None:
-        return None, f"off (the active hypothesis profile {settings.get_current_profile_name()!r} has no database)"
-    path = Path(value) if value else DEFAULT_DATABASE
-    return DirectoryBasedExampleDatabase(path), str(path)
+    if mode != "auto":
+        return mode == "on", "forced on" if mode == "on" else "off (--extension off)"
+    conn = TcpConnection(transcript, target, profile, "extension detection")
+    try:
+        conn.connect()
+    except Unreachable:
+        return False, "not checked (the box could not be reached)"
+    try:
+        return detect_extension(conn)
+    finally:
+        conn.close()
 
 
 def _run_guarded(name: str, body: Callable[[], int]) -> int:
@@ -166,10 +143,11 @@ def _fuzz(args: argparse.Namespace) -> int:
     from .campaign import Campaign, CampaignConfig
 
     profile = profile_from_options(args)
-    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    report_dir = Path(args.report_dir) if args.report_dir else Path("reports") / f"fuzz-{stamp}"
-    pcap_dir = Path(args.pcap_dir) if args.pcap_dir else Path("pcaps") / f"fuzz-{stamp}"
-    database, db_label = resolve_database(args.database)
+    database, db_label = resolve_database(args.database, args.database_shared)
+    try:
+        report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir, prefix="fuzz-")
+    except OSError as exc:
+        raise ValueError(f"cannot create the report directory: {exc}") from None
     categories = tuple(c.strip() for c in (args.categories or "").split(",") if c.strip())
     quiet = args.quiet
     with _box(args, profile, "fuzz") as (target, udp, box):

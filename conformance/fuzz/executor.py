@@ -245,8 +245,10 @@ class Executor:
         else:
             outcomes, end, closed = self._collect(conn, probe, start)
         usable = not (closed or isinstance(end, (Closed, Silence)))
-        return Result(case, outcomes, end, judge(case.expects, outcomes, end, self.profile, probe),
-                      conn.conn_id if usable else -1, False, probe)
+        wire = case.wire + self._probes[Transport.TCP][probe]
+        judgement = judge(case.expects, outcomes, end, self.profile, probe, data=wire, extension=self.extension,
+                          probe_at=len(case.wire))
+        return Result(case, outcomes, end, judgement, conn.conn_id if usable else -1, False, probe)
 
     def _collect(self, conn: FuzzConnection, probe: Action, start: float) -> tuple[list[Outcome], Outcome, bool]:
         """(answers to the case, how it ended: the probe's answer / Closed / Silence, the box closed after it)."""
@@ -301,7 +303,8 @@ class Executor:
                 break
             outcomes.append(outcome)
         conn.abort("fuzz: done")
-        judgement = judge(case.expects, outcomes, end if isinstance(end, Closed) else None, self.profile)
+        judgement = judge(case.expects, outcomes, end if isinstance(end, Closed) else None, self.profile,
+                          data=case.wire, extension=self.extension, eof=True)
         if isinstance(end, Silence):
             judgement.findings.append(Finding(Verdict.NON_STRICT, "S5", "S5: after the robot ends the stream the box "
                                               "closes its side", f"{end.describe()} (the connection stayed open)"))
@@ -335,8 +338,8 @@ class Executor:
             if _answers(extra, probe):
                 outcomes.append(end)
                 end = extra
-        return Result(case, outcomes, end, judge(case.expects, outcomes, end, self.profile, probe),
-                      channel.conn_id, True, probe)
+        return Result(case, outcomes, end, judge(case.expects, outcomes, end, self.profile, probe,
+                                                  transport=Transport.UDP), channel.conn_id, True, probe)
 
 
 def _answers(outcome: Outcome, probe: Action) -> bool:
@@ -344,7 +347,11 @@ def _answers(outcome: Outcome, probe: Action) -> bool:
 
 
 def _probe_action(outcome: Outcome, probe: Action) -> bool:
-    return isinstance(outcome, Answer) and outcome.frame.action == probe
+    """An answer with the probe's action, even a malformed one: it ends the wait (the oracle attributes it)."""
+    if isinstance(outcome, Answer):
+        return outcome.frame.action == probe
+    header = outcome.error.header if isinstance(outcome, Malformed) else None
+    return header is not None and header.start_word == 0xFEFE and header.action == probe
 
 
 def frame_of(outcome: Outcome) -> Frame | None:

@@ -13,7 +13,7 @@ import errno
 import select
 import socket
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..protocol import (
     CLOSED,
@@ -62,28 +62,43 @@ class Malformed:
 
 @dataclass(frozen=True)
 class Silence:
-    """Nothing arrived before the deadline."""
+    """Nothing arrived before the deadline (``skipped``: nothing came for these bytes, but the
+    box went on to answer what followed them)."""
 
     waited_s: float
+    skipped: bool = False
     raw = b""  # nothing arrived
 
     def describe(self) -> str:
+        if self.skipped:
+            return "did not answer them (it went on to answer the request that followed)"
         return f"stayed silent for {self.waited_s * 1000:.0f} ms"
 
 
 @dataclass(frozen=True)
 class Closed:
-    """The box closed (FIN) or reset (RST) the connection."""
+    """The box closed (FIN) or reset (RST) the connection, or flooded it and the suite
+    stopped reading (``flood``: how many bytes had come)."""
 
     reset: bool
     latency_s: float
+    flood: int = 0
     raw = b""  # no bytes, a FIN or RST
 
     def describe(self) -> str:
+        if self.flood:
+            return (f"kept sending ({self.flood} bytes without a pause for an answer to be judged); the suite stopped "
+                    "reading and reset the connection (R5)")
         return "reset the connection" if self.reset else "closed the connection"
 
 
 Outcome = Answer | Malformed | Silence | Closed
+
+#: The suite reads (and records) at most this many bytes from one connection; a box that sends
+#: more is flooding it: the suite stops reading and resets the connection (bounded memory).
+FLOOD_BYTES = 1 << 20
+#: drain() takes at most this many outcomes (a box that never goes quiet ends the drain).
+MAX_DRAIN = 64
 
 
 def describe(outcome: Outcome) -> str:
@@ -110,6 +125,8 @@ class TcpConnection:
         self.conn_id = 0
         self.closed_by_peer: Closed | None = None
         self._closed = False
+        self.received_bytes = 0
+        self.max_bytes = FLOOD_BYTES
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:
@@ -119,6 +136,13 @@ class TcpConnection:
         except OSError as exc:
             info = self.transcript.open("tcp", Endpoint("0.0.0.0", 0), Endpoint(self.target.host, self.target.port), self.label)
             self.conn_id = info.conn
+            if exc.errno in _RESET_AT_CONNECT:
+                # the box accepted and reset at once (a race on a loaded machine, or a box that resets at
+                # accept): the connection was reached, so this is what the box did, not an unreachable target
+                self.transcript.add(info.conn, Kind.CONNECT, note=f"{self.label} reached the box")
+                self._closed = True
+                self._peer_gone(exc)
+                return self
             reason = _reason(exc, self.time_out_s)
             self.transcript.add(info.conn, Kind.CONNECT_FAILED, note=reason)
             raise Unreachable(f"cannot connect to {self.target}: {reason}") from None
@@ -175,9 +199,9 @@ class TcpConnection:
         """Write all of ``data``; False (and a recorded close/reset) if the box is gone."""
         if isinstance(data, Frame):
             data = self.codec.encode(data, Transport.TCP)
-        assert self.sock is not None, "connect() first"
         if self.closed_by_peer and self.closed_by_peer.reset:
             return False
+        assert self.sock is not None, "connect() first"
         view = memoryview(data)
         deadline = time.monotonic() + self.time_out_s
         sent = 0
@@ -222,7 +246,7 @@ class TcpConnection:
                 return self.closed_by_peer or Closed(False, now - start)
             assert event is NEED_DATA
             if self.closed_by_peer is not None:
-                return Closed(self.closed_by_peer.reset, now - start)
+                return replace(self.closed_by_peer, latency_s=now - start)
             remaining = deadline - now
             if remaining <= 0 or self.sock is None or self._closed:
                 if timeout_s is None and remaining <= 0:
@@ -250,10 +274,22 @@ class TcpConnection:
         if data:
             self.transcript.add(self.conn_id, Kind.RECV, data)
             self.decoder.receive_data(data)
+            self.received_bytes += len(data)
+            if self.received_bytes > self.max_bytes:
+                self._stop_flood(start)
         else:
             self.closed_by_peer = Closed(False, time.monotonic() - start)
             self.transcript.add(self.conn_id, Kind.PEER_CLOSE)
             self.decoder.receive_data(b"")
+
+    def _stop_flood(self, start: float) -> None:
+        """The box sent more than ``max_bytes``: stop reading, reset, and end the stream here."""
+        self.closed_by_peer = Closed(False, time.monotonic() - start, flood=self.received_bytes)
+        self.transcript.note(f"the box sent {self.received_bytes} bytes on this connection, more than the "
+                             f"{self.max_bytes} the suite reads from one connection: it stops reading and resets",
+                             self.conn_id)
+        self.abort("flood")
+        self.decoder.receive_data(b"")
 
     def _peer_gone(self, exc: OSError, start: float | None = None) -> None:
         if self.closed_by_peer is not None:
@@ -271,15 +307,21 @@ class TcpConnection:
         return self.next_outcome(timeout_s, since=start)
 
     def drain(self, quiet_s: float = 0.05) -> list[Outcome]:
-        """Everything the box sends until it has been quiet for ``quiet_s``."""
+        """Everything the box sends until it has been quiet for ``quiet_s`` (at most
+        :data:`MAX_DRAIN` outcomes, and no longer than time_out: a box that never goes quiet ends it)."""
         out: list[Outcome] = []
-        while True:
+        deadline = time.monotonic() + max(self.time_out_s, quiet_s)
+        while len(out) < MAX_DRAIN and time.monotonic() < deadline:
             outcome = self.next_outcome(quiet_s)
             if isinstance(outcome, Silence):
                 return out
             out.append(outcome)
             if isinstance(outcome, Closed):
                 return out
+        return out
+
+
+_RESET_AT_CONNECT = frozenset({errno.ECONNRESET, errno.EPIPE, errno.ECONNABORTED})
 
 
 def _reason(exc: OSError, time_out_s: float) -> str:

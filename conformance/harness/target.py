@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import socket
 from dataclasses import dataclass
 
 
@@ -52,3 +53,20 @@ class Target:
 
     def __str__(self) -> str:
         return f"[{self.host}]:{self.port}" if ":" in self.host else f"{self.host}:{self.port}"
+
+
+def check_reachable(target: Target, time_out_s: float) -> str | None:
+    """None when a TCP connection opens within time_out, else one line saying why not."""
+    try:
+        with socket.create_connection((target.host, target.port), timeout=time_out_s):
+            return None
+    except ConnectionRefusedError:
+        return f"target {target} unreachable: connection refused (nothing listens on that port)"
+    except TimeoutError:
+        return f"target {target} unreachable: no answer to the connection request within {time_out_s * 1000:.0f} ms"
+    except socket.gaierror as exc:
+        return f"target {target} unreachable: host name does not resolve ({exc.strerror})"
+    except (ConnectionResetError, BrokenPipeError):
+        return None  # something listens there and reset us: it is reachable; the cases judge the rest
+    except OSError as exc:
+        return f"target {target} unreachable: {exc.strerror or exc}"

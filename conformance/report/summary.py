@@ -18,59 +18,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..protocol.clauses import all_clauses, families
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
 
-#: Every clause of PROTOCOL.md, in document order, with a short title for tables.
-CLAUSES: dict[str, str] = {
-    "F1": "Start word is FE FE",
-    "F2": "Version is 00 01",
-    "F3": "Transfer type 01 robot→box, 10 box→robot",
-    "F4": "Multi-byte fields are big-endian",
-    "F5": "Frame is exactly 12 + N×L + 2 bytes",
-    "F6": "TCP check field is 00 00",
-    "F7": "UDP: one frame per datagram, CRC-16 check",
-    "B1": "Pose block: index + 6 × float32 (L = 25)",
-    "B2": "Tolerance block: index + float32 (L = 5)",
-    "B3": "Block indexes start at 00 and rise by one",
-    "B4": "Floats are binary32 big-endian; NaN/inf rejected",
-    "B5": "The action fixes block type, count and length",
-    "A1": "Exactly one answer per request, in order",
-    "A2": "Answer: type 10, action echoed, no blocks",
-    "A3": "Error codes; a parse error is never answered 0000",
-    "A4": "Action 00 is answered 00 with 0000",
-    "A5": "A non-request is never answered 0000",
-    "S1": "Canonical session completes with 0000",
-    "S2": "CycleOn answered 0000, or 0001 when not ready",
-    "S3": "Poses accepted with or without a cycle",
-    "S4": "Command and stream connections served concurrently",
-    "S5": "Closed connections are freed",
-    "S6": "Every pose on the stream is answered (pipelined)",
-    "T1": "Every answer within time_out",
-    "T2": "Stream rate sustained, latency does not grow",
-    "R1": "Never 0000 to a frame breaking F, B or A5",
-    "R2": "Keeps accepting connections after malformed input",
-    "R3": "A frame split into pieces is handled whole",
-    "R4": "Several frames in one segment are each answered",
-    "R5": "Resources are bounded",
-    "R6": "Resynchronises or closes after garbage",
-    "R7": "UDP: bad CRC or length never answered 0000",
-    "E1": "Type-03 block: index + int32 (L = 5)",
-    "E2": "ProgIdx (26) answered with the index or 409",
-    "E3": "Result request (27) answered with a ResultCode",
-    "E4": "Canonical session of the revision",
-    "E5": "time_out bounds every action except 27",
-}
+#: Every clause of docs/PROTOCOL.md, in document order, with its short title for tables:
+#: a view of the clause registry (conformance/protocol/clauses.json).
+CLAUSES: dict[str, str] = {c.id: c.title for c in all_clauses().values()}
 
-#: Clause families, in document order.
-FAMILIES: dict[str, str] = {
-    "F": "Frame",
-    "B": "Data blocks",
-    "A": "Actions and answers",
-    "S": "State and sequences",
-    "T": "Timing",
-    "R": "Robustness",
-    "E": "Extension: program index and vision result",
-}
+#: Clause families, in document order (from the registry).
+FAMILIES: dict[str, str] = families()
 
 _RANK = {v: i for i, v in enumerate(VERDICT_ORDER)}
 
@@ -115,13 +71,21 @@ def _clause_key(clause: str) -> tuple[int, str, int, str]:
 
 def by_clause(cases: Iterable[CaseResult]) -> dict[str, ClauseResult]:
     """Every clause of PROTOCOL.md (untested ones with verdict None), then any other
-    clause a case names, each with its worst verdict and the ids of the cases that test it."""
+    clause a case names, each with its worst verdict and the ids of the cases that test it.
+
+    A FAIL or NON-STRICT marks only the clause(s) it judged (``case.judged``), at the
+    level of the verdict: a case about A2 that fails R2 marks R2, not A2."""
     ids: dict[str, list[str]] = {c: [] for c in CLAUSES}
     verdicts: dict[str, list[tuple[Level, Verdict]]] = {c: [] for c in CLAUSES}
     for case in cases:
+        judged = set(case.judged) if case.verdict in (Verdict.FAIL, Verdict.NON_STRICT) else set()
         for clause in dict.fromkeys(case.clauses):  # a clause named twice counts once
             ids.setdefault(clause, []).append(case.id)
-            verdicts.setdefault(clause, []).append((case.level, case.verdict))
+            if judged and clause not in judged:
+                continue  # tested by the case, but not what its verdict is about
+            level = {Verdict.FAIL: Level.MUST, Verdict.NON_STRICT: Level.SHOULD}.get(case.verdict, case.level) \
+                if judged else case.level
+            verdicts.setdefault(clause, []).append((level, case.verdict))
     out: dict[str, ClauseResult] = {}
     for clause in sorted(ids, key=_clause_key):
         levels: dict[Level, Verdict] = {}

@@ -12,14 +12,14 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 
 from rich.console import Console, Group
 from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, SuiteInfo, Verdict
+from ..suite.verdicts import VERDICT_ORDER, CaseResult, RootCause, SuiteInfo, Verdict
 from .summary import format_duration, one_line, overall_line, overall_state, rank, totals
 
 STYLES: dict[Verdict, str] = {
@@ -128,12 +128,18 @@ class Progress:
 
 def print_final_table(suite: SuiteInfo, cases: list[CaseResult], console: Console | None = None,
                       reports: Mapping[str, str | os.PathLike[str]] | Iterable[str | os.PathLike[str]] | None = None,
-                      ) -> None:
-    """The end of a run: a table of every non-PASS case (worst first), totals by verdict,
-    the overall line, and the reports written (``{"HTML report": path, ...}`` or paths)."""
+                      root_causes: Sequence[RootCause] = ()) -> None:
+    """The end of a run: the root causes, a table of every non-PASS case (worst first), totals
+    by verdict, the overall line, and the reports written (``{"HTML report": path, ...}`` or paths)."""
     console = console or Console()
     failing = sorted((c for c in cases if c.verdict is not Verdict.PASS), key=lambda c: rank(c.verdict))
     parts: list[Text | Table] = []
+    for cause in root_causes:
+        line = Text()
+        line.append(f"{cause.id} ", style="bold red")
+        line.append(f"[{', '.join(cause.clauses)}] ", style="dim")
+        line.append(f"{cause.title} (explains {len(cause.cases)} cases)")
+        parts.append(line)
     if failing:
         table = Table(title=f"{len(failing)} of {len(cases)} cases did not pass", title_justify="left",
                       show_lines=False, expand=False, header_style="bold")

@@ -11,12 +11,13 @@ from typing import Any, TypeVar
 
 import pytest
 
+from ..protocol.clauses import clause_ids
 from .verdicts import Level
 
 F = TypeVar("F", bound=Callable[..., Any])
 MARKER = "isight_case"
 _ID = re.compile(r"^[A-Z][0-9]?-[0-9]{2}[a-z]?$|^[A-Z]+-[A-Z0-9-]+$")
-_CLAUSE = re.compile(r"^(F[1-7]|B[1-5]|A[1-5]|S[1-6]|T[1-2]|R[1-7]|E[1-5])$")
+_CLAUSE = re.compile("^(" + "|".join(sorted(clause_ids())) + ")$")  # the clause registry's ids
 
 
 @dataclass(frozen=True)

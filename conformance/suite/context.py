@@ -1,30 +1,32 @@
-"""What a case works with: the session (target, health, extension) and its own context.
+"""What one case works with: :class:`CaseContext`, the ``isight`` fixture.
 
-:class:`CaseContext` opens recorded connections, sends malformed input with a
-*probe* (a valid request right behind it: answers come in order (A1), so the probe's
-answer bounds the wait without sleeping), and checks liveness on a fresh connection
-afterwards (R2). When the box dies, the session remembers it and later cases end
-INCONCLUSIVE at once ("box unreachable") instead of waiting.
+It opens recorded connections and sends malformed input with a *probe* (a valid
+request right behind it: answers come in order (A1), so the probe's answer bounds the
+wait without sleeping). What the box did is attributed with every legal framing of
+the bytes (:mod:`conformance.protocol.explain`): an answer belongs to the bytes some
+legal framing makes it answer, so an answer to a valid frame embedded in bad bytes, or
+the probe's own (even malformed) answer, is never taken for an answer to the bad bytes.
+The session (:mod:`.session`) holds what lasts between cases: health, liveness (R2),
+the witness, extension support.
 """
 
 from __future__ import annotations
 
-import threading
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
+from ..harness.client import MAX_DRAIN, Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..protocol import Action, Frame, Profile, encode, pose_blocks, request
+from ..protocol.answers import Seen
+from ..protocol.explain import explain
+from ..protocol.framings import End, Explanation
 from .catalogue import CaseInfo
 from .judge import Inconclusive, Skip
-from .settings import SuiteSettings
+from .session import SessionState
 
-#: How often a dead box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
-DEAD_RECHECK_S = 5.0
 PROBE_POSE_VALUES = (100.25, -200.5, 300.75, 0.0, 90.0, -180.0)
 PROBE_NONE = request(Action.NONE)
 
@@ -32,96 +34,6 @@ PROBE_NONE = request(Action.NONE)
 def probe_pose(profile: Profile) -> Frame:
     """A valid pose request in this profile (its first index) used as a probe."""
     return request(Action.POSE, pose_blocks([PROBE_POSE_VALUES], profile.first_index))
-
-
-@dataclass
-class BoxHealth:
-    dead_since_case: str | None = None
-    reason: str = ""
-    last_check: float = 0.0
-
-
-@dataclass
-class SessionState:
-    """One per test session: settings, the resolved target, health, extension support."""
-
-    settings: SuiteSettings
-    health: BoxHealth = field(default_factory=BoxHealth)
-    #: the first liveness check of the session: a box that never answered NONE in this
-    #: profile cannot be said to have been *killed* by a case (R2)
-    baseline: Outcome | None = None
-    extension_supported: bool | None = None
-    extension_how: str = ""
-    embedded: Any = None  # BoxThread when the bundled box was started
-    _target: Target | None = None
-    _udp_target: Target | None = None
-    _lock: threading.Lock = field(default_factory=threading.Lock)
-
-    @property
-    def profile(self) -> Profile:
-        return self.settings.profile
-
-    def target(self) -> Target:
-        with self._lock:
-            if self._target is None:
-                self._target = self.settings.target or self._start_embedded()
-            return self._target
-
-    def udp_target(self) -> Target | None:
-        self.target()
-        return self.settings.udp_target or self._udp_target
-
-    def stream_target(self) -> Target:
-        return self.settings.stream_target or self.target()
-
-    def target_label(self) -> str:
-        if self.settings.target_label:
-            return self.settings.target_label
-        if self.settings.target is None and self._target is not None:
-            return f"bundled reference box at {self._target}"
-        return str(self.settings.target or "bundled reference box")
-
-    def _start_embedded(self) -> Target:
-        from ..endpoints.behaviour import BoxConfig
-        from ..endpoints.box import BoxThread
-
-        box = BoxThread(BoxConfig(profile=self.settings.profile), host="127.0.0.1", port=0).start()
-        self.embedded = box
-        if box.udp_port:
-            self._udp_target = Target("127.0.0.1", box.udp_port)
-        return Target("127.0.0.1", box.tcp_port)
-
-    def stop(self) -> None:
-        if self.embedded is not None:
-            self.embedded.stop()
-            self.embedded = None
-
-    def detect_extension(self, transcript: Transcript) -> bool:
-        """E: does the box implement 26/27? Decided once per session (or by --extension)."""
-        if self.extension_supported is None:
-            mode = self.settings.extension
-            if mode != "auto":
-                self.extension_supported = mode == "on"
-                self.extension_how = "forced on" if mode == "on" else "off (--extension off)"
-            else:
-                conn = TcpConnection(transcript, self.target(), self.profile, "extension detection").connect()
-                conn.send(request(Action.VISION_RESULT), "detect extension E: result request (27)")
-                # a box without E may stay silent (A5): a NONE probe behind it bounds the wait
-                conn.send(PROBE_NONE, "probe: NONE; its answer bounds the wait")
-                outcome = conn.next_outcome()
-                if isinstance(outcome, Answer) and answers_none(outcome):  # the probe answered first: 27 got none
-                    outcome = Silence(outcome.latency_s)
-                conn.close()
-                # implemented = the box answers 27 at all, even wrongly (then the E cases judge it)
-                header = outcome.error.header if isinstance(outcome, Malformed) else None
-                self.extension_supported = (
-                    isinstance(outcome, Answer) and outcome.frame.action == Action.VISION_RESULT
-                ) or (header is not None and header.action == Action.VISION_RESULT and header.transfer_type == 0x10)
-                self.extension_how = (
-                    "detected (the box answered a result request)" if self.extension_supported
-                    else f"not implemented (to a result request the box {outcome.describe()})"
-                )
-        return self.extension_supported
 
 
 class CaseContext:
@@ -139,6 +51,8 @@ class CaseContext:
         self.latencies_ms: list[float] = []
         self.last_sent: bytes = b""
         self.last_probe: Outcome | None = None
+        #: how the last malformed input was framed and judged (every legal framing considered)
+        self.last_explanation: Explanation | None = None
         self.details: dict[str, Any] = {}
         self._connections: list[TcpConnection | UdpChannel] = []
         self.pcap: Path | None = None
@@ -194,48 +108,69 @@ class CaseContext:
     def send_malformed(self, bad: bytes, note: str = "malformed input", conn: TcpConnection | None = None) -> Outcome:
         """Send ``bad`` followed by a valid probe request; return the box's outcome for ``bad``.
 
-        The probe's answer (answers come in order, A1) shows that ``bad`` got no answer of
-        its own, without waiting for time_out; ``self.last_probe`` keeps what the box did
-        with the probe (R6: did it resynchronise?). A liveness check on a fresh
-        connection follows the case (R2).
-        """
+        What the box sent back is attributed by every legal framing of ``bad`` plus the
+        probe (:func:`conformance.protocol.explain.explain`): the answers that framing
+        gives to ``bad``'s bytes (the first one is returned), or an answer no framing
+        explains, or silence / the close. ``self.last_probe`` keeps what the box did with
+        the probe (R6: did it resynchronise?). Any answer with the probe's action, even a
+        malformed one, ends the wait. A liveness check on a fresh connection follows the
+        case (R2)."""
         self.needs_liveness = True
         self.last_sent = bad
         if conn is None:
             conn = self.connect("malformed")
         probe = probe_pose(self.profile) if len(bad) > 5 and bad[5] == Action.NONE else PROBE_NONE
-        probe_action = probe.action
+        probe_bytes = encode(probe, self.profile)
         start = time.monotonic()
         if not conn.send(bad, note):
             self.last_probe = conn.closed_by_peer or Closed(False, 0.0)
             return self.last_probe
-        conn.send(probe, f"probe: a valid {probe_action.name} request; its answer bounds the wait")
-        first = conn.next_outcome(since=start)
-        if _is_probe_answer(first, probe_action):
-            # nothing came for ``bad`` before the probe's answer: silence, unless a second
-            # probe-like answer trails (then the first one was the answer to ``bad``)
-            extra = conn.drain(self.settings.settle_s)
-            if extra and _is_probe_answer(extra[0], probe_action):
-                self.last_probe = extra[0]
-                return first
-            self.last_probe = first
-            return Silence(first.latency_s if isinstance(first, Answer) else 0.0)
-        if isinstance(first, (Closed, Silence)):
-            self.last_probe = first
-            return first
-        self.last_probe = conn.next_outcome()
-        return first
+        conn.send(probe_bytes, f"probe: a valid {probe.action.name} request; its answer bounds the wait")
+        outcomes, end = self._collect(conn, int(probe.action), start)
+        answers = [o for o in outcomes if isinstance(o, (Answer, Malformed))]
+        from ..fuzz.oracle import seen_of  # the outcome -> Seen adapter (no import circle: oracle needs no suite)
+
+        seen: list[Seen] = [seen_of(o, self.profile) for o in answers]
+        kind = End.CLOSED if isinstance(end, Closed) else End.SILENT if isinstance(end, Silence) else End.ANSWERED
+        explanation = explain(bad + probe_bytes, seen, kind, self.profile,
+                              extension=self.session.extension_supported is not False, probe_at=len(bad))
+        self.last_explanation = explanation
+        if explanation.framing != "reference":
+            self.details["framing"] = explanation.framing
+        mine = explanation.answers_within(0, len(bad))
+        probe_event = explanation.event_at(len(bad))
+        if probe_event is not None and probe_event.answer is not None:
+            self.last_probe = answers[probe_event.answer]
+        else:
+            self.last_probe = end if end is not None else Silence(self.time_out_s)
+        if mine:
+            return answers[mine[0]]
+        if explanation.unasked:
+            return answers[explanation.unasked[0]]
+        if isinstance(end, Closed) and not (probe_event is not None and probe_event.answer is not None):
+            return end
+        if isinstance(self.last_probe, (Answer, Malformed)):
+            return Silence(self.last_probe.latency_s, skipped=True)
+        return end if end is not None else Silence(self.time_out_s)
+
+    def _collect(self, conn: TcpConnection, probe_action: int, start: float) -> tuple[list[Outcome], Outcome | None]:
+        """What the box sent until an answer with the probe's action (then a short settle for
+        late extras), a close or silence: (outcomes, how it ended; None: the probe's answer came)."""
+        outcomes: list[Outcome] = []
+        while len(outcomes) < MAX_DRAIN:
+            outcome = conn.next_outcome(since=start)
+            if isinstance(outcome, (Silence, Closed)):
+                return outcomes, outcome
+            outcomes.append(outcome)
+            if _action_of(outcome) == probe_action:
+                extra = conn.drain(self.settings.settle_s)
+                closed = next((o for o in extra if isinstance(o, Closed)), None)
+                return outcomes + [o for o in extra if not isinstance(o, Closed)], closed
+        return outcomes, Silence(time.monotonic() - start)
 
     def check_alive(self) -> Outcome:
         """R2: a fresh connection still gets NONE answered."""
-        conn = TcpConnection(self.transcript, self.target, self.profile, "liveness")
-        try:
-            conn.connect()
-        except Unreachable as exc:
-            return Closed(True, 0.0) if "refused" in str(exc) else Silence(self.time_out_s)
-        outcome = conn.request(PROBE_NONE, "liveness check on a fresh connection (R2)")
-        conn.close()
-        return outcome
+        return self.session.probe(self.transcript)
 
     # -- verdict helpers ------------------------------------------------------------------
     def inform(self, text: str) -> None:
@@ -255,13 +190,10 @@ def answers_none(outcome: Outcome) -> bool:
     return isinstance(outcome, Answer) and outcome.frame.action == Action.NONE and outcome.frame.error_code == 0
 
 
-def responsive(outcome: Outcome) -> bool:
-    """R2/baseline: the box answered with something frame-like (whether right or not is
-    for the cases to judge)."""
+def _action_of(outcome: Outcome) -> int | None:
+    """The action byte of what the box sent: an answer, or malformed bytes with a readable header."""
     if isinstance(outcome, Answer):
-        return True
-    return isinstance(outcome, Malformed) and outcome.error.header is not None
-
-
-def _is_probe_answer(outcome: Outcome, action: Action) -> bool:
-    return isinstance(outcome, Answer) and outcome.frame.action == action and outcome.frame.error_code == 0
+        return int(outcome.frame.action)
+    if isinstance(outcome, Malformed) and outcome.error.header is not None:
+        return outcome.error.header.action
+    return None

@@ -8,12 +8,21 @@ verdict of the requirement's level, with expected, observed and the bytes.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
-from ..protocol import Action, ErrorCode
+from ..protocol import Action, ErrorCode, Frame, ProtocolError, TransferType, ValueBlock
 from .verdicts import Level, Verdict
+
+_CLAUSES = re.compile(r"^\s*\[?((?:[FBASTRE][1-7])(?:\s*[/,]\s*[FBASTRE][1-7])*)\]?\s*(?::|\(|\[| )")
+
+
+def clauses_in(text: str) -> tuple[str, ...]:
+    """The clause IDs a requirement starts with: ``"A3/R1: a parse error ..."`` -> ("A3", "R1")."""
+    m = _CLAUSES.match(text or "")
+    return tuple(c.strip() for c in re.split("[/,]", m.group(1))) if m else ()
 
 
 class CaseVerdict(Exception):
@@ -29,6 +38,8 @@ class CaseVerdict(Exception):
         observed: str = "",
         sent: bytes = b"",
         received: bytes = b"",
+        judged: tuple[str, ...] = (),
+        signature: str = "",
     ) -> None:
         super().__init__(message)
         self.verdict = verdict
@@ -38,6 +49,10 @@ class CaseVerdict(Exception):
         self.observed = observed
         self.sent = sent
         self.received = received
+        #: the clause(s) this verdict judged (default: the ones its requirement starts with)
+        self.judged = judged or clauses_in(requirement) or clauses_in(message)
+        #: what the defect looks like, for grouping verdicts under one root cause
+        self.signature = signature
 
     def __str__(self) -> str:
         parts = [f"{self.verdict.value}: {self.message}"]
@@ -66,13 +81,15 @@ class Skip(CaseVerdict):
 
 @dataclass(frozen=True)
 class Expect:
-    """One acceptable outcome: a description and a predicate."""
+    """One acceptable outcome: a description and a predicate (and the action it expects answered)."""
 
     text: str
     matches: Callable[[Outcome], bool]
+    action: int | None = None
 
     def __or__(self, other: Expect) -> Expect:
-        return Expect(f"{self.text}, or {other.text}", lambda o: self.matches(o) or other.matches(o))
+        action = self.action if self.action is not None else other.action
+        return Expect(f"{self.text}, or {other.text}", lambda o: self.matches(o) or other.matches(o), action)
 
 
 def _err(code: int) -> str:
@@ -104,7 +121,7 @@ def answered(action: int | None = None, errors: Iterable[int] | None = None, val
             return False
         return not (vals is not None and (not f.blocks or getattr(f.blocks[0], "value", None) not in vals))
 
-    return Expect(text, match)
+    return Expect(text, match, action)
 
 
 def answered_error(action: int | None = None) -> Expect:
@@ -113,6 +130,7 @@ def answered_error(action: int | None = None) -> Expect:
     return Expect(
         text,
         lambda o: isinstance(o, Answer) and o.frame.error_code != 0 and (action is None or o.frame.action == action),
+        action,
     )
 
 
@@ -140,13 +158,28 @@ def check(
     *,
     sent: bytes = b"",
 ) -> None:
-    """Raise the level's verdict unless ``outcome`` is one of the ``acceptable`` ones."""
+    """Raise the level's verdict unless ``outcome`` is one of the ``acceptable`` ones.
+
+    A malformed answer that would be acceptable if it were a conforming frame fails on
+    its format alone: FAIL, judging the clause the answer breaks (F1-F6, A2, ...), not
+    the requirement of the case."""
     options = [acceptable] if isinstance(acceptable, Expect) else list(acceptable)
     if any(e.matches(outcome) for e in options):
         return
     expected = "; or ".join(e.text for e in options)
     received = outcome.raw
     observed = outcome.describe()
+    view = answer_view(outcome) if isinstance(outcome, Malformed) else None
+    if isinstance(outcome, Malformed) and view is not None and any(e.matches(view) for e in options):
+        error = outcome.error
+        raise CaseVerdict(
+            Verdict.FAIL,
+            f"{error.clause}: the box's answer is not a conforming frame ({error.message}); read leniently it would "
+            f"meet \"{requirement}\"",
+            requirement=f"{error.clause}: the box's answers are conforming frames",
+            expected=expected, observed=observed, sent=sent, received=received,
+            judged=(error.clause,), signature=answer_signature(error),
+        )
     raise CaseVerdict(
         level.broken_verdict,
         f"{requirement}: expected {expected}; the box {observed}",
@@ -155,10 +188,78 @@ def check(
         observed=observed,
         sent=sent,
         received=received,
+        signature=outcome_signature(outcome, options),
     )
 
 
-def fail(level: Level, requirement: str, expected: str, observed: str, sent: bytes = b"", received: bytes = b"") -> CaseVerdict:
+def answer_view(outcome: Malformed) -> Answer | None:
+    """A malformed answer read leniently: its header's action, error code and first
+    type-03 value as a conforming answer would carry them (None when it has no readable
+    header or an unknown action)."""
+    header = outcome.error.header
+    if header is None or header.start_word != 0xFEFE:
+        return None
+    try:
+        action = Action(header.action)
+    except ValueError:
+        return None
+    raw = outcome.raw
+    blocks: tuple[ValueBlock, ...] = ()
+    if header.block_type == 3 and header.block_count >= 1 and len(raw) >= 17:
+        blocks = (ValueBlock(raw[12], int.from_bytes(raw[13:17], "big", signed=True)),)
+    return Answer(Frame(TransferType.BOX_TO_ROBOT, action, blocks, header.error_code), outcome.latency_s, raw)
+
+
+def answer_signature(error: ProtocolError) -> str:
+    """What is wrong with a malformed answer, the same for every answer malformed the same way."""
+    h, raw, clause = error.header, error.raw, error.clause
+    if h is None:
+        return f"answer:{clause}:not-a-frame"
+    detail = {
+        "F1": f"start={raw[:2].hex()}",
+        "F2": f"version={h.version:04x}",
+        "F3": f"transfer-type={h.transfer_type:02x}",
+        "F6": f"check={raw[-2:].hex() if len(raw) >= 14 else ''}",
+        "F5": "length",
+        "A4": f"none-error={h.error_code:04x}",
+    }.get(clause, f"shape={h.block_type:02x}/{h.block_count}/{h.block_length}")
+    return f"answer:{clause}:{detail}"
+
+
+def outcome_signature(outcome: Outcome, options: list[Expect]) -> str:
+    """What the box did instead of an acceptable outcome, for grouping like failures."""
+    action = next((e.action for e in options if e.action is not None), None)
+    name = _action_name(action)
+    if isinstance(outcome, Silence):
+        return f"skipped:{name}" if outcome.skipped else f"silence:{name}"
+    if isinstance(outcome, Closed):
+        return f"closed:{name}"
+    if isinstance(outcome, Malformed):
+        return answer_signature(outcome.error)
+    code = outcome.frame.error_code
+    swapped = ((code & 0xFF) << 8) | (code >> 8)
+    wanted = [e for e in options if e.action is not None]
+    if wanted and code and swapped != code and any(e.matches(_with_code(outcome, swapped)) for e in wanted):
+        return "swapped:error-code"
+    return f"code:{_action_name(int(outcome.frame.action))}:{code:04x}"
+
+
+def _with_code(outcome: Answer, code: int) -> Answer:
+    f = outcome.frame
+    return Answer(Frame(f.transfer_type, f.action, f.blocks, code), outcome.latency_s, outcome.raw)
+
+
+def _action_name(action: int | None) -> str:
+    if action is None:
+        return "-"
+    try:
+        return Action(action).name
+    except ValueError:
+        return f"{action:02X}"
+
+
+def fail(level: Level, requirement: str, expected: str, observed: str, sent: bytes = b"", received: bytes = b"",
+         signature: str = "") -> CaseVerdict:
     """A verdict for a requirement judged by the case's own logic (return it and raise)."""
     return CaseVerdict(
         level.broken_verdict,
@@ -168,4 +269,5 @@ def fail(level: Level, requirement: str, expected: str, observed: str, sent: byt
         observed=observed,
         sent=sent,
         received=received,
+        signature=signature,
     )

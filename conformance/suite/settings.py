@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..harness.target import Target
-from ..options import add_profile_options, profile_from_options
+from ..options import add_profile_options, profile_flags, profile_from_options
 from ..protocol import DEFAULT_PORT, Profile
 
 #: (flag, argparse/pytest keyword arguments); dests all start with "isight_".
@@ -46,7 +46,11 @@ SUITE_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
                    "help": "leave out cases whose ID matches GLOB (repeatable)"}),
     ("--target-label", {"dest": "isight_target_label", "metavar": "LABEL", "default": None,
                         "help": "how reports name the target"}),
+    ("--seed", {"dest": "isight_seed", "type": int, "metavar": "N", "default": None,
+                "help": "seed of the fuzz cases FUZZ-01/02 (default 20240601; a run is repeatable with its seed)"}),
 )
+#: FUZZ-01/02's seed when --seed is not given.
+DEFAULT_SEED = 20240601
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +69,7 @@ class SuiteSettings:
     target_label: str = ""
     cases: tuple[str, ...] = ()
     exclude: tuple[str, ...] = ()
+    seed: int = DEFAULT_SEED
 
     def selects(self, case_id: str) -> bool:
         """--cases / --exclude, by glob on the case ID (a parametrised ID also matches its base)."""
@@ -116,7 +121,32 @@ class SuiteSettings:
             target_label=get("isight_target_label") or "",
             cases=tuple(get("isight_cases") or ()),
             exclude=tuple(get("isight_exclude") or ()),
+            seed=get("isight_seed") if get("isight_seed") is not None else DEFAULT_SEED,
         )
+
+    def to_args(self, pytest: bool = True) -> list[str]:
+        """The command-line flags that resolve to these settings (the inverse of :meth:`resolve`):
+        ``run`` hands its settings to pytest this way, so they are resolved in one place."""
+        out: list[str] = []
+
+        def flag(name: str) -> str:
+            return PYTEST_RENAMES.get(name, name) if pytest else name
+
+        for name, value in (("--target", self.target), ("--udp-target", self.udp_target),
+                            ("--stream-target", self.stream_target), ("--report-dir", self.report_dir),
+                            ("--pcap-dir", self.pcap_dir), ("--target-label", self.target_label or None)):
+            if value is not None:
+                out += [flag(name), str(value)]
+        out += ["--extension", self.extension, flag("--capture"), self.capture,
+                "--stream-seconds", repr(self.stream_seconds), "--settle-ms", str(round(self.settle_s * 1000)),
+                "--seed", str(self.seed)]
+        for path in self.sequences:
+            out += ["--sequence", str(path)]
+        for glob in self.cases:
+            out += ["--cases", glob]
+        for glob in self.exclude:
+            out += ["--exclude", glob]
+        return out + profile_flags(self.profile)
 
 
 #: pytest owns these flags; under pytest the suite's options take another name.

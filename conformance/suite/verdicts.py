@@ -76,6 +76,11 @@ class CaseResult:
     details: dict[str, Any] = field(default_factory=dict)
     #: the id of the root cause that explains this verdict ("RC1"), when one does
     root_cause: str | None = None
+    #: the clause(s) the verdict judged (for a non-PASS verdict; also in ``clauses``): the clause
+    #: table marks these, not every clause the case names
+    judged: tuple[str, ...] = ()
+    #: what the defect looks like, for grouping verdicts under one root cause ("" when unknown)
+    signature: str = ""
 
     def to_summary(self) -> dict[str, Any]:
         """The case's entry in summary.json."""
@@ -92,6 +97,7 @@ class CaseResult:
             "sent_hex": self.sent_hex,
             "received_hex": self.received_hex,
             "pcap": self.pcap,
+            "judged": list(self.judged),
             "root_cause": self.root_cause,
         }
 
@@ -100,6 +106,7 @@ class CaseResult:
         out["level"] = self.level.value
         out["verdict"] = self.verdict.value
         out["clauses"] = list(self.clauses)
+        out["judged"] = list(self.judged)
         return out
 
 

@@ -8,19 +8,33 @@ from .verdicts import WireLine
 
 #: Reports show at most this many lines per case (the pcap has everything).
 MAX_LINES = 2000
+#: ... and at most this many bytes of one chunk's hex, and this many decoded events of it.
+MAX_HEX_BYTES = 512
+MAX_EVENTS = 8
 _ARROW = {Kind.SEND: "→", Kind.RECV: "←"}
 
 
 def _summaries(decoder: StreamDecoder, data: bytes) -> str:
     parts = []
-    for event in decoder.feed(data):
+    decoder.receive_data(data)
+    count = 0
+    for event in decoder.events():  # a flood of garbage decodes to thousands: name a few, count the rest
+        count += 1
+        if count > MAX_EVENTS:
+            continue
         if isinstance(event, Frame):
             parts.append(event.describe())
         else:
             parts.append(f"[{event.clause}] {event.message}")
+    if count > MAX_EVENTS:
+        parts.append(f"… and {count - MAX_EVENTS} more")
     if decoder.buffered:
         parts.append(f"({decoder.buffered} bytes of an incomplete frame)")
     return "; ".join(parts)
+
+
+def _hex(data: bytes) -> str:
+    return data[:MAX_HEX_BYTES].hex(" ")
 
 
 def wire_lines(transcript: Transcript, profile: Profile, limit: int = MAX_LINES) -> list[WireLine]:
@@ -47,7 +61,9 @@ def wire_lines(transcript: Transcript, profile: Profile, limit: int = MAX_LINES)
                 summary = _summaries(decoders[key], event.data)
             if event.note:
                 summary = f"{event.note}: {summary}" if summary else event.note
-            lines.append(WireLine(round(t_ms, 3), event.conn, _ARROW[event.kind], event.kind, event.data.hex(" "), summary))
+            if len(event.data) > MAX_HEX_BYTES:
+                summary += f" [{len(event.data)} bytes: the first {MAX_HEX_BYTES} shown, the pcap has them all]"
+            lines.append(WireLine(round(t_ms, 3), event.conn, _ARROW[event.kind], event.kind, _hex(event.data), summary))
         else:
             label = f" ({info.label}, {info.transport} {info.local} → {info.remote})" if info and event.kind == Kind.CONNECT else ""
             lines.append(WireLine(round(t_ms, 3), event.conn, "·", event.kind, "", (event.note or "") + label))

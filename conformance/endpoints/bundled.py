@@ -1,0 +1,45 @@
+"""The bundled reference box, started on loopback for a run that names no target.
+
+One helper for every command that needs it (``run``, the pytest plugin, ``fuzz``)::
+
+    box = start_bundled(profile)      # box.target, box.udp_target, box.label
+    ...
+    box.stop()
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..harness.target import Target
+from ..protocol import Profile
+from .behaviour import BoxConfig
+from .box import BoxThread
+
+
+@dataclass
+class Bundled:
+    thread: BoxThread
+    target: Target
+    udp_target: Target | None
+    config: BoxConfig
+
+    @property
+    def label(self) -> str:
+        return f"bundled reference box at {self.target}"
+
+    def restart(self) -> None:
+        """A fresh box on the same ports (fuzzing restarts it to tell which input killed it)."""
+        self.thread.stop()
+        self.thread = BoxThread(self.config, host="127.0.0.1", port=self.target.port).start()
+
+    def stop(self) -> None:
+        self.thread.stop()
+
+
+def start_bundled(profile: Profile, config: BoxConfig | None = None) -> Bundled:
+    """Start the reference box (TCP and UDP) on 127.0.0.1, free ports, in this profile."""
+    config = config or BoxConfig(profile=profile)
+    thread = BoxThread(config, host="127.0.0.1", port=0).start()
+    udp = Target("127.0.0.1", thread.udp_port) if thread.udp_port else None
+    return Bundled(thread, Target("127.0.0.1", thread.tcp_port), udp, config)

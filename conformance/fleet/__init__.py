@@ -1,0 +1,13 @@
+"""Fleet runs: ``isight-conformance run --targets FILE [--jobs N]``, one ``run`` process per box.
+
+* :mod:`.spec`: the fleet file (TOML, a ``[[box]]`` table per box), checked with line numbers;
+* :mod:`.children`: the child processes, ``jobs`` at a time, stopped together on a signal;
+* :mod:`.results`, :mod:`.html`: fleet.json and fleet.html;
+* :mod:`.command`: the command itself (:func:`main_fleet`).
+"""
+
+from __future__ import annotations
+
+from .command import main_fleet
+
+__all__ = ["main_fleet"]
