@@ -6,7 +6,7 @@ import re
 
 from conformance.analyze.catalogue import SPECS, case_id, spec_for
 from conformance.certify.catalogue import FRAME_SPECS
-from conformance.protocol.clauses import clause
+from conformance.protocol.clauses import clause as registry_clause
 from conformance.report.summary import CLAUSES
 from conformance.suite.verdicts import Level
 
@@ -31,5 +31,5 @@ def test_both_sides_are_judged_and_the_robot_reads_certify_robots_catalogue():
 def test_a_clause_without_a_spec_still_gets_a_case_from_the_registry():
     spec = spec_for("R3", "box")
     assert spec.id == "OBS-R3-box" and spec.level is Level.MUST
-    assert spec.title.startswith(clause("R3").title) and clause("R3").text in spec.requirement
+    assert spec.title.startswith(registry_clause("R3").title) and registry_clause("R3").text in spec.requirement
     assert spec_for("Z9", "robot").id == "OBS-Z9-robot"
