@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from array import array
 
 from conformance.analyze.findings import BOX, KEEP, Findings, Series, frames_text
 from conformance.suite.verdicts import Verdict
@@ -51,12 +52,14 @@ def test_a_short_series_plots_every_value():
     assert math.isnan(Series().mean) and Series().describe() == "none"
 
 
-def test_extend_keeps_the_same_sample_as_adding_one_by_one():
-    a, b = Series(cap=32), Series(cap=32)
-    values = [float(i) for i in range(1000)]
+def test_extend_keeps_the_same_sample_and_buckets_as_adding_one_by_one():
+    a, b, c = Series(cap=32), Series(cap=32), Series(cap=32)
+    values = [float((i * 7919) % 1000) for i in range(5000)]
     for v in values:
         a.add(v)
-    for i in range(0, 1000, 37):
+    for i in range(0, 5000, 37):
         b.extend(values[i : i + 37])
-    assert (a.n, a.max, a.total) == (b.n, b.max, b.total)
-    assert a.sample == b.sample
+        c.extend(array("d", values[i : i + 37]), peaks=False)
+    assert (a.n, a.max, a.max_at, a.total) == (b.n, b.max, b.max_at, b.total) == (c.n, c.max, c.max_at, c.total)
+    assert a.sample == b.sample == c.sample
+    assert a.plot_values() == b.plot_values()

@@ -62,35 +62,37 @@ class _PcapReader(RawPcapReader):
 
 
 class _NgReader(RawPcapNgReader):
-    """scapy's pcapng reader with an Enhanced Packet Block reader that skips the options
-    and returns a plain tuple ``(data, (linktype, tsresol, tshigh, tslow, wirelen))``, and
-    a block reader that reads a block's body and trailer in one call (other blocks go to
-    scapy's own readers)."""
+    """scapy's pcapng reader, reading an Enhanced Packet Block (nearly every block of a
+    capture) in one call without decoding its options, as a plain tuple ``(data,
+    (linktype, tsresol, tshigh, tslow, caplen))``; every other block goes to scapy."""
 
     def _read_block(self, size: int = _READ_SIZE) -> Any:
         f = self.f
         head = f.read(8)
         if len(head) < 8:
             raise EOFError
-        blocktype, blocklen = struct.unpack(self.endian + "II", head)
-        if blocktype != 6 or blocklen < 32 or blocklen % 4:
+        unpack = _NG_HEAD.get(self.endian)
+        if unpack is None:  # before the first Section Header Block
+            f.seek(-8, 1)
+            return super()._read_block(size)
+        blocktype, blocklen = unpack(head)
+        if blocktype != 6 or blocklen < 32 or blocklen & 3:
             f.seek(-8, 1)
             return super()._read_block(size)
         rest = f.read(blocklen - 8)
         if len(rest) != blocklen - 8 or rest[-4:] != head[4:]:
             raise EOFError
-        return self._read_block_epb(rest[:-4], size)
-
-    def _read_block_epb(self, block: bytes, size: int) -> Any:
-        try:
-            intid, tshigh, tslow, caplen = struct.unpack(self.endian + "4I", block[:16])
-        except struct.error:
-            raise EOFError from None
+        # the Enhanced Packet Block: interface, time stamp, captured length; options skipped
+        intid, tshigh, tslow, caplen = _NG_EPB[self.endian](rest)
         interfaces = self.interfaces
-        if intid >= len(interfaces):
-            return None  # scapy skips it too (after a warning)
+        if intid >= len(interfaces) or caplen > blocklen - 32:
+            return None  # scapy skips a block naming no interface too (after a warning)
         iface = interfaces[intid]
-        return block[20 : 20 + caplen], (iface[0], iface[2]["tsresol"], tshigh, tslow, caplen)
+        return rest[20 : 20 + caplen], (iface[0], iface[2]["tsresol"], tshigh, tslow, caplen)
+
+
+_NG_HEAD = {"<": struct.Struct("<II").unpack, ">": struct.Struct(">II").unpack}
+_NG_EPB = {"<": struct.Struct("<4I").unpack_from, ">": struct.Struct(">4I").unpack_from}
 
 
 def _describe_start(head: bytes) -> str:

@@ -21,6 +21,7 @@ around the gap. A well-formed pose and its 0000 answer take a short path.
 
 from __future__ import annotations
 
+from array import array
 from collections import deque
 from typing import Any
 
@@ -54,6 +55,7 @@ FAIL, NON_STRICT, INCONCLUSIVE = Verdict.FAIL, Verdict.NON_STRICT, Verdict.INCON
 _BOX_CLAUSE = {"A5": "A2", "B3": "E1", "B1": "A2", "B2": "A2", "B5": "A2"}
 POSE, CYCLE_ON, VISION_RESULT = Action.POSE, Action.CYCLE_ON, Action.VISION_RESULT
 KEEP_REQUESTS = 2000  # non-pose requests kept per connection for the session judgement
+LATENCY_BATCH = 4096
 SKIPPED_KEEP = 64
 
 
@@ -101,7 +103,8 @@ class ConnJudge:
         self.garbage_t: float | None = None  # the robot's first bytes that were not a request
         self.r6_checked = False
         self.skipped: deque[tuple[Any, ...]] = deque(maxlen=SKIPPED_KEEP)  # malformed requests left unanswered
-        self.pose_latency = Series(cap=1024)
+        self.pose_latency = Series(cap=1024)  # the poses' answer latencies (ms), in order
+        self._latencies = array("d")  # the latest ones, before they go into pose_latency in a batch
         self.clock = PoseClock(ctx.profile.pose_rate_hz, ctx.config.rate_tolerance, ctx.config.jitter_tolerance,
                                ctx.intervals)
         # for the session: requests kept (FrameRecord, Exchange), first poses, refusals
@@ -202,7 +205,11 @@ class ConnJudge:
                 if latency <= self.t1_ms:
                     queue.popleft()
                     self.box_poses += 1
-                    self.pose_latency.add(latency)
+                    lat = self._latencies
+                    lat.append(latency)
+                    if len(lat) >= LATENCY_BATCH:
+                        self.pose_latency.extend(lat)
+                        self._latencies = array("d")
                     self.paired += 1
                     self.paired_poses += 1
                     self.poses_ok += 1
@@ -274,7 +281,7 @@ class ConnJudge:
         self.paired += 1
         if r_action is POSE:
             self.paired_poses += 1
-            self.pose_latency.add(latency)
+            self._latencies.append(latency)
         else:
             ctx.latency.add(latency)
         frames = (r_last, last)
@@ -363,6 +370,8 @@ class ConnJudge:
                   f"{self.desync}")
             f.add("T1", BOX, INCONCLUSIVE, f"{label}: latency not measured after the gap: {self.desync}")
         f.check("S3", BOX, self.poses_ok)
+        self.pose_latency.extend(self._latencies)
+        self._latencies = array("d")
         judge_backlog(self)
         f.check("A1", BOX, sum(self.robot_counts.values()) + self.poses)
         f.check("T1", BOX, self.paired)

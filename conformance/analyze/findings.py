@@ -12,7 +12,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -135,29 +135,47 @@ class Series:
             self._hi = v
         self._fill += 1
         if self._fill == self._width:
-            self._peaks.append((self._lo, self._hi))
-            self._lo, self._hi, self._fill = math.inf, -math.inf, 0
-            if len(self._peaks) >= self._cap // 4:
-                p = self._peaks
-                self._peaks = [(min(p[i][0], p[i + 1][0]), max(p[i][1], p[i + 1][1])) for i in range(0, len(p) - 1, 2)]
-                if len(p) % 2:
-                    self._peaks.append(p[-1])
-                self._width *= 2
+            self._bucket()
 
-    def extend(self, values: list[float] | tuple[float, ...]) -> None:
-        """Add many values at once: count, mean, maximum and the sample (not the plot's buckets)."""
-        if not values:
+    def extend(self, values: Sequence[float], peaks: bool = True) -> None:
+        """Add many values at once (a list or an ``array``); ``peaks=False`` leaves the plot's
+        buckets out (for a series that is only sampled, such as a histogram's)."""
+        if not len(values):
             return
         n = self.n
         top = max(values)
         if top > self.max:
-            self.max, self.max_at = top, n + 1 + values.index(top)
+            self.max, self.max_at = top, n + 1 + list(values).index(top)
         self.total += sum(values)
         self.n = n + len(values)
         self._sample += values[(-(n + 1)) % self._step :: self._step]
         while len(self._sample) >= self._cap:
             del self._sample[::2]
             self._step *= 2
+        if not peaks:
+            return
+        i, size = 0, len(values)
+        while i < size:
+            chunk = values[i : i + self._width - self._fill]
+            lo, hi = min(chunk), max(chunk)
+            if lo < self._lo:
+                self._lo = lo
+            if hi > self._hi:
+                self._hi = hi
+            self._fill += len(chunk)
+            i += len(chunk)
+            if self._fill == self._width:
+                self._bucket()
+
+    def _bucket(self) -> None:
+        self._peaks.append((self._lo, self._hi))
+        self._lo, self._hi, self._fill = math.inf, -math.inf, 0
+        if len(self._peaks) >= self._cap // 4:
+            p = self._peaks
+            self._peaks = [(min(p[i][0], p[i + 1][0]), max(p[i][1], p[i + 1][1])) for i in range(0, len(p) - 1, 2)]
+            if len(p) % 2:
+                self._peaks.append(p[-1])
+            self._width *= 2
 
     @property
     def sample(self) -> list[float]:

@@ -97,7 +97,7 @@ class PoseClock:
             if len(j.windows_hz) < 600:
                 j.windows_hz += [round(w.rate_hz, 2) for w in stats.windows][: 600 - len(j.windows_hz)]
             if self.intervals is not None:
-                self.intervals.extend(stats.intervals_ms)
+                self.intervals.extend(stats.intervals_ms, peaks=False)
         self._carried = keep_last and bool(times)
         self.times = array("d", [times[-1]]) if self._carried else array("d")
 
