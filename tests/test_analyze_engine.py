@@ -14,14 +14,20 @@ scheduling does not fail a clean robot; the bursty robot is far outside any tole
 
 from __future__ import annotations
 
+import asyncio
+import os
+import shutil
 import struct
+import subprocess
+import time
 from pathlib import Path
 
 import pytest
 
 from conformance.analyze import AnalyzeConfig, analyze, build_cases
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.robot import RobotFaults
+from conformance.endpoints.box import ReferenceBox
+from conformance.endpoints.robot import RobotFaults, RobotSession
 from conformance.protocol import Action, Profile, answer, encode, encode_udp, request
 from conformance.suite.verdicts import Verdict
 from tests.analyze_util import FAST, POSE, POSE_OK, Capture, canonical, exchange, record
@@ -372,3 +378,68 @@ def test_a_udp_crc_of_another_algorithm_is_inconclusive_without_crc(tmp_path):
     assert stated["OBS-F7-robot"] is Verdict.FAIL
     right = {x.id: x.verdict for x in build_cases(analyze(path, AnalyzeConfig(profile=other, crc_stated=True)))}
     assert right["OBS-F7-robot"] is Verdict.PASS and right["OBS-F7-box"] is Verdict.PASS
+
+
+# -- against Wireshark and the kernel -------------------------------------------------------------------
+TSHARK, DUMPCAP = shutil.which("tshark"), shutil.which("dumpcap")
+
+
+@pytest.mark.tshark
+@pytest.mark.skipif(TSHARK is None, reason="tshark is not installed")
+def test_a_findings_frame_numbers_are_wiresharks(tmp_path):
+    cap = Capture()
+    for i in range(5):
+        cap.other(b"GET /%d HTTP/1.1\r\n\r\n" % i)
+    conn = cap.tcp(41000)
+    exchange(conn, encode(request(Action.NONE)), encode(answer(Action.NONE)))
+    bad = encode(answer(Action.CYCLE_ON))
+    exchange(conn, encode(request(Action.NONE)), bad)  # not echoed: A2
+    conn.close()
+    path = cap.write(tmp_path / "w.pcapng")
+    case = {c.id: c for c in build_cases(analyze(path, LOOSE))}["OBS-A2-box"]
+    frame = case.details["frames"][-1]
+    out = subprocess.run([TSHARK, "-r", str(path), "-Y", f"frame.number == {frame}", "-T", "fields", "-e", "tcp.payload"],
+                         capture_output=True, text=True, timeout=60, check=True).stdout.strip()
+    assert out.replace(":", "") == bad.hex() == case.received_hex.replace(" ", "")
+
+
+def _privileged() -> bool:
+    if os.geteuid() == 0:
+        return True
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("CapEff:"):
+                return bool(int(line.split()[1], 16) >> 13 & 1)  # CAP_NET_RAW
+    except OSError:
+        pass
+    return False
+
+
+@pytest.mark.skipif(DUMPCAP is None or not _privileged(), reason="a live capture needs dumpcap and root or CAP_NET_RAW")
+def test_a_live_loopback_capture_of_a_conforming_session_is_clean(tmp_path):
+    """The kernel's own packets (dumpcap on lo), not a synthesised capture."""
+    path = tmp_path / "live.pcapng"
+
+    async def main() -> int:
+        async with ReferenceBox(BoxConfig(profile=FAST), host="127.0.0.1", port=0, udp=False) as box:
+            port = box.tcp_port
+            proc = subprocess.Popen([DUMPCAP, "-q", "-i", "lo", "-f", f"tcp port {port}", "-w", str(path)],
+                                    stderr=subprocess.PIPE, text=True)
+            try:
+                deadline = time.monotonic() + 20
+                while time.monotonic() < deadline and not (path.exists() and path.stat().st_size > 0):
+                    await asyncio.sleep(0.1)
+                await asyncio.sleep(0.5)
+                result = await RobotSession(("127.0.0.1", port), FAST, duration=0.6).run()
+                assert result.ok, result.reason
+                await asyncio.sleep(0.5)
+            finally:
+                proc.terminate()
+                proc.wait(timeout=20)
+            return port
+
+    port = asyncio.run(main())
+    a = analyze(path, AnalyzeConfig(profile=FAST, ports=(port,), rate_tolerance=0.5, jitter_tolerance=3.0))
+    v = {c.id: c.verdict for c in build_cases(a)}
+    assert a.ctx.stats.tcp_connections == 2 and not_passing(v) == {}
+    assert v["OBS-S1-robot"] is Verdict.PASS and v["OBS-A1-box"] is Verdict.PASS
