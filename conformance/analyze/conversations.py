@@ -283,10 +283,11 @@ class Conversations:
             if self.tcp.get(k, (None, 0, None))[2] is conn:
                 del self.tcp[k]
             self.closed[k] = ts
-        if len(self.closed) > 50_000:
+        if len(self.closed) > 4096:
             self.closed = {k: t for k, t in self.closed.items() if ts - t < STRAY_S}
         self.open.pop(conn.number, None)
         self.sessions.done(conn, conn.finish(ts, no))
+        conn.stream.sink = None  # no reference cycle: the connection is freed now, not at a later GC pass
 
     # -- UDP ------------------------------------------------------------------------------------------
     def udp_packet(self, key: bytes, payload: bytes, missing: int, no: int, ts: float) -> None:
