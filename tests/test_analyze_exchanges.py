@@ -223,3 +223,16 @@ def test_the_byte_order_of_the_robots_values():
     c.box(answer(Action.POSE))
     c.end()
     assert c.worst("F4", "robot") is Verdict.FAIL and c.worst("F4") is None
+
+
+def test_a_box_far_behind_stops_pairing_instead_of_holding_every_request(monkeypatch):
+    import conformance.analyze.exchanges as ex
+
+    monkeypatch.setattr(ex, "MAX_OUTSTANDING", 50)
+    c = Conn()
+    for _ in range(60):
+        c.robot(POSE, dt=0.02)  # never answered; 20 ms apart, time_out 100 ms
+    assert len(c.judge.queue) <= 50 and c.judge.desync is not None
+    c.end("capture")
+    assert c.worst("A1") is Verdict.FAIL and c.worst("T1") is Verdict.FAIL
+    assert c.ctx.findings.tallies[("A1", "box")].counts[Verdict.INCONCLUSIVE] == 1

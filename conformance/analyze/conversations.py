@@ -35,8 +35,10 @@ from .udp import UdpConversation
 __all__ = ["Conversations", "TcpConnection"]
 
 CANDIDATE_PACKETS = 16  # packets of an undecided conversation kept while its content is looked at
+CANDIDATE_BYTES = 16384  # ... and their payload bytes
 CANDIDATE_PAYLOADS = 8  # payloads looked at before a conversation on another port is ignored
-MAX_CANDIDATES = 20000
+MAX_CANDIDATES = 2048
+MAX_UDP = 20000  # UDP conversations followed at once; past it the one seen first ends
 MAX_IGNORED = 200_000
 MAX_OPEN = 20000  # connections followed at once; past it the one opened longest ago ends
 STRAY_S = 60.0  # packets of a closed connection within this time are its stragglers
@@ -164,13 +166,14 @@ class TcpConnection:
 
 
 class _Candidate:
-    __slots__ = ("key", "packets", "payloads", "robot_dir")
+    __slots__ = ("key", "packets", "payloads", "robot_dir", "size")
 
     def __init__(self, key: bytes) -> None:
         self.key = key  # the first packet's direction
         self.packets: list[tuple[Any, ...]] = []
         self.payloads = 0
         self.robot_dir: int | None = None
+        self.size = 0
 
 
 class Conversations:
@@ -244,6 +247,7 @@ class Conversations:
         if flags & SYN:
             cand.robot_dir = d if not flags & ACK else d ^ 1
         cand.packets.append(packet)
+        cand.size += len(payload)
         if payload:
             cand.payloads += 1
             pos = plausible_header(payload, 0, None, self.byte_order)
@@ -254,7 +258,7 @@ class Conversations:
                     robot_dir = d if payload[pos + 4] == TransferType.ROBOT_TO_BOX else d ^ 1
                 self._start(cand.key, robot_dir, cand.packets, bool(cand.packets[0][3] & SYN))
                 return
-        if cand.payloads >= CANDIDATE_PAYLOADS or len(cand.packets) >= CANDIDATE_PACKETS:
+        if cand.payloads >= CANDIDATE_PAYLOADS or len(cand.packets) >= CANDIDATE_PACKETS or cand.size > CANDIDATE_BYTES:
             del self.candidates[canon]
             self._ignore(key)
             self._ignore(rev)
@@ -307,6 +311,11 @@ class Conversations:
                 self._ignore(key)
                 return
             conv = UdpConversation(self.ctx, key, robot_dir)
+            if len(self.udp) >= 2 * MAX_UDP:  # the conversation seen first ends, as if the capture ended there
+                oldest = next(iter(self.udp.values()))[0]
+                oldest.finish(ts)
+                for k in [k for k, (c, _d) in self.udp.items() if c is oldest]:
+                    del self.udp[k]
             self.udp[key] = (conv, 0)
             self.udp[reverse_key(key)] = (conv, 1)
             entry = (conv, 0)

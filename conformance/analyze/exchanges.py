@@ -56,6 +56,7 @@ _BOX_CLAUSE = {"A5": "A2", "B3": "E1", "B1": "A2", "B2": "A2", "B5": "A2"}
 POSE, CYCLE_ON, VISION_RESULT = Action.POSE, Action.CYCLE_ON, Action.VISION_RESULT
 KEEP_REQUESTS = 2000  # non-pose requests kept per connection for the session judgement
 LATENCY_BATCH = 4096
+MAX_OUTSTANDING = 65536  # requests waiting for their answers; past it the box is far behind: pairing stops
 SKIPPED_KEEP = 64
 
 
@@ -129,7 +130,10 @@ class ConnJudge:
                 self.clock.flush()
             if self.want_pose_after is not None and self.pose_after is None and t > self.want_pose_after:
                 self.pose_after = (t, last, offset, event)
-            self.queue.append((t, POSE, first, last, OK, raw, event, None, None))
+            queue = self.queue
+            queue.append((t, POSE, first, last, OK, raw, event, None, None))
+            if len(queue) > MAX_OUTSTANDING:
+                self._overflow(t)
             return
         self._request(event, raw, offset, first, last, t)
 
@@ -175,6 +179,8 @@ class ConnJudge:
             if action == CYCLE_ON and self.on_cycle_on is not None:
                 self.on_cycle_on(t)
         self.queue.append((t, action, first, last, KIND[exp.rule], raw, event, exchange, exp))
+        if len(self.queue) > MAX_OUTSTANDING:
+            self._overflow(t)
 
     def _note_action(self, action: int) -> None:
         if action not in self.actions:
@@ -321,6 +327,20 @@ class ConnJudge:
         if req[7] is not None:
             req[7].reaction = "silent"
             self.refused(req[0], f"the box did not answer {action_name(action)}")
+
+    def _overflow(self, t: float) -> None:
+        """More requests wait than any box keeps: report the oldest, stop pairing (bounded memory)."""
+        t_req, action, _first, last, _kind, raw = self.queue[0][:6]
+        if (t - t_req) * 1000.0 > self.t1_ms:
+            self.findings.add("A1", BOX, FAIL, f"{self.label}: {action_name(action)} not answered in "
+                              f"{(t - t_req) * 1000:.0f} ms, while {len(self.queue):,} requests wait", (last,),
+                              robot=raw)
+            self.findings.add("T1", BOX, FAIL, f"{self.label}: no answer to {action_name(action)} within "
+                              f"{self.t1_ms:.0f} ms", (last,), robot=raw)
+        self.desync = f"more than {MAX_OUTSTANDING:,} requests waited for their answers at once"
+        self.not_paired += len(self.queue)
+        self.queue.clear()
+        self.steady = False
 
     # -- the end ------------------------------------------------------------------------------------------
     def gap(self, side: str, before: int, after: int) -> None:
