@@ -52,7 +52,6 @@ class Stats:
     """Facts about the capture, for the report's header and the terminal."""
 
     frames: int = 0
-    isight_frames: int = 0  # packets of iSight conversations
     tcp_connections: int = 0
     udp_conversations: int = 0
     sessions: int = 0
@@ -63,8 +62,6 @@ class Stats:
     conflicts: int = 0  # retransmissions whose bytes differ from the original
     midstart: int = 0  # connections already open when the capture started
     open_at_end: int = 0  # connections still open when the capture ended
-    requests: int = 0
-    answers: int = 0
     robots: set[str] = field(default_factory=set)
     boxes: set[str] = field(default_factory=set)
     first_ts: float | None = None

@@ -134,6 +134,15 @@ def describe_capture(analysis: Analysis) -> str:
         parts.append(f"{s.midstart} connection(s) already open at the start")
     if s.open_at_end:
         parts.append(f"{s.open_at_end} still open at the end")
+    if s.cut_frames or s.skipped_bytes:
+        parts.append(f"not judged: {s.cut_frames} frame(s) cut by a gap or an end, {s.skipped_bytes:,} byte(s) before "
+                     "the first whole frame of a direction")
+    if s.conflicts:
+        parts.append(f"{s.conflicts} retransmission(s) with bytes other than the first copy's")
+    other = sum(s.skipped.values())
+    if other:
+        parts.append(f"{other:,} frame(s) not TCP/UDP over IP ("
+                     + ", ".join(f"{n:,} {why}" for why, n in sorted(s.skipped.items(), key=lambda kv: -kv[1])[:4]) + ")")
     if s.truncated:
         parts.append(f"file cut short: {s.truncated}")
     return "; ".join(parts)
