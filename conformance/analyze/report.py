@@ -156,7 +156,9 @@ def suite_info(analysis: Analysis, cases: list[CaseResult], command: str = "") -
         version=__version__, started=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         duration_s=round(analysis.seconds, 3), target=describe_capture(analysis), profile=ctx.profile.to_dict(),
         udp_target=f"{s.udp_conversations} UDP conversation(s) in the capture" if s.udp_conversations else None,
-        extension="auto" if ext is None else ("forced on" if ext else "off"), command=command, role="observed",
+        extension=("per session: E4 when it uses ProgIdx or the result request, else S1" if ext is None
+                   else "forced on (every session judged as E4)" if ext else "off (every session judged as S1)"),
+        command=command, role="observed",
         cases_total=len(cases),
     )
 
