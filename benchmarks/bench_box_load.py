@@ -40,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from conformance.endpoints.box import new_event_loop, raise_fd_limit  # noqa: E402
-from conformance.endpoints.trajectory import PrimerTrajectory  # noqa: E402
+from conformance.trajectory import PrimerTrajectory  # noqa: E402
 from conformance.protocol import Action, answer, encode, pose_blocks, request  # noqa: E402
 from conformance.stats import percentile  # noqa: E402
 

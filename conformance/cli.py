@@ -19,6 +19,7 @@ from .protocol import (
     Transport,
     parse_frame,
 )
+from .report import diff_cli
 
 #: subcommand -> (help, the issue that delivers it)
 PLANNED: dict[str, tuple[str, str]] = {}
@@ -81,12 +82,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_fuzz_and_replay(sub)
     clauses_cli.add_parser(sub)
     wireshark_cli.add_parser(sub)
+    diff_cli.add_parser(sub)
     analyze_cli.add_parser(sub)
     return parser
 
 
 def _add_serve(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    from .endpoints.behaviour import SENDABLE_RESULTS
+    from .protocol.answers import SENDABLE_RESULTS
 
     p = sub.add_parser(
         "serve",

@@ -27,6 +27,7 @@ from .harness.target import check_reachable
 from .protocol.clauses import all_clauses, clause_ids
 from .protocol.clauses import families as registry_families
 from .pytest_plugin import CAUSES, results, suite_info
+from .report.diff_cli import apply_baseline, load_baseline
 from .rundirs import default_run_dirs
 from .suite.catalogue import CaseInfo, info_of
 from .suite.settings import SuiteSettings, add_suite_options
@@ -45,6 +46,9 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
                        help="case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
                             "only when the failing set equals the list")
     group.add_argument("--quiet", action="store_true", help="no live progress line (for CI logs)")
+    group.add_argument("--baseline", metavar="OLD", default=None,
+                       help="an earlier run (summary.json or its report directory): print what changed since it "
+                            "at the end and add the comparison to report.html (see 'diff')")
     fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
     fleet.add_argument("--targets", metavar="FILE", default=None,
                        help="test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
@@ -174,6 +178,7 @@ def main_run(args: argparse.Namespace) -> int:
     try:
         settings = SuiteSettings.resolve(lambda dest: getattr(args, dest, None))
         expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
+        baseline = load_baseline(getattr(args, "baseline", None))  # a bad baseline stops the run before it starts
     except (ValueError, OSError) as exc:
         print(f"isight-conformance run: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -199,13 +204,14 @@ def main_run(args: argparse.Namespace) -> int:
             print(f"isight-conformance run: {problem}", file=sys.stderr)
             return EXIT_USAGE
     try:
-        return _run(settings, expected, quiet=args.quiet)
+        return _run(settings, expected, quiet=args.quiet, baseline=baseline, baseline_label=args.baseline)
     finally:
         if embedded is not None:
             embedded.stop()
 
 
-def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool) -> int:
+def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool, baseline: dict[str, Any] | None = None,
+         baseline_label: str = "baseline") -> int:
     from rich.console import Console
 
     from .report.terminal import Progress, print_final_table
@@ -242,6 +248,7 @@ def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool) -> int
     if settings.pcap_dir is not None:
         reports["pcaps"] = settings.pcap_dir
     print_final_table(info, cases, console, reports=reports, root_causes=causes)
+    apply_baseline(baseline, report_dir, cases, console, baseline_label)
     if interrupted or not info.complete:
         print(f"isight-conformance run: interrupted after {len(cases)} of {info.cases_total} cases; the reports "
               "cover the cases that ran and say INCOMPLETE", file=sys.stderr)

@@ -10,6 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conformance.endpoints.behaviour import (
+    BOX_STATES,
     CONDITIONS,
     MALFORMED,
     REACTION_ANSWER,
@@ -79,7 +80,7 @@ def box(**knobs):
 
 def test_transition_table_is_complete():
     for action in REQUEST_SHAPE:
-        for state in Cycle:
+        for state in BOX_STATES:
             for cond in (True, False):
                 assert (state, action, cond) in TRANSITIONS, (state, action, cond)
         assert action in MALFORMED
@@ -444,6 +445,7 @@ def test_a_wrapped_decide_sees_every_pose():
         return original(event, transport)
 
     b.decide = decide
+    b.fast_path = False  # every frame through the patched decide()
     conn = b.connection()
     assert conn.receive_data(pose_frame() * 3) == b.pose_ok * 3
     assert len(seen) == 3
@@ -462,3 +464,17 @@ def test_trace_sees_every_event_with_its_bytes():
     # garbage fed a byte at a time is reported as it comes, each piece an F1 event
     assert [d.reaction for _, _, d in seen[-2:]] == [Reaction.OK, Reaction.OK]
     assert all(d.reaction is Reaction.SILENT and e.clause == "F1" for _, e, d in seen[:-2])
+
+
+def test_the_box_picks_its_answers_from_the_protocol_table():
+    """Every well-formed request's answer is one the protocol's table allows (protocol/answers.py): the
+    box picks from the table the oracle, the cases and certify read; a knob cannot make it drift."""
+    from conformance.protocol.answers import allowed_codes
+
+    for config in (BoxConfig(), BoxConfig(not_ready=True), BoxConfig(cycle_off_fails=True),
+                   BoxConfig(progidx_conflict=True)):
+        b = BoxBehaviour(config)
+        for (state, action), (decision, _) in b._table.items():
+            allowed = allowed_codes(action, state)
+            assert decision.frame is not None
+            assert allowed is None or decision.frame.error_code in allowed, (config, state, action)

@@ -132,6 +132,7 @@ def _replace_answer(action: Action, make: Callable[[BoxBehaviour], Frame]) -> Pa
             return original(event, transport)
 
         b.decide = decide  # type: ignore[method-assign]
+        b.fast_path = False  # every frame through the patched decide()
 
     return patch
 
@@ -150,6 +151,7 @@ def _swap_field(offset: int, when: Callable[[Frame], bool]) -> Patch:
             return Decision(d.reaction, d.frame, tcp, d.udp, d.note)
 
         b.decide = decide  # type: ignore[method-assign]
+        b.fast_path = False  # every frame through the patched decide()
 
     return patch
 

@@ -219,6 +219,7 @@ def test_the_suites_own_failure_is_recorded_not_raised():
             raise RuntimeError("box logic exploded")
 
         listener.behaviour.decide = broken  # type: ignore[method-assign]
+        listener.behaviour.fast_path = False  # every frame through the patched decide()
         r, w = await connect(listener)
         w.write(frame(Action.CYCLE_ON))
         await asyncio.sleep(0.1)

@@ -129,6 +129,7 @@ def mutant_box(transform: Transform | None = None, config: BoxConfig | None = No
                     return (transform(b, event, d) or d) if transport is Transport.TCP else d
 
                 b.decide = decide  # type: ignore[method-assign]
+                b.fast_path = False  # every frame through the patched decide()
 
             box.call(lambda: patch(box.behaviour))
         yield f"127.0.0.1:{box.tcp_port}|127.0.0.1:{box.udp_port}"

@@ -160,3 +160,20 @@ def test_a_reset_right_after_accept_is_an_outcome_not_an_exception(monkeypatch: 
         outcome = conn.request(request(Action.NONE))
     assert isinstance(outcome, Closed) and outcome.reset
     assert [e.kind for e in t.events][:2] == [Kind.CONNECT, Kind.PEER_RESET]
+
+
+def test_a_reset_during_connect_is_a_closed_outcome(monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a loaded machine the box's reset at accept can reach create_connection itself (ECONNRESET):
+    the box was reached, so that is what it did (Closed), not an unreachable target."""
+    import errno
+    import socket
+
+    def reset(*args: object, **kw: object) -> socket.socket:
+        raise ConnectionResetError(errno.ECONNRESET, "Connection reset by peer")
+
+    monkeypatch.setattr(socket, "create_connection", reset)
+    t = Transcript("t")
+    conn = TcpConnection(t, Target("127.0.0.1", 9), FAST).connect()
+    outcome = conn.request(request(Action.NONE))
+    assert isinstance(outcome, Closed) and outcome.reset
+    assert [e.kind for e in t.events][:2] == [Kind.CONNECT, Kind.PEER_RESET]

@@ -46,6 +46,7 @@ def zero_to_bad_pose_index(b: BoxBehaviour) -> None:
         return original(event, transport)
 
     b.decide = decide  # type: ignore[method-assign]
+    b.fast_path = False  # every frame through the patched decide()
 
 
 def zero_to_unknown_action(b: BoxBehaviour) -> None:
@@ -62,6 +63,7 @@ def zero_to_unknown_action(b: BoxBehaviour) -> None:
         return original(event, transport)
 
     b.decide = decide  # type: ignore[method-assign]
+    b.fast_path = False  # every frame through the patched decide()
 
 
 @contextmanager
@@ -101,7 +103,7 @@ class DyingBox:
                             conn.transport.abort()
             return original(event, transport)
 
-        box.call(lambda: setattr(b, "decide", decide))
+        box.call(lambda: (setattr(b, "decide", decide), setattr(b, "fast_path", False)))
         return box
 
     def restart(self) -> None:

@@ -30,6 +30,7 @@ def pose_error_during_a_cycle(b: BoxBehaviour) -> None:
         return decision
 
     b.decide = decide  # type: ignore[method-assign]
+    b.fast_path = False  # every frame through the patched decide()
 
 
 def test_sessions_against_the_bundled_box_pass(tmp_path: Path) -> None:

@@ -8,12 +8,17 @@ import time
 from html.parser import HTMLParser
 from importlib import resources
 
+from markupsafe import escape
+
 from conformance.report import render_html, write_html
+from conformance.report.clausetext import clause_text
+from conformance.report.diff import compare
 from conformance.report.html import WIRE_HEAD, WIRE_TAIL, pcap_href
-from conformance.report.summary import CLAUSES
+from conformance.report.html_cases import PRINT_CARDS, WIRE_PRINT_HEAD, WIRE_PRINT_TAIL
+from conformance.report.summary import CLAUSES, registry_version, write_summary
 from conformance.suite.verdicts import CaseResult, Level, Verdict, WireLine
 
-from .test_report_summary import sample_cases, sample_suite
+from .test_report_summary import sample_cases, sample_root_causes, sample_suite
 
 VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "track", "wbr"}
 
@@ -82,9 +87,10 @@ def _check(html: str) -> Checker:
     return checker
 
 
-def _render(tmp_path, cases=None, **suite_changes) -> tuple[str, Checker]:
+def _render(tmp_path, cases=None, root_causes=(), diff=None, **suite_changes) -> tuple[str, Checker]:
     path = tmp_path / "out" / "report.html"
-    write_html(path, sample_suite(**suite_changes), sample_cases() if cases is None else cases, pcap_base=tmp_path)
+    write_html(path, sample_suite(**suite_changes), sample_cases() if cases is None else cases, pcap_base=tmp_path,
+               root_causes=root_causes, diff=diff)
     html = path.read_text(encoding="utf-8")
     return html, _check(html)
 
@@ -118,6 +124,7 @@ def test_header_for_signing(tmp_path):
                    "none: UDP cases (F7, R7) are SKIP", "Tested by", "Signature", "Date"):
         assert needle in text, needle
     # the one non-default setting is highlighted
+    assert f"isight-conformance 0.1.0 · clause registry version {registry_version()}" in text
     changed = re.findall(r'<tr class="changed"><td class="mono">(\w+)</td>', html)
     assert changed == ["first_index"]
     assert "1 setting differs from PROTOCOL.md's defaults" in text
@@ -141,6 +148,15 @@ def test_clause_table_lists_every_clause(tmp_path):
     assert rows["T2"][2] == "PASS" and "T2-01" in rows["T2"]
     assert rows["R5"][2] == "ERROR"
     assert '<a class="chip v-FAIL" href="#case-F1-01">F1-01</a>' in html
+
+
+def test_a_clause_whose_cases_judged_another_clause_is_not_judged(tmp_path):
+    case = CaseResult("S4-01", "two connections", ("S4", "F2"), Level.MUST, Verdict.FAIL, judged=("F2",),
+                      message="F2: the answer is malformed")
+    html, checker = _render(tmp_path, cases=[case])
+    rows = {r[0]: r for r in checker.rows if r and r[0] in CLAUSES}
+    assert rows["S4"][2] == "not judged" and rows["F2"][2] == "FAIL" and rows["F1"][2] == "not tested"
+    assert "(not judged, their cases ended on another clause: S4)" in _text(checker)
 
 
 def test_cases_expanded_unless_pass(tmp_path):
@@ -178,9 +194,12 @@ def test_long_wire_log_is_cut_with_a_note(tmp_path):
     wire = [WireLine(i, 1, "→", "send", "fefe", f"line {i}") for i in range(2000)]
     case = CaseResult("R4-01", "many frames", ("R4",), Level.MUST, Verdict.FAIL, wire=wire)
     html, checker = _render(tmp_path, cases=[case])
-    assert html.count("<tr class=\"sent\">") == WIRE_HEAD + WIRE_TAIL
+    assert html.count("<tr class=\"sent") == WIRE_HEAD + WIRE_TAIL
     assert f"… {2000 - WIRE_HEAD - WIRE_TAIL} lines omitted here" in html
     assert "line 0<" in html and "line 1999<" in html and "line 1000<" not in html
+    # on paper: the first and last few lines, and a note
+    assert html.count("<tr class=\"sent\">") == WIRE_PRINT_HEAD + WIRE_PRINT_TAIL
+    assert f"… {2000 - WIRE_PRINT_HEAD - WIRE_PRINT_TAIL} lines not printed" in html
 
 
 def test_no_cases(tmp_path):
@@ -220,3 +239,130 @@ def test_a_robot_certification_report_names_the_robot() -> None:
     html = render_html(sample_suite(role="robot", target="robot at 127.0.0.1:9004 (client role)"), sample_cases())
     assert "Robot (client role) tested" in html and "The robot at" in html
     assert "The AI Box at" not in html and "Vision AI Box (server role)" not in html
+
+
+def _text(checker: Checker) -> str:
+    return " ".join(" ".join(checker.text).split())
+
+
+def _details_classes(html: str) -> dict[str, str]:
+    return dict((m.group(2), m.group(1)) for m in re.finditer(r'<details class="case ([^"]*)" id="([^"]+)"', html))
+
+
+def test_document_order_for_print(tmp_path):
+    """What was tested, the overall result, the sign-off, root causes, findings, clause table, then cases."""
+    cases, rcs = sample_root_causes()
+    html, _ = _render(tmp_path, cases=cases, root_causes=rcs)
+    marks = ['id="top"', 'id="overall"', 'id="signoff"', 'id="root-causes"', 'id="findings"', 'id="clauses"',
+             'id="totals"', 'id="cases"']
+    positions = [html.index(m) for m in marks]
+    assert positions == sorted(positions)
+
+
+def test_root_causes_lead_and_group_the_findings(tmp_path):
+    cases, rcs = sample_root_causes()
+    html, checker = _render(tmp_path, cases=cases, root_causes=rcs)
+    text = _text(checker)
+    assert "Root causes (1)" in text
+    assert "every answer carries version 01 00 instead of 00 01" in text
+    assert "explains 14 cases: 12 FAIL, 2 NON-STRICT" in text
+    assert f"F2 ({clause_text('F2').level}): {clause_text('F2').text}" in text
+    assert "0000 fe fe 01 00 10 00 00 00 00 00 00 00 00 00" in text  # the evidence as a hexdump
+    findings = html[html.index('id="findings"'):html.index('id="clauses"')]
+    rc_group = findings.index("RC1</a>: every answer carries")
+    rest = findings.index("Not explained by a root cause (4 cases)")
+    assert rc_group < findings.index("A5-01[v00]") < rest < findings.index("F1-01")
+    assert findings.index("A5-01[v11]") < findings.index("A3-01[g0]") < rest  # worst first in a group
+    for absent in ("T2-01", "S3-02", "F7-01", "B3-01"):  # PASS, INFORMATIONAL and SKIP are not findings
+        assert absent not in findings
+    assert "1 INFORMATIONAL and 1 SKIP cases are listed with all cases" in text
+
+
+def test_cases_a_root_cause_explains_are_one_click_away(tmp_path):
+    cases, rcs = sample_root_causes()
+    html, checker = _render(tmp_path, cases=cases, root_causes=rcs)
+    assert checker.details["case-A5-01_v00_"] is True  # the first one is its example
+    assert all(checker.details[f"case-A5-01_v{i:02d}_"] is False for i in range(1, 12))
+    assert checker.details["case-F1-01"] is True and checker.details["case-T2-01"] is False
+    assert "openTarget" in html  # a link to a closed case opens it
+
+
+def test_print_cards(tmp_path):
+    cases, rcs = sample_root_causes()
+    html, _ = _render(tmp_path, cases=cases, root_causes=rcs)
+    classes = _details_classes(html)
+    cards = {anchor for anchor, cls in classes.items() if "card" in cls.split()}
+    # FAIL/ERROR/NON-STRICT/INCONCLUSIVE with a finding of their own, and the first case of RC1
+    assert cards == {"case-F1-01", "case-A5-01_v00_", "case-A3-02", "case-S2-01", "case-R5-03"}
+    # the other findings print under Findings only; PASS, INFORMATIONAL and SKIP print one line each
+    assert "pextra" in classes["case-A5-01_v01_"].split() and "pextra" in classes["case-A3-01_g0_"].split()
+    for anchor in ("case-T2-01", "case-S3-02", "case-F7-01"):
+        assert not {"pextra", "card"} & set(classes[anchor].split())
+    css = html[html.index("@media print"):html.index("</style>")]
+    assert "details.case:not(.card) > .case-body { display: none; }" in css
+    assert ".pextra { display: none !important; }" in css
+
+
+def test_print_cards_group_repeated_findings_and_are_bounded(tmp_path):
+    same = [CaseResult(f"R1-10[tc{i}]", "vector", ("R1",), Level.MUST, Verdict.FAIL,
+                       message=f"R1: vector tc{i} breaks F1 and MUST NOT be answered 0000: expected silence")
+            for i in range(30)]
+    distinct = [CaseResult(f"X{i}", "t", ("A1",), Level.MUST, Verdict.FAIL, message=f"A1: finding {'abcdefghijklmnopqrstuvwxyz'[i % 26] * (1 + i // 26)}: expected x")
+                for i in range(PRINT_CARDS + 10)]
+    html, _ = _render(tmp_path, cases=same + distinct)
+    cards = [a for a, cls in _details_classes(html).items() if "card" in cls.split()]
+    assert cards[0] == "case-R1-10_tc0_" and "case-R1-10_tc1_" not in cards  # one card for one finding
+    assert len(cards) == PRINT_CARDS
+
+
+def test_non_pass_cases_show_their_clause_text(tmp_path):
+    html, checker = _render(tmp_path)
+    text = _text(checker)
+    r1 = clause_text("R1")
+    assert f"R1 ({r1.level}): {r1.text}" in text  # F1-01 judged R1
+    body = html[html.index('id="case-A3-02"'):html.index('id="case-T2-01"')]
+    assert str(escape(clause_text("A3").text)) in body
+    passing = html[html.index('id="case-T2-01"'):html.index('id="case-S2-01"')]
+    assert 'class="clause-texts' not in passing
+
+
+def test_clause_table_on_paper_names_only_cases_that_did_not_pass(tmp_path):
+    html, _ = _render(tmp_path)
+    t2 = html[html.index('<td class="cid">T2</td>'):]
+    t2 = t2[:t2.index("</tr>")]
+    assert 'class="chip v-PASS pextra"' in t2 and "1 case: 1 PASS" in t2
+    f1 = html[html.index('<td class="cid">F1</td>'):]
+    f1 = f1[:f1.index("</tr>")]
+    assert '<a class="chip v-FAIL" href="#case-F1-01">' in f1 and "1 case: 1 FAIL" in f1
+
+
+def test_incomplete_run(tmp_path):
+    not_run = [f"R2-{i:02d}" for i in range(40)]
+    html, checker = _render(tmp_path, complete=False, cases_total=48, not_run=not_run)
+    text = _text(checker)
+    assert "INCOMPLETE (8 of 48 cases run)" in text and "CONFORMS" not in text
+    assert 'class="overall o-fails"' in html  # it failed so far
+    assert "8 run of 48 selected" in text
+    assert "40 cases: R2-00, R2-01" in text and "R2-29 … and 10 more" in text and "R2-30" not in text
+    passing = [c for c in sample_cases() if c.verdict is Verdict.PASS]
+    html, _ = _render(tmp_path, cases=passing, complete=False, cases_total=10, not_run=["S4-01"])
+    assert 'class="overall o-incomplete"' in html and "INCOMPLETE (2 of 10 cases run)" in html
+
+
+def test_baseline_section(tmp_path):
+    old_cases = sample_cases()
+    new_cases = [CaseResult(c.id, c.title, c.clauses, c.level,
+                            {"B3-01": Verdict.FAIL, "F1-01": Verdict.PASS}.get(c.id, c.verdict), message=c.message)
+                 for c in old_cases]
+    old = write_summary(tmp_path / "old.json", sample_suite(), old_cases)
+    new = write_summary(tmp_path / "new.json", sample_suite(), new_cases)
+    diff = compare(old, new, "old/summary.json", "new/summary.json")
+    html, checker = _render(tmp_path, cases=new_cases, diff=diff)
+    text = _text(checker)
+    section = html[html.index('id="baseline"'):html.index('id="clauses"')]
+    assert "Changes since the baseline run" in text and "Got worse:" in text
+    assert "Got worse (1)" in section and "PASS → FAIL" in section and 'href="#case-B3-01"' in section
+    assert "Got better (1)" in section and "FAIL → PASS" in section
+    assert html.index('id="findings"') < html.index('id="baseline"') < html.index('id="clauses"')
+    html, _ = _render(tmp_path)
+    assert 'id="baseline"' not in html

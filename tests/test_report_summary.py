@@ -14,8 +14,17 @@ import pytest
 
 from conformance.protocol import DEFAULT_PROFILE
 from conformance.report import by_clause, conforms, overall_line, totals, write_summary
-from conformance.report.summary import CLAUSES, FAMILIES, clean_text, format_duration, group_hex, hex_bytes, worst
-from conformance.suite.verdicts import VERDICT_ORDER, CaseResult, Level, SuiteInfo, Verdict, WireLine
+from conformance.report.summary import (
+    CLAUSES,
+    FAMILIES,
+    clean_text,
+    format_duration,
+    group_hex,
+    hex_bytes,
+    registry_version,
+    worst,
+)
+from conformance.suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict, WireLine
 
 HOSTILE = "<script>alert('x')</script> & \x00\x1b[31m\ud800 ]]> [bold]markup[/]"
 
@@ -65,6 +74,28 @@ def sample_cases() -> list[CaseResult]:
                    message="OSError: too many open files (suite side)", details={"traceback": "Traceback ...\nOSError"}),
         CaseResult("B3-01", "Indexes rise by one", ("B3",), Level.MUST, Verdict.PASS, 0.01, wire=_wire(2)),
     ]
+
+
+def sample_root_causes() -> tuple[list[CaseResult], list[RootCause]]:
+    """A systematic defect: every answer's version swapped. RC1 explains 12 FAILs and 2
+    NON-STRICTs; one FAIL and the rest of the sample are not explained by it."""
+    cases = sample_cases()
+    explained = [
+        CaseResult(f"A5-01[v{i:02d}]", f"Frame {i} that is not a request", ("A5", "R1", "F2"), Level.MUST, Verdict.FAIL,
+                   0.02, message=f"A5: a frame that is not a request MUST NOT be answered 0000: variant {i}",
+                   requirement="A5: a frame that is not a request MUST NOT be answered 0000",
+                   sent_hex="fefe0001" + "01" * 10, received_hex="fefe0100" + "10" * 10, root_cause="RC1",
+                   wire=_wire(4))
+        for i in range(12)
+    ] + [
+        CaseResult(f"A3-01[g{i}]", "Gap in indexes", ("A3", "B3"), Level.SHOULD, Verdict.NON_STRICT, 0.02,
+                   message="A3: a parse error SHOULD be answered 1001", root_cause="RC1")
+        for i in range(2)
+    ]
+    rc = RootCause("RC1", ("F2", "A2"), "every answer carries version 01 00 instead of 00 01",
+                   "fe fe 01 00 10 00 00 00 00 00 00 00 00 00", [c.id for c in explained], Level.MUST,
+                   "malformed-answers")
+    return cases[:1] + explained + cases[1:], [rc]
 
 
 # -- totals / by_clause / overall ------------------------------------------------------
@@ -145,11 +176,22 @@ def test_write_summary_shape(tmp_path):
     assert set(doc["suite"]) == {"version", "started", "duration_s", "target", "profile", "udp_target", "extension",
                                  "expected_failures", "command", "role", "complete", "cases_total", "not_run",
                                  "registry_version"}
+    assert doc["suite"]["registry_version"] == registry_version()
+    assert all(case["clauses"] for case in doc["cases"])
     assert doc["suite"]["profile"]["tcp_check"] == "zero-or-crc"
     assert doc["suite"]["profile"]["first_index"] == 1
     assert doc["cases"] == json.loads(json.dumps([c.to_summary() for c in cases]))
     assert doc["totals"] == totals(cases)
     assert set(doc["totals"]) == {v.value for v in Verdict}
+
+
+def test_write_summary_root_causes_and_registry_version(tmp_path):
+    cases, rcs = sample_root_causes()
+    doc = write_summary(tmp_path / "summary.json", sample_suite(registry_version="7"), cases, rcs)
+    assert doc["suite"]["registry_version"] == "7"  # a version the run set is kept
+    assert doc["root_causes"] == [rcs[0].to_dict()]
+    assert doc["root_causes"][0]["cases"][0] == "A5-01[v00]"
+    assert {c["id"]: c["root_cause"] for c in doc["cases"]}["A5-01[v11]"] == "RC1"
 
 
 def test_write_summary_survives_hostile_text(tmp_path):

@@ -8,9 +8,13 @@ import re
 from rich.console import Console
 
 from conformance.report import Progress, print_final_table
+from conformance.report.clausetext import clause_text
+from conformance.report.terminal import LISTED, NOT_RUN_SHOWN, ROWS_PER_ROOT_CAUSE
 from conformance.suite.verdicts import CaseResult, Level, Verdict
 
-from .test_report_summary import sample_cases, sample_suite
+from .test_report_summary import sample_cases, sample_root_causes, sample_suite
+
+VERDICT_WORDS = tuple(v.value for v in Verdict)
 
 ANSI = re.compile(r"\x1b\[")
 
@@ -35,9 +39,15 @@ def test_not_a_tty_prints_one_plain_line_per_non_pass_case():
     _run(progress, cases)
     out = console.file.getvalue()
     lines = out.splitlines()
-    assert len(lines) == sum(c.verdict is not Verdict.PASS for c in cases)
+    case_lines = [line for line in lines if line.startswith(VERDICT_WORDS)]
+    assert len(case_lines) == sum(c.verdict is not Verdict.PASS for c in cases)
     assert not ANSI.search(out)
     assert lines[0].startswith("FAIL          F1-01 [F1, R1] box answered 0000")
+    # each case line is followed by the text of the clause(s) its verdict judged
+    assert re.match(r"^ {14}R1( \(MUST\))?: " + re.escape(clause_text("R1").text[:40]), lines[1])
+    assert all(line.startswith(" " * 14) for line in lines if line not in case_lines)
+    assert all(len(line) <= 120 for line in lines if line not in case_lines)  # cut to the console's width
+    assert len(lines) - len(case_lines) >= len(case_lines)
     assert "T2-01" not in out and "B3-01" not in out  # PASS cases say nothing
     assert "[bold]markup[/]" in out  # a box's text is never read as markup
 
@@ -79,15 +89,15 @@ def test_progress_as_context_manager_stops():
 
 
 def test_final_table():
-    console = _console()
+    console = Console(file=io.StringIO(), width=160)
     cases = sample_cases()
     print_final_table(sample_suite(), cases, console,
                       reports={"HTML report": "out/report.html", "JUnit": "out/junit.xml"})
     out = console.file.getvalue()
-    assert "6 of 8 cases did not pass" in out
+    assert "4 of 8 cases FAIL, ERROR, NON-STRICT or INCONCLUSIVE; 1 INFORMATIONAL and 1 SKIP counted, not listed" in out
     for case in cases:
-        assert (case.id in out) is (case.verdict is not Verdict.PASS)
-    assert out.index("F1-01") < out.index("R5-03") < out.index("A3-02") < out.index("F7-01")  # worst first
+        assert (case.id in out) is (case.verdict in LISTED)
+    assert out.index("F1-01") < out.index("R5-03") < out.index("A3-02") < out.index("S2-01")  # worst first
     assert "F1, R1" in out and "too many open files" in out
     assert "[bold]markup[/]" in out
     assert "Totals: FAIL 1 · ERROR 1 · NON-STRICT 1 · INCONCLUSIVE 1 · INFORMATIONAL 1 · SKIP 1 · PASS 2" in out
@@ -111,3 +121,70 @@ def test_final_table_colours_on_a_terminal():
     console = _console(force_terminal=True, color_system="standard")
     print_final_table(sample_suite(), sample_cases(), console)
     assert ANSI.search(console.file.getvalue())
+
+
+def _lines_at_80(**kwargs) -> list[str]:
+    console = Console(file=io.StringIO(), width=80)
+    print_final_table(console=console, **kwargs)
+    return console.file.getvalue().splitlines()
+
+
+def _check_80(lines: list[str]) -> None:
+    for line in lines:
+        assert len(line) <= 80, line
+        assert len(line.split()) != 1, f"a lone word on a line: {line!r}"
+
+
+def test_final_table_at_80_columns_cuts_never_wraps():
+    long = CaseResult("R1-11[tcp-robot-to-box-tc17-with-a-long-name]", "t", ("A1", "A4", "B1", "B2", "B3", "B4", "B5"),
+                      Level.MUST, Verdict.FAIL, message="A5: a frame that is not a request MUST NOT be answered 0000: "
+                      "expected did not answer 0000 (silence, a non-zero error, or a close); the box sent " * 3)
+    lines = _lines_at_80(suite=sample_suite(), cases=[*sample_cases(), long], reports={"HTML report": "r/report.html"})
+    _check_80(lines)
+    row = next(line for line in lines if "R1-11" in line)
+    assert row.rstrip().endswith("…")  # the message is cut
+    assert re.search(r"R1-11\[tcp-robot-to-box-\S*… +A1, A4, B1,?… +A5: a frame that is", row)  # id, clauses cut
+    assert sum(1 for line in lines if "R1-11" in line) == 1
+    assert any(line.startswith("DOES NOT CONFORM: 2 FAIL, 1 ERROR;") for line in lines)
+    assert any("INCONCLUSIVE (not judged)" in line for line in lines)
+
+
+def test_final_table_root_causes_lead_and_group_rows():
+    cases, rcs = sample_root_causes()
+    lines = _lines_at_80(suite=sample_suite(), cases=cases, root_causes=rcs)
+    _check_80(lines)
+    out = "\n".join(lines)
+    assert lines[0] == "Root causes (1), most explanatory first:"
+    assert lines[1].startswith("  RC1 [F2, A2] every answer carries version 01 00 instead of 00 01 (14 cases)")
+    assert clause_text("F2").text[:30] in lines[2]
+    group = out.index("RC1: every answer carries version 01 00 instead of 00 01 (14)")
+    assert out.index("Root causes") < group < out.index("A5-01[v00]") < out.index("Not explained by a root cause (4)")
+    assert f"… and {14 - ROWS_PER_ROOT_CAUSE} more explained by RC1" in out
+    assert f"A5-01[v{ROWS_PER_ROOT_CAUSE:02d}]" not in out and "A3-01[g0]" not in out  # beyond the cap
+    rest = out[out.index("Not explained by a root cause"):]
+    for cid in ("F1-01", "R5-03", "A3-02", "S2-01"):
+        assert cid in rest
+
+
+def test_final_table_incomplete_run_lists_cases_not_run():
+    not_run = [f"R2-{i:02d}" for i in range(25)]
+    suite = sample_suite(complete=False, cases_total=33, not_run=not_run)
+    lines = _lines_at_80(suite=suite, cases=sample_cases())
+    _check_80(lines)
+    out = "\n".join(lines)
+    assert "INCOMPLETE (8 of 33 cases run): DOES NOT CONFORM so far: 1 FAIL, 1 ERROR;" in out
+    assert "CONFORMS (no" not in out
+    assert "Not run (25): R2-00, R2-01," in out
+    assert f"R2-{NOT_RUN_SHOWN - 1:02d}, … and {25 - NOT_RUN_SHOWN} more" in out
+    assert f"R2-{NOT_RUN_SHOWN:02d}" not in out
+
+
+def test_final_table_counts_informational_and_skip_only():
+    cases = [CaseResult("B1-01", "ok", ("B1",), Level.MUST, Verdict.PASS),
+             CaseResult("F7-01", "udp", ("F7",), Level.MUST, Verdict.SKIP, message="no --udp-target"),
+             CaseResult("S3-02", "info", ("S3",), Level.MAY, Verdict.INFORMATIONAL, message="answered 0002")]
+    lines = _lines_at_80(suite=sample_suite(), cases=cases)
+    out = "\n".join(lines)
+    assert "F7-01" not in out and "S3-02" not in out
+    assert "No case FAIL, ERROR, NON-STRICT or INCONCLUSIVE among 3." in out
+    assert "INFORMATIONAL 1 · SKIP 1 · PASS 1" in " ".join(out.split())

@@ -15,8 +15,9 @@ import pytest
 from conformance.harness.client import Answer, Outcome
 from conformance.protocol import (
     ACTION_ERROR,
+    BLOCK_LEN,
+    REQUEST_SHAPE,
     Action,
-    BlockType,
     Header,
     Profile,
     encode_raw,
@@ -30,8 +31,8 @@ from conformance.suite.judge import NOT_OK, answered, check
 from conformance.suite.verdicts import Level
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
-#: block type and length of the blocks each data action carries (B1, B2, B5)
-SHAPE = {POSE: (BlockType.POSE, 25), REG: (BlockType.POSE, 25), TOL: (BlockType.TOLERANCE, 5)}
+#: block type and length of the blocks each data action carries (B1, B2, B5): the protocol's shape table
+SHAPE = {a: (REQUEST_SHAPE[a].block_type, BLOCK_LEN[REQUEST_SHAPE[a].block_type]) for a in (POSE, REG, TOL)}
 ACTION_IDS = {POSE: "pose", REG: "register-pose", TOL: "tolerance"}
 
 

@@ -18,7 +18,6 @@ from collections.abc import Sequence
 
 import pytest
 
-from conformance.endpoints.trajectory import PrimerTrajectory
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
 from conformance.protocol import (
     Action,
@@ -31,14 +30,13 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
+from conformance.protocol.answers import CONFLICT, SENDABLE_RESULTS
 from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, answered, check, fail
 from conformance.suite.verdicts import Level
+from conformance.trajectory import PrimerTrajectory
 
-#: E3: the result codes a box may send (0 and 404 are the robot's own values).
-SENDABLE_RESULTS = (1, 2, 10, 20, 202, 400, 409)
-CONFLICT = int(ResultCode.CONFLICT)
 #: E2 with ``progidx_conflict = "error-code"``: "409" in the error field, read as the
 #: number 409 (0x0199) or written like the document's other codes ("10 01") as 04 09.
 CONFLICT_ERRORS = (CONFLICT, 0x0409)

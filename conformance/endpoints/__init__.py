@@ -8,10 +8,10 @@
 * :mod:`.trajectory` — the primer trajectory the simulated robot streams.
 """
 
+from ..trajectory import PrimerTrajectory, RoundedRectangle
 from .behaviour import BoxBehaviour, BoxConfig, BoxConnection, Cycle, Decision, Reaction
 from .box import BoxThread, FrameLog, ReferenceBox
 from .robot import RobotFaults, RobotResult, RobotSession, TimelineEntry, parse_target, run_robot
-from .trajectory import PrimerTrajectory, RoundedRectangle
 
 __all__ = [
     "BoxBehaviour", "BoxConfig", "BoxConnection", "BoxThread", "Cycle", "Decision", "FrameLog", "PrimerTrajectory",

@@ -75,17 +75,8 @@ from ..protocol import (
     request,
     value_blocks,
 )
-from ..protocol.constants import EXTENSION_ACTIONS, MAX_FRAME_LEN, START_WORD, VERSION
-
-#: Result codes a box may send (E3); 0 and 404 are the robot's own values.
-SENDABLE_RESULTS = (1, 2, 10, 20, 202, 400, 409)
-
-
-class Cycle(str, enum.Enum):
-    """The box's cycle state (S2, S3)."""
-
-    IDLE = "idle"
-    ON = "on"
+from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes, request_action
+from ..protocol.constants import EXTENSION_ACTIONS, MAX_FRAME_LEN
 
 
 class Reaction(str, enum.Enum):
@@ -118,6 +109,8 @@ CONDITIONS: dict[Action, str] = {
 }
 
 _IDLE, _ON = Cycle.IDLE, Cycle.ON
+#: The states the box itself knows (a tester may not know it: protocol.answers.Cycle.UNKNOWN).
+BOX_STATES = (_IDLE, _ON)
 _ALWAYS = {  # state-independent requests: action -> (reaction when true, reaction when false)
     Action.NONE: (Reaction.OK, Reaction.OK),
     Action.POSE: (Reaction.OK, Reaction.OK),
@@ -139,7 +132,7 @@ TRANSITIONS: dict[tuple[Cycle, Action, bool], Transition] = {
     (_IDLE, Action.CYCLE_OFF, False): Transition(Reaction.CYCLE_OFF_FAILED, _IDLE, "A3: CycleOff failed, 0002"),
     **{
         (state, action, cond): Transition(pair[0] if cond else pair[1], state, "")
-        for state in Cycle
+        for state in BOX_STATES
         for action, pair in _ALWAYS.items()
         for cond in (True, False)
     },
@@ -171,6 +164,7 @@ REACTION_ANSWER: dict[Reaction, tuple[int, int | None]] = {
     Reaction.NOT_UNDERSTOOD: (ResultCode.NOT_UNDERSTOOD, ResultCode.NOT_UNDERSTOOD),
 }
 
+_KNOWN_ACTIONS = frozenset(int(a) for a in Action)
 #: UDP errors that R7 says to drop silently: wrong CRC, not exactly one frame.
 _UDP_DROP = frozenset({"F7", "F5"})
 
@@ -249,8 +243,8 @@ class BoxBehaviour:
         self.prog_idx: int | None = None
         self.stats = BoxStats()
         #: Let connections answer valid one-pose frames without calling :meth:`decide`.
-        #: Connections opened while it is False, or after ``decide`` was replaced on the
-        #: instance (a deliberately broken box), route every frame through ``decide``.
+        #: Connections opened while it is False route every frame through ``decide`` (set it
+        #: False when replacing ``decide`` to plant a defect).
         self.fast_path = True
         self.configure(config)
 
@@ -276,6 +270,10 @@ class BoxBehaviour:
             if cond != (conditions[knob] if knob else True):
                 continue
             decision = self._build(action, reaction, note)
+            allowed = allowed_codes(action, state)
+            if decision.frame is not None and allowed is not None and decision.frame.error_code not in allowed:
+                raise AssertionError(f"the box's table answers {action.name} in state {state.value} with "
+                                     f"{decision.frame.error_code:04X}; the protocol allows {sorted(allowed)}")
             self._table[(state, action)] = (decision, nxt)
         self._malformed: dict[Action, Decision] = {}
         for action, reaction in MALFORMED.items():
@@ -360,17 +358,12 @@ class BoxBehaviour:
         return self._malformed[action]
 
     def request_action(self, error: ProtocolError) -> Action | None:
-        """The action of the request ``error`` is about, or None when it is not a request (A5)."""
-        h = error.header
-        if h is None or h.start_word != START_WORD or h.version != VERSION:
+        """The action of the request ``error`` is about (one this box implements), or None when it is
+        not a request (A5)."""
+        action = request_action(error.header)
+        if action is None or action not in _KNOWN_ACTIONS:
             return None
-        if h.transfer_type != TransferType.ROBOT_TO_BOX:
-            return None
-        try:
-            action = Action(h.action)
-        except ValueError:
-            return None
-        return action if action in self._malformed else None
+        return Action(action) if Action(action) in self._malformed else None
 
     # -- UDP -----------------------------------------------------------------------------
     def receive_datagram(self, data: bytes, trace: Tracer | None = None) -> bytes | None:
@@ -426,7 +419,7 @@ class BoxConnection:
         self._exp = tuple(13 + 4 * j + (0 if profile.float_byte_order == "big" else 3) for j in range(6))
         self._floats = codec.pose.unpack_from
         # the fast path needs the decision for a pose to be the constant 0000 of decide()
-        self._fast = trace is None and bool(self._ok) and behaviour.fast_path and "decide" not in vars(behaviour)
+        self._fast = trace is None and bool(self._ok) and behaviour.fast_path
         self._mirror = bytearray()
         self._mirror_base = 0
         self.frames_in = 0

@@ -51,10 +51,10 @@ from ..protocol import (
     request,
     value_blocks,
 )
+from ..protocol.answers import SENDABLE_RESULTS
 from ..protocol.frames import ValueBlock
 from ..stats import percentile
-from .behaviour import SENDABLE_RESULTS
-from .trajectory import Pose, PrimerTrajectory
+from ..trajectory import Pose, PrimerTrajectory
 
 EXIT_OK = 0
 EXIT_MISBEHAVED = 1  # the box broke the protocol (wrong code, action, malformed answer, ...)

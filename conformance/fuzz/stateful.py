@@ -27,11 +27,11 @@ from hypothesis import strategies as st
 from hypothesis.errors import Flaky
 from hypothesis.stateful import RuleBasedStateMachine, precondition, rule, run_state_machine_as_test
 
-from ..endpoints.behaviour import SENDABLE_RESULTS
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..harness.target import Unreachable
 from ..harness.transcript import Transcript
 from ..protocol import BLOCK_LEN, Action, BlockType, Header, Transport, codec_for
+from ..protocol.answers import SENDABLE_RESULTS
 from ..suite.verdicts import Verdict
 from .evidence import Failure, clauses_of
 from .executor import Executor, FuzzConnection, alive
@@ -57,6 +57,15 @@ class StatefulFailure(AssertionError):
         self.sequence = list(machine.sequence)
         self.transcript: Transcript = machine.tr
         self.case = case
+
+
+class StatefulHang(BaseException):
+    """A session failure where the box stayed silent for time_out: reported as found, not shrunk
+    (every shrink step would wait time_out again). A BaseException, so hypothesis lets it through."""
+
+    def __init__(self, failure: StatefulFailure) -> None:
+        super().__init__(str(failure))
+        self.failure = failure
 
 
 def _codes(codes: set[int] | frozenset[int] | None) -> Any:
@@ -107,7 +116,9 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
             self.sequence.append({"open": name, "target": "stream" if name == "stream" else "command"})
             self.log.append(f"open {name}")
 
-        def _fail(self, finding: Finding, case: FuzzCase) -> None:
+        def _fail(self, finding: Finding, case: FuzzCase, hang: bool = False) -> None:
+            if hang and not campaign.stateful_shrinking:
+                raise StatefulHang(StatefulFailure(finding, self, case))
             campaign.stateful_shrinking = True  # from now on every step runs: hypothesis is shrinking
             raise StatefulFailure(finding, self, case)
 
@@ -130,7 +141,7 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
             judgement = judge((exp,), answers, outcome if isinstance(outcome, (Closed, Silence)) else None, profile)
             case = FuzzCase("session", "", data, what, expects=(exp,))
             for finding in judgement.failures:
-                self._fail(finding, case)
+                self._fail(finding, case, hang=isinstance(outcome, Silence))
             if isinstance(outcome, (Closed, Silence)):
                 self._open(name)
             return outcome
@@ -203,7 +214,7 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
                 outcomes.append(o)
             campaign.stateful_steps += count
             for finding in judge(case.expects, outcomes, end, profile).failures:
-                self._fail(finding, case)
+                self._fail(finding, case, hang=isinstance(end, Silence))
 
         @rule(raw=st.binary(min_size=24, max_size=72))
         def register_pose(self, raw: bytes) -> None:
@@ -247,7 +258,7 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
             result = self.executor.exchange(self.conns[on], case, f"malformed: {case.describe()}")
             campaign.stateful_steps += 1
             for finding in result.judgement.failures:
-                self._fail(finding, case)
+                self._fail(finding, case, hang=isinstance(result.end, Silence))
             if any(e.action in (Action.CYCLE_ON, Action.CYCLE_OFF) for e in case.expects):
                 self.cycle = None
             if result.conn < 0:  # the box closed or hung (allowed after bytes that are not a request)
@@ -294,22 +305,26 @@ def run_stateful(campaign: Campaign) -> None:
         except StatefulFailure as exc:
             _record(campaign, exc)
             return
+        except StatefulHang as exc:  # not shrunk: each step would wait time_out
+            _record(campaign, exc.failure, shrunk=False)
+            return
         except Flaky as exc:
             cfg.log(f"fuzz: a session failure did not reproduce when hypothesis replayed it ({type(exc).__name__})")
             return
         chunk += 1
 
 
-def _record(campaign: Campaign, exc: StatefulFailure) -> None:
+def _record(campaign: Campaign, exc: StatefulFailure, shrunk: bool = True) -> None:
     from .evidence import write_pcap, write_vectors
 
     cfg = campaign.config
     number = len(campaign.failures) + 1
     name = f"{cfg.name}-{number:03d}"
     f = exc.finding
-    message = f"{f.requirement}; the box {f.observed} (session of {len(exc.steps)} steps, shrunk by hypothesis)"
+    how = "shrunk by hypothesis" if shrunk else "not shrunk: the box hung, each shrink step would wait time_out"
+    message = f"{f.requirement}; the box {f.observed} (session of {len(exc.steps)} steps, {how})"
     failure = Failure(number, "stateful", clauses_of(exc.case, [f.clause]), message, [exc.case] if exc.case.data else [],
-                      shrunk=True, steps=exc.steps)
+                      shrunk=shrunk, steps=exc.steps)
     desc = f"isight-conformance fuzz: session failure {number} against {cfg.target} (seed {campaign.seed})"
     if failure.cases and cfg.report_dir is not None:
         failure.vector = write_vectors(cfg.report_dir / f"{name}.json", failure, cfg.profile, desc)

@@ -13,6 +13,7 @@ import errno
 import select
 import socket
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 from ..protocol import (
@@ -57,7 +58,9 @@ class Malformed:
         return self.error.raw
 
     def describe(self) -> str:
-        return f"sent a malformed answer: {self.error} ({self.error.raw.hex(' ')})"
+        raw = self.error.raw
+        shown = raw[:SHOWN_BYTES].hex(" ") + (f" … ({len(raw)} bytes)" if len(raw) > SHOWN_BYTES else "")
+        return f"sent a malformed answer: {self.error} ({shown})"
 
 
 @dataclass(frozen=True)
@@ -94,9 +97,13 @@ class Closed:
 
 Outcome = Answer | Malformed | Silence | Closed
 
-#: The suite reads (and records) at most this many bytes from one connection; a box that sends
-#: more is flooding it: the suite stops reading and resets the connection (bounded memory).
-FLOOD_BYTES = 1 << 20
+#: A box may send this many bytes on one connection, plus FLOOD_PER_SENT times what the suite sent on it
+#: (answers are no longer than the requests they answer); more is a flood: the suite stops reading and
+#: resets the connection, having recorded the first bytes as evidence (bounded memory and disk).
+FLOOD_BYTES = 64 * 1024
+FLOOD_PER_SENT = 4
+#: Descriptions quote at most this many bytes of what the box sent.
+SHOWN_BYTES = 64
 #: drain() takes at most this many outcomes (a box that never goes quiet ends the drain).
 MAX_DRAIN = 64
 
@@ -126,7 +133,10 @@ class TcpConnection:
         self.closed_by_peer: Closed | None = None
         self._closed = False
         self.received_bytes = 0
+        self.sent_bytes = 0
         self.max_bytes = FLOOD_BYTES
+        #: called with every chunk before it is sent (the suite's session rules may stop a case here)
+        self.before_send: Callable[[bytes], None] | None = None
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:
@@ -199,6 +209,8 @@ class TcpConnection:
         """Write all of ``data``; False (and a recorded close/reset) if the box is gone."""
         if isinstance(data, Frame):
             data = self.codec.encode(data, Transport.TCP)
+        if self.before_send is not None:
+            self.before_send(data)
         if self.closed_by_peer and self.closed_by_peer.reset:
             return False
         assert self.sock is not None, "connect() first"
@@ -218,6 +230,7 @@ class TcpConnection:
                 self._peer_gone(exc)
                 return False
         self.transcript.add(self.conn_id, Kind.SEND, data[:sent], note)
+        self.sent_bytes += sent
         return sent == len(data)
 
     def send_pieces(self, pieces: list[bytes], gap_s: float = 0.0, note: str = "") -> bool:
@@ -275,7 +288,7 @@ class TcpConnection:
             self.transcript.add(self.conn_id, Kind.RECV, data)
             self.decoder.receive_data(data)
             self.received_bytes += len(data)
-            if self.received_bytes > self.max_bytes:
+            if self.received_bytes > self.max_bytes + FLOOD_PER_SENT * self.sent_bytes:
                 self._stop_flood(start)
         else:
             self.closed_by_peer = Closed(False, time.monotonic() - start)
@@ -285,8 +298,8 @@ class TcpConnection:
     def _stop_flood(self, start: float) -> None:
         """The box sent more than ``max_bytes``: stop reading, reset, and end the stream here."""
         self.closed_by_peer = Closed(False, time.monotonic() - start, flood=self.received_bytes)
-        self.transcript.note(f"the box sent {self.received_bytes} bytes on this connection, more than the "
-                             f"{self.max_bytes} the suite reads from one connection: it stops reading and resets",
+        self.transcript.note(f"the box sent {self.received_bytes} bytes on this connection (the suite sent "
+                             f"{self.sent_bytes}): a flood; the suite stops reading and resets the connection",
                              self.conn_id)
         self.abort("flood")
         self.decoder.receive_data(b"")

@@ -13,6 +13,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
+#: Received bytes one case records at most (the first ones: enough for the evidence of a flood).
+RECV_BUDGET = 4 << 20
+
 
 class Kind:
     """What happened on a connection (WireEvent.kind)."""
@@ -74,6 +77,10 @@ class Transcript:
     clock: Callable[[], float] = time.time
     #: how many waits for an answer ran out the full time_out (an unresponsive box)
     timeouts: int = 0
+    #: at most this many received bytes are recorded (a flooding box): more are counted, not kept
+    recv_budget: int = RECV_BUDGET
+    recorded_recv: int = 0
+    unrecorded_recv: int = 0
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def open(self, transport: str, local: Endpoint, remote: Endpoint, label: str = "") -> ConnectionInfo:
@@ -86,6 +93,17 @@ class Transcript:
 
     def add(self, conn: int, kind: str, data: bytes = b"", note: str = "") -> WireEvent:
         with self._lock:
+            if kind == Kind.RECV and data:
+                room = max(0, self.recv_budget - self.recorded_recv)
+                if len(data) > room:
+                    if not self.unrecorded_recv:
+                        self._note_locked(conn, f"the box has sent more than {self.recv_budget} bytes in this case: "
+                                                "further bytes are counted, not recorded")
+                    self.unrecorded_recv += len(data) - room
+                    data = data[:room]
+                self.recorded_recv += len(data)
+                if not data:
+                    return WireEvent(self.clock(), conn, kind, b"", note)
             event = WireEvent(self.clock(), conn, kind, bytes(data), note)
             self.events.append(event)
             info = self.connections.get(conn)
@@ -96,6 +114,14 @@ class Transcript:
 
     def note(self, text: str, conn: int = 0) -> None:
         self.add(conn, Kind.NOTE, note=text)
+
+    def _note_locked(self, conn: int, text: str) -> None:
+        event = WireEvent(self.clock(), conn, Kind.NOTE, b"", text)
+        self.events.append(event)
+        info = self.connections.get(conn)
+        if info is not None:
+            for listener in self.listeners:
+                listener.on_event(self, info, event)
 
     def close(self) -> None:
         """Close every listener (flushes evidence); the transcript stays readable."""

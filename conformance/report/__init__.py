@@ -37,5 +37,5 @@ def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult],
     """summary.json, junit.xml and report.html into ``report_dir``, each written atomically."""
     report_dir.mkdir(parents=True, exist_ok=True)
     write_summary(report_dir / "summary.json", suite, cases, root_causes)
-    write_junit(report_dir / "junit.xml", suite, cases)
-    write_html(report_dir / "report.html", suite, cases)
+    write_junit(report_dir / "junit.xml", suite, cases, root_causes)
+    write_html(report_dir / "report.html", suite, cases, root_causes=root_causes)

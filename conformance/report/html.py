@@ -5,30 +5,47 @@ script for filtering, the page works without it). Jinja2 with autoescape on; eve
 string also passes :func:`~.summary.clean_text` (through the environment's
 ``finalize``), so whatever a box sent shows as visible escapes, never as markup.
 
-Content, in order: the header to sign (run facts, profile with non-default settings
-highlighted, overall line), the sign-off block, totals by verdict, the clause table
-(every clause of PROTOCOL.md, untested ones marked), then every case in a
-``<details>`` (non-PASS ones open).
+Content, in order, so the printed document reads as an acceptance document: what was
+tested and the overall result (run facts, profile with non-default settings
+highlighted), the sign-off block, the root causes, the findings (FAIL, ERROR,
+NON-STRICT and INCONCLUSIVE cases grouped by root cause, one line each), the changes
+since a baseline run (``run --baseline``), the clause table, totals by verdict, then
+every case in a ``<details>``. On paper a case prints as one line unless it is a print
+card (:mod:`.html_cases`), whose evidence is cut to a bounded size; on screen all of it
+stays one click away.
 """
 
 from __future__ import annotations
 
 import functools
-import json
 import os
 import re
 from collections.abc import Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote
 
 import jinja2
 from markupsafe import Markup
 
 from ..options import PROFILE_OPTIONS
 from ..protocol import DEFAULT_PROFILE
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, SuiteInfo, Verdict, WireLine
+from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
+from .clausetext import clause_text
+from .diff import SECTIONS, RunDiff, summary_line
+from .html_cases import (
+    CARD_VERDICTS,
+    WIRE_HEAD,
+    WIRE_PRINT_HEAD,
+    WIRE_PRINT_TAIL,
+    WIRE_TAIL,
+    anchor_of,
+    case_view,
+    css_class,
+    hexdump,
+    pcap_href,
+    print_cards,
+)
 from .summary import (
     CLAUSES,
     FAMILIES,
@@ -36,18 +53,15 @@ from .summary import (
     by_clause,
     clean_text,
     format_duration,
-    group_hex,
-    hex_bytes,
     overall_line,
     overall_state,
+    registry_version,
     totals,
 )
-from .svg import histogram_svg, latency_svg
 
-WIRE_HEAD, WIRE_TAIL = 150, 50  # wire lines shown per case: the first and the last ones
-WIRE_HEX_BYTES = 48  # bytes of one wire line's hex shown in the table
-HEX_DUMP_BYTES = 4096  # bytes of sent/received hex shown per case
-DETAIL_CHARS = 2000  # characters of one details value shown
+__all__ = ["WIRE_HEAD", "WIRE_TAIL", "css_class", "hexdump", "pcap_href", "render_html", "write_html"]
+NOT_RUN_SHOWN = 30  # ids of cases not run listed in the header of an incomplete run
+CHIPS_PRINTED = 12  # case chips per clause on paper (those that did not pass)
 
 #: What each verdict means, for the reader who signs.
 VERDICT_MEANING: dict[Verdict, str] = {
@@ -71,34 +85,6 @@ EXTENSION_MEANING = {
 
 
 # -- small presentation helpers --------------------------------------------------------
-def css_class(verdict: Verdict | str | None) -> str:
-    """``v-FAIL``, ``v-NON-STRICT`` ... or ``v-none`` for a clause not tested."""
-    return "v-none" if verdict is None else f"v-{Verdict(verdict).value}"
-
-
-def anchor_of(case_id: str, taken: set[str]) -> str:
-    base = "case-" + re.sub(r"[^A-Za-z0-9_-]", "_", case_id)
-    anchor, n = base, 2
-    while anchor in taken:
-        anchor, n = f"{base}-{n}", n + 1
-    taken.add(anchor)
-    return anchor
-
-
-def hexdump(text: str, limit: int = HEX_DUMP_BYTES) -> str:
-    """Hex as an offset-prefixed dump, 16 bytes a line in two groups of 8."""
-    octets = hex_bytes(text)
-    if octets is None:  # not hex: show the text as it is
-        return clean_text(text)
-    rows = []
-    for off in range(0, min(len(octets), limit), 16):
-        chunk = octets[off : off + 16]
-        rows.append(f"{off:04x}  {' '.join(chunk[:8])}{'  ' if len(chunk) > 8 else ''}{' '.join(chunk[8:])}")
-    if len(octets) > limit:
-        rows.append(f"… {len(octets)} bytes in all; the first {limit} shown (all of them are in the pcap)")
-    return "\n".join(rows)
-
-
 def display_time(iso: str) -> str:
     """``2026-05-09T07:35:25.123+00:00`` -> ``2026-05-09 07:35:25 UTC``; other text as given."""
     try:
@@ -108,19 +94,6 @@ def display_time(iso: str) -> str:
     if when.tzinfo is None:
         return when.strftime("%Y-%m-%d %H:%M:%S")
     return when.astimezone(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC")
-
-
-def pcap_href(pcap: str, report_dir: Path, pcap_base: Path | None) -> str:
-    """The pcap as a link relative to the report's directory.
-
-    A relative ``pcap`` is taken relative to ``pcap_base`` (default: the current
-    directory). The result is percent-encoded, so no path can become a URL scheme.
-    """
-    p = Path(pcap)
-    if not p.is_absolute():
-        p = (pcap_base or Path.cwd()) / p
-    rel = os.path.relpath(os.path.abspath(p), os.path.abspath(report_dir))
-    return quote(Path(rel).as_posix(), safe="/")
 
 
 def profile_rows(profile: dict[str, Any]) -> list[dict[str, Any]]:
@@ -150,70 +123,6 @@ def profile_rows(profile: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
-def _detail_value(value: Any) -> str:
-    text = value if isinstance(value, str) else json.dumps(value, ensure_ascii=False, default=str)
-    return text if len(text) <= DETAIL_CHARS else text[:DETAIL_CHARS] + f"… ({len(text)} characters)"
-
-
-def wire_rows(wire: Sequence[WireLine]) -> tuple[list[dict[str, str]], list[dict[str, str]], int]:
-    """(first rows, last rows, number omitted between them)."""
-    def row(w: WireLine) -> dict[str, str]:
-        return {
-            "t": f"{w.t_ms:.1f}", "conn": str(w.conn), "dir": w.direction,
-            "cls": {"→": "sent", "←": "recv"}.get(w.direction, "event"),
-            "kind": w.kind, "hex": group_hex(w.hex, per_line=0, limit=WIRE_HEX_BYTES) if w.hex else "",
-            "summary": w.summary,
-        }
-
-    if len(wire) <= WIRE_HEAD + WIRE_TAIL:
-        return [row(w) for w in wire], [], 0
-    return ([row(w) for w in wire[:WIRE_HEAD]], [row(w) for w in wire[-WIRE_TAIL:]],
-            len(wire) - WIRE_HEAD - WIRE_TAIL)
-
-
-def case_view(case: CaseResult, anchor: str, suite: SuiteInfo, report_dir: Path,
-              pcap_base: Path | None) -> dict[str, Any]:
-    head, tail, omitted = wire_rows(case.wire)
-    svg = None
-    if case.latencies_ms:
-        limit = case.details.get("time_out_ms", suite.profile.get("time_out_ms"))
-        svg = Markup(latency_svg(case.latencies_ms, f"{case.id}: answer latency per request",
-                                 time_out_ms=float(limit) if isinstance(limit, (int, float)) else None))
-    histogram = _histogram(case)
-    return {
-        "id": case.id, "anchor": anchor, "title": case.title, "clauses": case.clauses,
-        "level": case.level.value, "verdict": case.verdict.value, "cls": css_class(case.verdict),
-        "open": case.verdict is not Verdict.PASS, "duration": format_duration(case.duration_s),
-        "message": case.message, "requirement": case.requirement,
-        "expected": case.expected, "observed": case.observed,
-        "sent": hexdump(case.sent_hex) if case.sent_hex else "",
-        "received": hexdump(case.received_hex) if case.received_hex else "",
-        "wire_head": head, "wire_tail": tail, "wire_omitted": omitted, "wire_total": len(case.wire),
-        "svg": svg, "histogram": histogram,
-        "pcap": case.pcap, "pcap_href": pcap_href(case.pcap, report_dir, pcap_base) if case.pcap else None,
-        "details": [(str(k), _detail_value(v)) for k, v in sorted(case.details.items(), key=lambda kv: str(kv[0]))
-                    if not (k == HISTOGRAM_KEY and histogram is not None)],
-    }
-
-
-#: ``details[HISTOGRAM_KEY] = {"values_ms": [...], "bins": 40, "title": "...", "expected_ms": 20.0}``
-#: is drawn as an interval histogram (certify-robot's T2 cases) instead of a details row.
-HISTOGRAM_KEY = "interval_histogram"
-
-
-def _histogram(case: CaseResult) -> Markup | None:
-    spec = case.details.get(HISTOGRAM_KEY)
-    if not isinstance(spec, dict) or not isinstance(spec.get("values_ms"), (list, tuple)):
-        return None
-    try:
-        values = [float(v) for v in spec["values_ms"]]
-        expected = spec.get("expected_ms")
-        return Markup(histogram_svg(values, int(spec.get("bins", 40)), str(spec.get("title") or f"{case.id}: intervals"),
-                                    float(expected) if isinstance(expected, (int, float)) else None))
-    except (TypeError, ValueError, OverflowError):
-        return None
-
-
 # -- rendering -------------------------------------------------------------------------
 def _finalize(value: Any) -> Any:
     if value is None:
@@ -234,12 +143,69 @@ def environment() -> jinja2.Environment:
     return env
 
 
+def clause_on_paper(case_ids: Sequence[str], verdict_of: dict[str, Verdict]) -> dict[str, Any]:
+    """What a clause row's cases column prints: the chips of (at most CHIPS_PRINTED) FAIL,
+    ERROR, NON-STRICT and INCONCLUSIVE cases, and the count of every case by verdict."""
+    bad = [cid for cid in case_ids if verdict_of.get(cid) in CARD_VERDICTS]
+    counts = totals(CaseResult(cid, "", (), Level.MUST, verdict_of[cid]) for cid in case_ids if cid in verdict_of)
+    words = ", ".join(f"{n} {v}" for v, n in counts.items() if n)
+    more = len(bad) - CHIPS_PRINTED
+    return {"chips": set(bad[:CHIPS_PRINTED]),
+            "note": f"{len(case_ids)} case{'s' if len(case_ids) != 1 else ''}: {words}"
+                    + (f" ({more} more not passing are not named here)" if more > 0 else "")}
+
+
+def root_cause_views(root_causes: Sequence[RootCause], cases: Sequence[CaseResult],
+                     link: dict[str, tuple[str, str]]) -> list[dict[str, Any]]:
+    """One view per root cause: its clauses with their text, evidence and the cases it
+    explains (counted by verdict)."""
+    by_id = {c.id: c for c in cases}
+    views = []
+    for rc in root_causes:
+        explained = [by_id[cid] for cid in rc.cases if cid in by_id]
+        counts = totals(explained)
+        views.append({
+            "id": rc.id, "anchor": "rc-" + re.sub(r"[^A-Za-z0-9_-]", "_", rc.id), "title": rc.title,
+            "level": rc.level.value, "kind": rc.kind, "cls": css_class(rc.level.broken_verdict),
+            "clauses": [clause_text(c) for c in rc.clauses], "evidence": hexdump(rc.evidence, limit=256),
+            "n_cases": len(rc.cases), "counts": [(v, n) for v, n in counts.items() if n],
+            "first": link.get(rc.cases[0], ("", ""))[0] if rc.cases else "",
+        })
+    return views
+
+
+def findings(cases: Sequence[CaseResult], root_causes: Sequence[RootCause]) -> list[dict[str, Any]]:
+    """The FAIL, ERROR, NON-STRICT and INCONCLUSIVE cases in groups: one per root cause
+    (in root-cause order), then those no root cause explains; worst first in each."""
+    known = {rc.id for rc in root_causes}
+    groups: dict[str | None, list[CaseResult]] = {rc.id: [] for rc in root_causes}
+    groups[None] = []
+    order = {v: i for i, v in enumerate(VERDICT_ORDER)}
+    for case in cases:
+        if case.verdict in CARD_VERDICTS:
+            groups[case.root_cause if case.root_cause in known else None].append(case)
+    titles = {rc.id: rc.title for rc in root_causes}
+    return [{"root_cause": rid, "title": titles.get(rid or "", ""),
+             "cases": sorted(members, key=lambda c: order[c.verdict])}
+            for rid, members in groups.items() if members]
+
+
+def diff_view(diff: RunDiff | None) -> dict[str, Any] | None:
+    if diff is None:
+        return None
+    return {"diff": diff, "summary": summary_line(diff),
+            "sections": [(title, getattr(diff, name)) for name, title in SECTIONS if getattr(diff, name)]}
+
+
 def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.PathLike[str] = ".",
-                pcap_base: Path | None = None) -> str:
+                pcap_base: Path | None = None, root_causes: Sequence[RootCause] = (),
+                diff: RunDiff | None = None) -> str:
     """The report as a string; pcap links are made relative to ``report_dir``."""
     report_dir = Path(report_dir)
     taken: set[str] = set()
-    views = [case_view(c, anchor_of(c.id, taken), suite, report_dir, pcap_base) for c in cases]
+    cards = print_cards(cases)
+    views = [case_view(c, anchor_of(c.id, taken), suite, report_dir, pcap_base, i in cards)
+             for i, c in enumerate(cases)]
     link: dict[str, tuple[str, str]] = {}  # case id -> (anchor, css class), for the clause table
     for v in views:
         link.setdefault(v["id"], (v["anchor"], v["cls"]))
@@ -251,8 +217,11 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
     extra = [r for c, r in clause_results.items() if c[:1] not in FAMILIES]
     if extra:
         families.append({"letter": "?", "name": "Other clause IDs named by cases", "rows": extra})
+    verdict_of = {c.id: c.verdict for c in cases}
+    clause_print = {clause: clause_on_paper(row.cases, verdict_of) for clause, row in clause_results.items()}
     t = totals(cases)
-    untested = [c for c in CLAUSES if not clause_results[c].tested]
+    untested = [c for c in CLAUSES if not clause_results[c].cases]
+    unjudged = [c for c in CLAUSES if clause_results[c].cases and not clause_results[c].tested]
     profile = profile_rows(dict(suite.profile))
     return environment().get_template("report.html.j2").render(
         suite=suite, started=display_time(suite.started), duration=format_duration(suite.duration_s),
@@ -261,16 +230,22 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
         overall=overall_line(cases, suite), overall_state=overall_state(cases, suite),
         totals=t, total=len(cases), order=[v.value for v in VERDICT_ORDER],
         meaning={v.value: m for v, m in VERDICT_MEANING.items()},
-        families=families, untested=untested, n_clauses=len(CLAUSES), link=link,
+        families=families, untested=untested, unjudged=unjudged, n_clauses=len(CLAUSES), link=link, clause_print=clause_print,
         levels=list(Level), cases=views, wire_head=WIRE_HEAD, wire_tail=WIRE_TAIL,
+        wire_print=(WIRE_PRINT_HEAD, WIRE_PRINT_TAIL), n_cards=len(cards),
+        root_causes=root_cause_views(root_causes, cases, link), findings=findings(cases, root_causes),
+        not_run=suite.not_run[:NOT_RUN_SHOWN], n_not_run=len(suite.not_run),
+        cases_total=max(suite.cases_total, len(cases)), baseline=diff_view(diff),
+        registry_version=suite.registry_version or registry_version(),
         generated=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"),
     )
 
 
 def write_html(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult],
-               pcap_base: Path | None = None) -> None:
+               pcap_base: Path | None = None, root_causes: Sequence[RootCause] = (),
+               diff: RunDiff | None = None) -> None:
     """Write report.html atomically. Relative ``case.pcap`` paths are taken relative to
     ``pcap_base`` (default: the current directory); links are relative to the report."""
     path = Path(path)
-    html = render_html(suite, cases, path.parent, pcap_base)
+    html = render_html(suite, cases, path.parent, pcap_base, root_causes, diff)
     atomic_write_bytes(path, html.encode("utf-8", "replace"))

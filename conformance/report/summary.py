@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..protocol.clauses import all_clauses, families
+from ..protocol.clauses import REGISTRY_VERSION, all_clauses, families
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
 
 #: Every clause of docs/PROTOCOL.md, in document order, with its short title for tables:
@@ -29,6 +29,11 @@ CLAUSES: dict[str, str] = {c.id: c.title for c in all_clauses().values()}
 FAMILIES: dict[str, str] = families()
 
 _RANK = {v: i for i, v in enumerate(VERDICT_ORDER)}
+
+
+def registry_version() -> str:
+    """The version of the clause registry the verdicts cite."""
+    return REGISTRY_VERSION
 
 
 def worst(verdicts: Iterable[Verdict]) -> Verdict | None:
@@ -246,8 +251,12 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
 
 def suite_dict(suite: SuiteInfo) -> dict[str, Any]:
-    """SuiteInfo as summary.json's "suite" object (its fields, in their order)."""
-    return dataclasses.asdict(suite)
+    """SuiteInfo as summary.json's "suite" object (its fields, in their order), with the
+    clause registry's version filled in when the run did not set it."""
+    out = dataclasses.asdict(suite)
+    if not out.get("registry_version"):
+        out["registry_version"] = registry_version()
+    return out
 
 
 def write_summary(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult],

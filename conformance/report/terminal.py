@@ -4,8 +4,12 @@
   counts by verdict so far), with each non-PASS case printed above it as it finishes.
   With ``quiet=True`` or when the console is not a terminal (CI logs, pipes) there is
   no live line, only one plain line per non-PASS case.
-* :func:`print_final_table`: the non-PASS cases, the totals, the overall line and
-  where the reports were written.
+  Each such line is followed by the text of the clause(s) the verdict judged.
+* :func:`print_final_table`: the root causes first, then the FAIL, ERROR, NON-STRICT and
+  INCONCLUSIVE cases grouped by root cause (INFORMATIONAL and SKIP only counted), the
+  totals, the overall line (INCOMPLETE with the cases not run for a run cut short) and
+  where the reports were written. Every row is one line at any width: long ids, clause
+  lists and messages are cut with an ellipsis, never wrapped.
 """
 
 from __future__ import annotations
@@ -20,7 +24,13 @@ from rich.table import Table
 from rich.text import Text
 
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, RootCause, SuiteInfo, Verdict
+from .clausetext import clause_text, judged_texts
 from .summary import format_duration, one_line, overall_line, overall_state, rank, totals
+
+#: the verdicts the final table lists, one row each (INFORMATIONAL and SKIP are counted)
+LISTED = (Verdict.FAIL, Verdict.ERROR, Verdict.NON_STRICT, Verdict.INCONCLUSIVE)
+ROWS_PER_ROOT_CAUSE = 10  # rows shown under a root cause; the rest are counted
+NOT_RUN_SHOWN = 10  # ids of cases not run shown for an incomplete run
 
 STYLES: dict[Verdict, str] = {
     Verdict.PASS: "green",
@@ -59,6 +69,17 @@ def case_line(result: CaseResult) -> Text:
     return line
 
 
+def clause_lines(result: CaseResult, width: int = 240, indent: str = "              ") -> Text:
+    """The text of the clause(s) a non-PASS verdict judged, one dim line each, cut to ``width``."""
+    out = Text(style="dim")
+    for i, t in enumerate(judged_texts(result)):
+        if i:
+            out.append("\n")
+        out.append(indent + one_line(f"{t.id}{f' ({t.level})' if t.level else ''}: {t.text}",
+                                     max(width - len(indent), 30)))
+    return out
+
+
 class Progress:
     """Live progress of a run: ``start(total)``, ``case_started(id)`` (optional),
     ``case_done(result)`` for each case, ``stop()``. Also a context manager."""
@@ -93,6 +114,9 @@ class Progress:
         if result.verdict is not Verdict.PASS:
             # above the live line on a TTY; the only output otherwise
             self.console.print(case_line(result), soft_wrap=True, highlight=False)
+            texts = clause_lines(result, self.console.width)
+            if texts:
+                self.console.print(texts, soft_wrap=True, highlight=False)
         self._refresh()
 
     def stop(self) -> None:
@@ -126,40 +150,100 @@ class Progress:
             self._live.refresh()
 
 
+def packed(segments: Sequence[str], width: int, style: str = "", indent: str = "  ") -> Text:
+    """``segments`` joined on as few lines as fit ``width``, broken only between segments
+    (a verdict count, a clause of the overall line): never one word left alone on a line."""
+    lines: list[str] = []
+    for seg in segments:
+        if lines and len(lines[-1]) + 1 + len(seg) <= width:
+            lines[-1] += " " + seg
+        else:
+            lines.append(seg if not lines else indent + seg)
+    return Text("\n".join(lines), style=style)
+
+
+def _case_table(rows: Sequence[CaseResult], title: str | None = None) -> Table:
+    """One line per case at any width: id, clauses and message cut with an ellipsis."""
+    table = Table(title=title, title_justify="left", title_style="bold", box=None, padding=(0, 1),
+                  show_header=True, header_style="bold", expand=True)
+    table.add_column("Verdict", no_wrap=True, width=12)
+    table.add_column("Case", no_wrap=True, overflow="ellipsis", max_width=24)
+    table.add_column("Clauses", no_wrap=True, overflow="ellipsis", max_width=11)
+    table.add_column("Message", no_wrap=True, overflow="ellipsis", ratio=1, min_width=28)
+    for c in rows:
+        # Text, never str: rich would read "[...]" in a box's message as markup
+        table.add_row(Text(c.verdict.value, style=STYLES[c.verdict]), Text(one_line(c.id, 120)),
+                      Text(", ".join(c.clauses)), Text(one_line(c.message or c.title, 400)))
+    return table
+
+
+def _root_cause_lines(root_causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> list[Text]:
+    present = {c.id for c in cases}
+    lines = [Text(f"Root causes ({len(root_causes)}), most explanatory first:", style="bold")]
+    for rc in root_causes:
+        line = Text("  ")
+        line.append(rc.id, style="bold red" if rc.level.value == "MUST" else "bold yellow")
+        line.append(f" [{', '.join(rc.clauses)}] ", style="dim")
+        line.append(one_line(rc.title, 200))
+        n = sum(1 for cid in rc.cases if cid in present) or len(rc.cases)
+        line.append(f" ({n} case{'s' if n != 1 else ''})", style="dim")
+        line.no_wrap, line.overflow = True, "ellipsis"
+        lines.append(line)
+        for cid in rc.clauses[:2]:
+            t = clause_text(cid)
+            text = Text(f"      {cid}: {one_line(t.text, 300)}", style="dim")
+            text.no_wrap, text.overflow = True, "ellipsis"
+            lines.append(text)
+    return lines
+
+
 def print_final_table(suite: SuiteInfo, cases: list[CaseResult], console: Console | None = None,
                       reports: Mapping[str, str | os.PathLike[str]] | Iterable[str | os.PathLike[str]] | None = None,
                       root_causes: Sequence[RootCause] = ()) -> None:
-    """The end of a run: the root causes, a table of every non-PASS case (worst first), totals
-    by verdict, the overall line, and the reports written (``{"HTML report": path, ...}`` or paths)."""
+    """The end of a run: the root causes, a table of the FAIL, ERROR, NON-STRICT and
+    INCONCLUSIVE cases (grouped by root cause, worst first), totals by verdict, the
+    overall line, the cases not run, and the reports written (``{"HTML report": path, ...}`` or paths)."""
     console = console or Console()
-    failing = sorted((c for c in cases if c.verdict is not Verdict.PASS), key=lambda c: rank(c.verdict))
+    listed = sorted((c for c in cases if c.verdict in LISTED), key=lambda c: rank(c.verdict))
+    t = totals(cases)
     parts: list[Text | Table] = []
-    for cause in root_causes:
-        line = Text()
-        line.append(f"{cause.id} ", style="bold red")
-        line.append(f"[{', '.join(cause.clauses)}] ", style="dim")
-        line.append(f"{cause.title} (explains {len(cause.cases)} cases)")
-        parts.append(line)
-    if failing:
-        table = Table(title=f"{len(failing)} of {len(cases)} cases did not pass", title_justify="left",
-                      show_lines=False, expand=False, header_style="bold")
-        table.add_column("Case", no_wrap=True)
-        table.add_column("Verdict", no_wrap=True)
-        table.add_column("Clauses", no_wrap=True)
-        table.add_column("Message", overflow="fold")
-        for c in failing:
-            # Text, never str: rich would read "[...]" in a box's message as markup
-            table.add_row(Text(one_line(c.id, 120)), Text(c.verdict.value, style=STYLES[c.verdict]),
-                          Text(", ".join(c.clauses)), Text(one_line(c.message, 400)))
-        parts.append(table)
+    known = {rc.id for rc in root_causes}
+    if root_causes:
+        parts += _root_cause_lines(root_causes, cases)
+    if listed:
+        counted = " and ".join(f"{t[v.value]} {v.value}" for v in (Verdict.INFORMATIONAL, Verdict.SKIP) if t[v.value])
+        parts.append(packed([f"{len(listed)} of {len(cases)} cases FAIL, ERROR, NON-STRICT or INCONCLUSIVE"
+                             + (";" if counted else ""), *([f"{counted} counted, not listed"] if counted else [])],
+                            console.width, "bold"))
+        for rc in root_causes:
+            rows = [c for c in listed if c.root_cause == rc.id]
+            if rows:
+                parts.append(_case_table(rows[:ROWS_PER_ROOT_CAUSE], f"{rc.id}: {one_line(rc.title, 160)} ({len(rows)})"))
+                if len(rows) > ROWS_PER_ROOT_CAUSE:
+                    parts.append(Text(f"  … and {len(rows) - ROWS_PER_ROOT_CAUSE} more explained by {rc.id} "
+                                      "(see report.html)", style="dim"))
+        rest = [c for c in listed if c.root_cause not in known]
+        if rest:
+            parts.append(_case_table(rest, f"Not explained by a root cause ({len(rest)})" if root_causes else None))
     elif cases:
-        parts.append(Text(f"All {len(cases)} cases passed.", style="green"))
-    line = Text()
-    line.append("Totals: ", style="bold")
-    line.append_text(verdict_counts_text(totals(cases), zeros=True))
-    line.append(f"  ({len(cases)} cases, {format_duration(suite.duration_s)})", style="dim")
+        not_pass = len(cases) - t[Verdict.PASS.value]
+        parts.append(Text(f"All {len(cases)} cases passed." if not not_pass else
+                          f"No case FAIL, ERROR, NON-STRICT or INCONCLUSIVE among {len(cases)}.", style="green"))
+    counts = [f"{v.value} {t[v.value]} ·" for v in VERDICT_ORDER]
+    line = packed(["Totals:", *counts[:-1], counts[-1].rstrip(" ·"),
+                   f" ({len(cases)} cases, {format_duration(suite.duration_s)})"], console.width)
+    line.highlight_words(["Totals:"], style="bold")
+    for v in VERDICT_ORDER:
+        line.highlight_regex(rf"{v.value} [1-9]\d*", style=STYLES[v])
     parts.append(line)
-    parts.append(Text(overall_line(cases, suite), style=OVERALL_STYLES[overall_state(cases, suite)]))
+    overall = overall_line(cases, suite)
+    parts.append(packed([seg + ";" for seg in overall.split("; ")[:-1]] + overall.split("; ")[-1:], console.width,
+                        OVERALL_STYLES[overall_state(cases, suite)]))
+    if not suite.complete and suite.not_run:
+        more = len(suite.not_run) - NOT_RUN_SHOWN
+        ids = [f"{cid}," for cid in suite.not_run[:NOT_RUN_SHOWN]]
+        ids[-1] = ids[-1].rstrip(",") + (f", … and {more} more" if more > 0 else "")
+        parts.append(packed([f"Not run ({len(suite.not_run)}):", *ids], console.width, "yellow"))
     parts.append(Text(f"Target: {suite.target}", style="dim"))
     if reports:
         items = reports.items() if isinstance(reports, Mapping) else ((None, p) for p in reports)

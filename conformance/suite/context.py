@@ -65,6 +65,7 @@ class CaseContext:
     def connect(self, label: str = "command", target: Target | None = None, time_out_s: float | None = None) -> TcpConnection:
         """A connected, recorded TCP connection; an unreachable box ends the case INCONCLUSIVE."""
         conn = TcpConnection(self.transcript, target or self.target, self.profile, label, time_out_s)
+        conn.before_send = self._not_known_late
         self._connections.append(conn)
         try:
             return conn.connect()
@@ -167,6 +168,19 @@ class CaseContext:
                 closed = next((o for o in extra if isinstance(o, Closed)), None)
                 return outcomes + [o for o in extra if not isinstance(o, Closed)], closed
         return outcomes, Silence(time.monotonic() - start)
+
+    def _not_known_late(self, data: bytes) -> None:
+        """Bounded time: a request the box is known not to answer within time_out ends the case at once."""
+        if len(data) < 12 or data[:2] != b"\xfe\xfe" or not self.session.late:
+            return
+        try:
+            name = Action(data[5]).name
+        except ValueError:
+            return
+        cases = self.session.known_late(name)
+        if cases is not None:
+            raise Inconclusive(f"{name} is not answered within time_out (cases {', '.join(cases[:3])}): this case "
+                               f"depends on it and is not run again", signature=f"silence:{name}")
 
     def check_alive(self) -> Outcome:
         """R2: a fresh connection still gets NONE answered."""

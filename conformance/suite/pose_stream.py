@@ -13,10 +13,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..endpoints.trajectory import PrimerTrajectory
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
 from ..protocol import Action, pose_blocks, request
 from ..stats import percentile
+from ..trajectory import PrimerTrajectory
 from .judge import Expect, answered, check, fail
 from .verdicts import Level
 

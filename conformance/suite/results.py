@@ -40,6 +40,17 @@ def attach_evidence(transcript: Transcript, settings: SuiteSettings, case_id: st
     return path
 
 
+#: A verdict quotes at most this many bytes (the pcap has them all).
+QUOTED_BYTES = 4096
+
+
+def bounded_hex(data: bytes) -> str:
+    """The hex a report quotes: all of ``data`` up to :data:`QUOTED_BYTES`, then how many there were."""
+    if len(data) <= QUOTED_BYTES:
+        return data.hex(" ")
+    return data[:QUOTED_BYTES].hex(" ") + f" … ({len(data)} bytes in all; the pcap has them)"
+
+
 def safe_name(case_id: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in case_id)
 
@@ -54,7 +65,7 @@ def classify(exc: BaseException | None, info: CaseInfo, ctx: CaseContext | None,
     if isinstance(exc, CaseVerdict):
         return exc.verdict, {
             "message": exc.message, "requirement": exc.requirement, "expected": exc.expected,
-            "observed": exc.observed, "sent_hex": exc.sent.hex(" "), "received_hex": exc.received.hex(" "),
+            "observed": exc.observed, "sent_hex": bounded_hex(exc.sent), "received_hex": bounded_hex(exc.received),
             "judged": exc.judged, "signature": exc.signature,
         }
     if isinstance(exc, Unreachable):
@@ -79,7 +90,7 @@ def result_of(info: CaseInfo, ctx: CaseContext | None, exc: BaseException | None
     if verdict is not Verdict.PASS:
         fields["requirement"] = fields.get("requirement") or f"{', '.join(info.clauses)} ({info.level.value}): {info.title}"
         if ctx is not None and not fields.get("sent_hex") and ctx.last_sent:
-            fields["sent_hex"] = ctx.last_sent.hex(" ")
+            fields["sent_hex"] = bounded_hex(ctx.last_sent)
         if verdict in (Verdict.FAIL, Verdict.NON_STRICT) and not judged:
             judged = info.clauses
         if not signature and verdict in (Verdict.FAIL, Verdict.NON_STRICT):

@@ -36,6 +36,9 @@ from .verdicts import Verdict
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
 RECHECK_S = 10.0
+#: After this many cases found an action unanswered within time_out, later requests of it end their case
+#: INCONCLUSIVE at once (explained by that root cause) instead of each waiting time_out again.
+LATE_CASES = 2
 PROBE_NONE = request(Action.NONE)
 R2_TEXT = "R2: whatever bytes one connection sends, the box keeps accepting and answering new connections"
 S5_TEXT = "S5: after the robot closes a connection the box frees it (it keeps accepting new connections)"
@@ -76,6 +79,8 @@ class SessionState:
     embedded: Any = None  # the bundled box, when the session started it
     opened: int = 0
     closed: int = 0
+    #: action name -> ids of the cases that found it unanswered within time_out
+    late: dict[str, list[str]] = field(default_factory=dict)
     _target: Target | None = None
     _udp_target: Target | None = None
     _witness: TcpConnection | None = None
@@ -205,6 +210,11 @@ class SessionState:
         raise Inconclusive(f"box unreachable since case {health.dead_since_case} ({health.reason})",
                            signature=f"unreachable:{health.dead_since_case}")
 
+    def known_late(self, action: str) -> list[str] | None:
+        """The cases that established that ``action`` is not answered within time_out (None: not established)."""
+        cases = self.late.get(action, [])
+        return cases if len(cases) >= LATE_CASES else None
+
     def _mark_dead(self, case_id: str, reason: str) -> None:
         self.health.dead_since_case = case_id
         self.health.reason = reason
@@ -215,6 +225,8 @@ class SessionState:
                    error: BaseException | None) -> BaseException | None:
         """R2 after malformed input or a time_out (the case's connections already closed):
         returns the error the case ends with (the case's own, or an R2/S5 verdict)."""
+        if isinstance(error, CaseVerdict) and error.signature.startswith("silence:") and error.verdict is Verdict.FAIL:
+            self.late.setdefault(error.signature.split(":", 1)[1], []).append(case_id)
         if (not (malformed_input or transcript.timeouts) or isinstance(error, Inconclusive)
                 or self.health.dead_since_case is not None):  # already known unreachable: nothing to learn
             self._count(transcript)

@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
-from ..harness.transcript import Kind, Transcript
+from collections import deque
+
+from ..harness.transcript import Kind, Transcript, WireEvent
 from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, decode_datagram
 from .verdicts import WireLine
 
-#: Reports show at most this many lines per case (the pcap has everything).
-MAX_LINES = 2000
+#: Reports keep the first MAX_LINES lines of a case and its last TAIL_LINES (the pcap has everything).
+MAX_LINES = 300
+TAIL_LINES = 100
 #: ... and at most this many bytes of one chunk's hex, and this many decoded events of it.
-MAX_HEX_BYTES = 512
+MAX_HEX_BYTES = 256
 MAX_EVENTS = 8
 _ARROW = {Kind.SEND: "→", Kind.RECV: "←"}
 
@@ -37,34 +40,47 @@ def _hex(data: bytes) -> str:
     return data[:MAX_HEX_BYTES].hex(" ")
 
 
-def wire_lines(transcript: Transcript, profile: Profile, limit: int = MAX_LINES) -> list[WireLine]:
+def wire_lines(transcript: Transcript, profile: Profile, limit: int = MAX_LINES, tail: int = TAIL_LINES) -> list[WireLine]:
+    """The first ``limit`` and the last ``tail`` events of a case as report lines (a note between them
+    says how many are left out); every chunk is still decoded, so the tail's summaries stay in step."""
     start = transcript.started or 0.0
     decoders: dict[tuple[int, str], StreamDecoder] = {}
-    lines: list[WireLine] = []
+    head: list[WireLine] = []
+    last: deque[WireLine] = deque(maxlen=tail)
+    total = 0
     for event in transcript.events:
-        if len(lines) >= limit:
-            lines.append(WireLine(0.0, 0, "·", "note", "", f"… {len(transcript.events) - limit} more events in the pcap"))
-            break
-        t_ms = (event.t - start) * 1000
-        info = transcript.connections.get(event.conn)
-        if event.kind in _ARROW and info is not None:
-            expect = TransferType.ROBOT_TO_BOX if event.kind == Kind.SEND else TransferType.BOX_TO_ROBOT
-            if info.transport == "udp":
-                try:
-                    summary = decode_datagram(event.data, profile, expect).describe()
-                except ProtocolError as exc:
-                    summary = f"[{exc.clause}] {exc.message}"
-            else:
-                key = (event.conn, event.kind)
-                if key not in decoders:
-                    decoders[key] = StreamDecoder(profile, expect)
-                summary = _summaries(decoders[key], event.data)
-            if event.note:
-                summary = f"{event.note}: {summary}" if summary else event.note
-            if len(event.data) > MAX_HEX_BYTES:
-                summary += f" [{len(event.data)} bytes: the first {MAX_HEX_BYTES} shown, the pcap has them all]"
-            lines.append(WireLine(round(t_ms, 3), event.conn, _ARROW[event.kind], event.kind, _hex(event.data), summary))
+        total += 1
+        line = _line(event, transcript, profile, decoders, start)
+        if len(head) < limit:
+            head.append(line)
         else:
-            label = f" ({info.label}, {info.transport} {info.local} → {info.remote})" if info and event.kind == Kind.CONNECT else ""
-            lines.append(WireLine(round(t_ms, 3), event.conn, "·", event.kind, "", (event.note or "") + label))
-    return lines
+            last.append(line)
+    left_out = total - len(head) - len(last)
+    if left_out:
+        head.append(WireLine(0.0, 0, "·", "note", "", f"… {left_out} more events (the pcap has them all)"))
+    return head + list(last)
+
+
+def _line(event: WireEvent, transcript: Transcript, profile: Profile, decoders: dict[tuple[int, str], StreamDecoder],
+          start: float) -> WireLine:
+    t_ms = round((event.t - start) * 1000, 3)
+    info = transcript.connections.get(event.conn)
+    if event.kind in _ARROW and info is not None:
+        expect = TransferType.ROBOT_TO_BOX if event.kind == Kind.SEND else TransferType.BOX_TO_ROBOT
+        if info.transport == "udp":
+            try:
+                summary = decode_datagram(event.data, profile, expect).describe()
+            except ProtocolError as exc:
+                summary = f"[{exc.clause}] {exc.message}"
+        else:
+            key = (event.conn, event.kind)
+            if key not in decoders:
+                decoders[key] = StreamDecoder(profile, expect)
+            summary = _summaries(decoders[key], event.data)
+        if event.note:
+            summary = f"{event.note}: {summary}" if summary else event.note
+        if len(event.data) > MAX_HEX_BYTES:
+            summary += f" [{len(event.data)} bytes: the first {MAX_HEX_BYTES} shown, the pcap has them all]"
+        return WireLine(t_ms, event.conn, _ARROW[event.kind], event.kind, _hex(event.data), summary)
+    label = f" ({info.label}, {info.transport} {info.local} → {info.remote})" if info and event.kind == Kind.CONNECT else ""
+    return WireLine(t_ms, event.conn, "·", event.kind, "", (event.note or "") + label)

@@ -1,0 +1,53 @@
+"""report.html on paper: printed to A4 with headless Chromium it stays an acceptance
+document (issue 13): at most 15 pages for a conforming box, 40 for a broken one.
+
+The runs are shaped like real ones (``tests/reportruns.py``); the figures for a real
+``isight-conformance run`` are printed by ``benchmarks/bench_report_print.py``.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from conformance.report.html import write_html
+
+from .reportruns import chromium, conforming_run, pdf_pages, print_to_pdf, systematic_defect, without_root_causes
+from .test_report_summary import sample_suite
+
+pytestmark = [
+    pytest.mark.skipif(chromium() is None, reason="headless Chromium is not installed (apt-get install chromium)"),
+    pytest.mark.timeout(600),
+]
+
+CONFORMING_PAGES, BROKEN_PAGES = 15, 40
+
+
+def _pages(tmp_path, name, cases, root_causes=()) -> int:
+    html = tmp_path / f"{name}.html"
+    write_html(html, sample_suite(), cases, root_causes=root_causes)
+    pages = print_to_pdf(html, tmp_path / f"{name}.pdf")
+    print(f"\n{name}: {pages} A4 pages")
+    return pages
+
+
+def test_a_conforming_box_prints_to_at_most_15_pages(tmp_path):
+    cases = conforming_run()
+    assert len(cases) == 275 and sum(len(c.wire) for c in cases) > 10_000
+    pages = _pages(tmp_path, "conforming", cases)
+    assert 2 <= pages <= CONFORMING_PAGES
+
+
+def test_a_systematic_defect_prints_to_at_most_40_pages(tmp_path):
+    cases, rcs = systematic_defect(conforming_run())
+    assert sum(c.verdict.value == "FAIL" for c in cases) == 150 and len(rcs[0].cases) == 220
+    assert _pages(tmp_path, "systematic", cases, rcs) <= BROKEN_PAGES
+    # a suite that names no root cause: the repeated findings still print once each
+    assert _pages(tmp_path, "systematic-no-root-cause", without_root_causes(cases)) <= BROKEN_PAGES
+
+
+def test_pdf_page_counter():
+    two = b"%PDF-1.4\n1 0 obj <</Type /Pages /Kids [2 0 R 3 0 R] /Count 2>> endobj\n" \
+          b"2 0 obj <</Type /Page /Parent 1 0 R>> endobj\n3 0 obj <</Type/Page/Parent 1 0 R>> endobj\n"
+    assert pdf_pages(two) == 2
+    compressed = b"%PDF-1.5\n1 0 obj <</Type /Pages /Count 17 /Kids [...]>> endobj\n"
+    assert pdf_pages(compressed) == 17
