@@ -17,7 +17,7 @@ order (F4), the counts of frames judged per clause, the box's backlog (T2).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..certify.traffic import FrameRecord, byte_order_evidence
 from ..protocol import Action, Frame, Transport
@@ -35,8 +35,8 @@ from ..suite.verdicts import Verdict
 from .findings import BOX, ROBOT
 from .timing import backlog
 
-if TYPE_CHECKING:
-    from .exchanges import ConnJudge
+#: ``j`` below is the connection's :class:`~.exchanges.ConnJudge` (not imported: no import circle)
+ConnJudge = Any
 
 __all__ = ["Cycles", "KIND", "byte_order", "count_frames", "expect", "judge_backlog", "judge_pair", "unanswered_case"]
 
