@@ -21,9 +21,9 @@ from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.box import BoxThread
 from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, ProtocolError, StreamDecoder, answer, encode
-from conformance.suite.record import CaseRecord
 from conformance.suite.context import CaseContext, SessionState
 from conformance.suite.judge import CaseVerdict, Inconclusive
+from conformance.suite.record import CaseRecord
 from conformance.suite.sequence import (
     SHIPPED_DIR,
     StreamResult,
