@@ -267,13 +267,14 @@ class Campaign:
                 continue
             if triage.shrinking:
                 return result
+            history = list(self.history)  # the cases on this connection, before the confirmation run clears it
             confirmed = triage.confirm(case)
             self.history.clear()
             if confirmed.liveness is not None and not alive(confirmed.liveness):
                 self.window.append(Seen(case, confirmed))
                 self._on_death()
                 return None
-            raised = triage.route(result, confirmed, {f.key for f in failing}, list(self.history))
+            raised = triage.route(result, confirmed, {f.key for f in failing}, history)
             if raised is not None:
                 return raised
         return None
