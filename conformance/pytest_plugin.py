@@ -14,6 +14,11 @@ passes its settings as the same flags). Every hook forwards:
 * ``pytest_sessionfinish`` finds the root causes and writes the reports, also for a run
   cut short by Ctrl-C, SIGTERM or SIGHUP (marked INCOMPLETE, the cases not run listed).
 
+With ``--target`` given several times every case runs against each box (one session
+and one report per box). Under pytest-xdist (:mod:`conformance.xdist_hooks`, registered
+only when xdist is present) one box's cases stay on one worker in catalogue order, the
+workers send their results to the controller, and only the controller writes reports.
+
 Only items marked with :func:`conformance.suite.record.case` are touched, so the
 plugin is inert in any other test session.
 """
@@ -26,7 +31,9 @@ import shlex
 import sys
 import time
 from collections.abc import Generator
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -35,14 +42,16 @@ from .harness.transcript import Transcript
 from .suite import signals
 from .suite.context import CaseContext
 from .suite.record import info_of
-from .suite.results import attach_evidence, result_of
+from .suite.results import attach_evidence, result_of, safe_name
 from .suite.rootcause import SessionFacts, find_root_causes
 from .suite.session import SessionState
 from .suite.settings import SuiteSettings, add_suite_options
 from .suite.verdicts import CaseResult, RootCause, SuiteInfo, Verdict
 
-STATE = pytest.StashKey[SessionState]()
-RESULTS = pytest.StashKey[list[CaseResult]]()
+STATE = pytest.StashKey[SessionState]()  # the first box's session (the settings every session shares)
+SESSIONS = pytest.StashKey[dict[str, SessionState]]()  # target key ("" for one box) -> session
+RESULTS = pytest.StashKey[dict[str, list[CaseResult]]]()
+FACTS = pytest.StashKey[dict[str, SessionFacts]]()  # the controller's: what the workers' sessions learnt
 STARTED = pytest.StashKey[float]()
 SELECTED = pytest.StashKey[list[str]]()
 CTX = pytest.StashKey[CaseContext]()
@@ -60,27 +69,44 @@ def pytest_configure(config: pytest.Config) -> None:
         settings = SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
     except ValueError as exc:
         raise pytest.UsageError(str(exc)) from None
-    config.stash[STATE] = SessionState(settings)
-    config.stash[RESULTS] = []
+    if config.pluginmanager.hasplugin("xdist"):
+        from .xdist_hooks import XdistHooks
+
+        settings = XdistHooks.worker_settings(config, settings)
+        config.pluginmanager.register(XdistHooks(), "isight-xdist")
+    sessions = {key: SessionState(replace(settings, target=t, targets=(t,)) if t is not None else settings)
+                for key, t in target_keys(settings).items()}
+    config.stash[SESSIONS] = sessions
+    config.stash[STATE] = next(iter(sessions.values()))
+    empty: dict[str, list[CaseResult]] = {key: [] for key in sessions}
+    config.stash[RESULTS] = empty
+    config.stash[FACTS] = {}
     config.stash[SELECTED] = []
     config.stash[STARTED] = time.time()
-    if _wants_suite(config):
+    if wants_suite(config):
         signals.install()  # SIGTERM and SIGHUP end the run like Ctrl-C: the reports are still written
+
+
+def target_keys(settings: SuiteSettings) -> dict[str, Any]:
+    """One session per box: "" for a run against one box (or the bundled one), else each box's HOST:PORT."""
+    if len(settings.targets) > 1:
+        return {str(t): t for t in settings.targets}
+    return {"": None}
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
     signals.restore()
-    state = config.stash.get(STATE, None)
-    if state is not None:
+    for state in config.stash.get(SESSIONS, {}).values():
         state.stop()
 
 
-def _wants_suite(config: pytest.Config) -> bool:
+def wants_suite(config: pytest.Config) -> bool:
+    """This pytest run runs the conformance cases (not, say, the project's own tests)."""
     return bool(config.getoption("isight_target", None)) or any("conformance.cases" in str(a) for a in config.args)
 
 
 def pytest_report_header(config: pytest.Config) -> list[str] | None:
-    if not _wants_suite(config):
+    if not wants_suite(config):
         return None
     state = config.stash[STATE]
     s = state.settings
@@ -89,6 +115,14 @@ def pytest_report_header(config: pytest.Config) -> list[str] | None:
         + (f", UDP {s.udp_target}" if s.udp_target else ", no UDP target (UDP cases SKIP)"),
         f"profile: {state.profile.describe()}",
     ]
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
+    """Several boxes: every case once per box (the box's key is the last part of the item's id)."""
+    keys: list[str] = list(metafunc.config.stash[SESSIONS].keys())
+    if "isight" in metafunc.fixturenames and len(keys) > 1:
+        metafunc.parametrize("isight_target", keys, indirect=True, ids=keys)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -124,13 +158,19 @@ def _plain_repr(excinfo: pytest.ExceptionInfo[BaseException], style: object = No
 
 
 @pytest.fixture
-def isight(request: pytest.FixtureRequest) -> Generator[CaseContext, None, None]:
+def isight_target(request: pytest.FixtureRequest) -> str:
+    """The key of the box the case runs against ("" when the run has one box)."""
+    return str(getattr(request, "param", ""))
+
+
+@pytest.fixture
+def isight(request: pytest.FixtureRequest, isight_target: str) -> Generator[CaseContext, None, None]:
     """The case's context: recorded connections to the target box."""
     item = request.node
     info = info_of(item)
     if info is None:
         raise pytest.UsageError(f"{item.nodeid} uses the isight fixture but is not marked with @case")
-    state = item.config.stash[STATE]
+    state = item.config.stash[SESSIONS][isight_target]
     item.stash[CASE_START] = time.monotonic()
     transcript = Transcript(case_id=info.id)
     callspec = getattr(item, "callspec", None)
@@ -176,7 +216,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     start = item.stash.get(CASE_START, None)
     duration = (time.monotonic() - start) if start is not None else rep.duration
     result = result_of(info, ctx, exc, duration, skipped)
-    item.config.stash[RESULTS].append(result)
+    item.config.stash[RESULTS][_key_of(item)].append(result)
     _shape_report(rep, item, result)
     return rep
 
@@ -225,13 +265,18 @@ def pytest_report_teststatus(report: pytest.TestReport, config: pytest.Config) -
     return None
 
 
+def _key_of(item: pytest.Item) -> str:
+    callspec = getattr(item, "callspec", None)
+    return str(callspec.params.get("isight_target", "")) if callspec is not None else ""
+
+
 # -- session end ---------------------------------------------------------------------------------
 
 
-def suite_info(config: pytest.Config, interrupted: bool = False) -> SuiteInfo:
-    state = config.stash[STATE]
+def suite_info(config: pytest.Config, interrupted: bool = False, key: str = "") -> SuiteInfo:
+    state = config.stash[SESSIONS].get(key) or config.stash[STATE]
     started = config.stash[STARTED]
-    done = {c.id for c in results(config)}
+    done = {c.id for c in results(config, key)}
     selected = config.stash.get(SELECTED, [])
     not_run = [case_id for case_id in selected if case_id not in done]
     return SuiteInfo(
@@ -256,37 +301,54 @@ def _registry_version() -> str:
     return REGISTRY_VERSION
 
 
-def results(config: pytest.Config) -> list[CaseResult]:
-    found: list[CaseResult] = config.stash.get(RESULTS, [])  # type: ignore[arg-type]
-    return list(found)
+def results(config: pytest.Config, key: str = "") -> list[CaseResult]:
+    """The results of one box's cases (the first box's by default), in the order they ran."""
+    found = config.stash.get(RESULTS, {})
+    if key:
+        return list(found.get(key, []))
+    return list(found.get("", []) or next(iter(found.values()), []))
 
 
-def root_causes(config: pytest.Config) -> list[RootCause]:
-    """The run's root causes (and each explained case marked with its id)."""
-    state = config.stash[STATE]
-    facts = SessionFacts(
+def session_facts(config: pytest.Config, key: str = "") -> SessionFacts:
+    """What a box's session learnt (on an xdist controller: what its worker's session learnt)."""
+    sent = config.stash.get(FACTS, {})
+    if key in sent:
+        return sent[key]
+    return facts_of(config.stash[SESSIONS].get(key) or config.stash[STATE])
+
+
+def facts_of(state: SessionState) -> SessionFacts:
+    return SessionFacts(
         unresponsive=next((d.detail for d in state.deaths if d.kind == "unresponsive"), ""),
         one_at_a_time=state.concurrency_note if state.concurrent is False else "",
         deaths=tuple((d.case_id, d.kind, d.detail, d.opened, d.closed) for d in state.deaths if d.kind != "unresponsive"),
     )
-    return find_root_causes(results(config), facts)
+
+
+def root_causes(config: pytest.Config, key: str = "") -> list[RootCause]:
+    """A box's root causes (and each explained case marked with its id)."""
+    return find_root_causes(results(config, key), session_facts(config, key))
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     config = session.config
-    state = config.stash.get(STATE, None)
-    cases = results(config)
-    if state is None or not cases:
+    if hasattr(config, "workerinput"):  # an xdist worker: its controller writes the reports
         return
-    causes = root_causes(config)
-    config.stash[CAUSES] = causes
-    if state.settings.report_dir is None:
-        return
-    from .report import write_reports
+    causes: dict[str, list[RootCause]] = {}
+    for key, state in config.stash.get(SESSIONS, {}).items():
+        cases = results(config, key)
+        if not cases:
+            continue
+        causes[key] = root_causes(config, key)
+        if state.settings.report_dir is None:
+            continue
+        from .report import write_reports
 
-    with signals.deferred():  # a second signal does not cut the reports short
-        info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED)
-        write_reports(Path(state.settings.report_dir), info, cases, causes)
+        report_dir = Path(state.settings.report_dir) / (safe_name(key) if key else "")
+        with signals.deferred():  # a second signal does not cut the reports short
+            info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED, key=key)
+            write_reports(report_dir, info, cases, causes[key])
+    config.stash[CAUSES] = next(iter(causes.values()), [])
 
 
 CAUSES = pytest.StashKey[list[RootCause]]()

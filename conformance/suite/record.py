@@ -134,6 +134,10 @@ def info_of(item: pytest.Item) -> CaseRecord | None:
         return None
     info: CaseRecord = marker.args[0]
     param = getattr(item, "callspec", None)
-    if param is not None and param.id:
-        return info.with_param(param.id)
-    return info
+    if param is None or not param.id:
+        return info
+    pid = param.id
+    target = str(param.params.get("isight_target", ""))
+    if target and pid.endswith(target):  # several boxes: the box is not part of the case's ID
+        pid = pid[: -len(target)].rstrip("-")
+    return info.with_param(pid) if pid else info

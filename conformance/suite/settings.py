@@ -20,7 +20,8 @@ from ..protocol import DEFAULT_PORT, Profile
 #: (flag, argparse/pytest keyword arguments); dests all start with "isight_".
 SUITE_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("--target", {"dest": "isight_target", "metavar": "HOST:PORT", "default": None,
-                  "help": "the AI Box to test over TCP (default: start the bundled reference box)"}),
+                  "help": "the AI Box to test over TCP (default: start the bundled reference box); under pytest it "
+                          "may be given several times: every case runs against each box, one report per box"}),
     ("--udp-target", {"dest": "isight_udp_target", "metavar": "HOST:PORT", "default": None,
                       "help": "the box's UDP endpoint; UDP cases are SKIP without it"}),
     ("--stream-target", {"dest": "isight_stream_target", "metavar": "HOST:PORT", "default": None,
@@ -56,6 +57,8 @@ DEFAULT_SEED = 20240601
 @dataclasses.dataclass(frozen=True)
 class SuiteSettings:
     target: Target | None = None  # None: start the bundled reference box
+    #: every box to test (pytest: ``--target`` given several times); ``target`` is the first
+    targets: tuple[Target, ...] = ()
     udp_target: Target | None = None
     stream_target: Target | None = None
     profile: Profile = dataclasses.field(default_factory=Profile)
@@ -95,6 +98,11 @@ class SuiteSettings:
             text = get(dest)
             return Target.parse(text, DEFAULT_PORT) if text else None
 
+        given = get("isight_target")
+        targets = tuple(Target.parse(t, DEFAULT_PORT) for t in ([given] if isinstance(given, str) else given or ()))
+        if len(set(targets)) != len(targets):
+            raise ValueError("--target: the same box is named twice")
+
         stream_seconds = get("isight_stream_seconds")
         settle = get("isight_settle_ms")
         if stream_seconds is not None and not 0.2 <= stream_seconds <= 3600:
@@ -107,7 +115,8 @@ class SuiteSettings:
                 raise ValueError(f"--sequence {path}: no such file")
         report_dir, pcap_dir = get("isight_report_dir"), get("isight_pcap_dir")
         return cls(
-            target=target("isight_target"),
+            target=targets[0] if targets else None,
+            targets=targets,
             udp_target=target("isight_udp_target"),
             stream_target=target("isight_stream_target"),
             profile=profile_from_options(get),
@@ -132,7 +141,9 @@ class SuiteSettings:
         def flag(name: str) -> str:
             return PYTEST_RENAMES.get(name, name) if pytest else name
 
-        for name, value in (("--target", self.target), ("--udp-target", self.udp_target),
+        for target in self.targets or ((self.target,) if self.target is not None else ()):
+            out += ["--target", str(target)]
+        for name, value in (("--udp-target", self.udp_target),
                             ("--stream-target", self.stream_target), ("--report-dir", self.report_dir),
                             ("--pcap-dir", self.pcap_dir), ("--target-label", self.target_label or None)):
             if value is not None:
@@ -155,7 +166,9 @@ PYTEST_RENAMES = {"--capture": "--isight-capture"}
 
 def add_suite_options(add: Callable[..., Any], pytest: bool = False) -> None:
     """Register the suite options and the profile options (argparse's add_argument,
-    or pytest's addoption with ``pytest=True``)."""
+    or pytest's addoption with ``pytest=True``, where ``--target`` may repeat)."""
     for flag, kwargs in SUITE_OPTIONS:
+        if pytest and flag == "--target":
+            kwargs = {**kwargs, "action": "append"}
         add(PYTEST_RENAMES.get(flag, flag) if pytest else flag, **kwargs)
     add_profile_options(add)

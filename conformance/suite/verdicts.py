@@ -109,6 +109,17 @@ class CaseResult:
         out["judged"] = list(self.judged)
         return out
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> CaseResult:
+        """The inverse of :meth:`to_dict` (a result sent from a pytest-xdist worker)."""
+        fields = dict(data)
+        fields["level"] = Level(fields["level"])
+        fields["verdict"] = Verdict(fields["verdict"])
+        fields["clauses"] = tuple(fields["clauses"])
+        fields["judged"] = tuple(fields.get("judged", ()))
+        fields["wire"] = [WireLine(**w) for w in fields.get("wire", [])]
+        return cls(**fields)
+
 
 @dataclass
 class SuiteInfo:
