@@ -10,7 +10,7 @@ import pytest
 
 from conformance.cli import main
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.box import BoxThread
+from conformance.endpoints.loop import BoxThread
 from conformance.endpoints.robot import (
     E4_STEPS,
     EXIT_CONNECTION,

@@ -1,6 +1,6 @@
 """One robot connection as the suite sees it: an asyncio protocol that records the bytes
 in the connection's transcript, answers through the reference box's
-:class:`~conformance.endpoints.behaviour.BoxConnection` (its trace says what the box
+:class:`~conformance.endpoints.connection.BoxConnection` (its trace says what the box
 decided for each request, which becomes an :class:`~.records.Exchange`), holds answers
 back (``--inject slow``), closes mid-cycle (``--inject close-mid-cycle``) and records who
 closed the connection. Session bookkeeping is the listener's (:mod:`.listener`).
@@ -12,7 +12,8 @@ import asyncio
 from collections import deque
 from typing import TYPE_CHECKING, Any
 
-from ..endpoints.behaviour import BoxConnection, Decision, Reaction
+from ..endpoints.behaviour import Decision, Reaction
+from ..endpoints.connection import BoxConnection
 from ..harness.transcript import Endpoint, Kind
 from ..protocol import Action, Frame, ProtocolError
 from ..protocol.frames import ValueBlock

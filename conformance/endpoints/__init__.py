@@ -1,17 +1,26 @@
 """Reference endpoints: a bundled AI Box and a robot simulator.
 
-* :mod:`.behaviour` — the box's decisions, sans-I/O (tables, cached answers, a fast path);
-* :mod:`.box` — the box over asyncio TCP + UDP (``isight-conformance serve``),
-  :class:`ReferenceBox` for async code and :class:`BoxThread` for synchronous code;
+* :mod:`.behaviour` — the box's decisions, sans-I/O (tables, cached answers);
+* :mod:`.connection` — one TCP connection, sans-I/O (framing and the stream's fast path);
+* :mod:`.protocols` — the connections on asyncio (TCP and UDP protocols, admission, idle sweep);
+* :mod:`.server` — :class:`ReferenceBox`, the box over asyncio TCP + UDP;
+* :mod:`.framelog` — ``--log FILE``, one JSON line per frame in and out;
+* :mod:`.loop` — event-loop helpers and :class:`BoxThread`, a box for synchronous code;
+* :mod:`.serve` — the ``isight-conformance serve`` command;
+* :mod:`.bundled` — the box a run starts on loopback when it names no target;
 * :mod:`.robot` — the canonical robot session S1/E4 (``isight-conformance robot``),
-  :class:`RobotSession` with :class:`RobotFaults` for deliberately broken robots;
-* :mod:`.trajectory` — the primer trajectory the simulated robot streams.
+  :class:`RobotSession` with :class:`RobotFaults` for deliberately broken robots.
+
+The primer trajectory the simulated robot streams is :mod:`conformance.trajectory`.
 """
 
 from ..trajectory import PrimerTrajectory, RoundedRectangle
-from .behaviour import BoxBehaviour, BoxConfig, BoxConnection, Cycle, Decision, Reaction
-from .box import BoxThread, FrameLog, ReferenceBox
+from .behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
+from .connection import BoxConnection
+from .framelog import FrameLog
+from .loop import BoxThread
 from .robot import RobotFaults, RobotResult, RobotSession, TimelineEntry, parse_target, run_robot
+from .server import ReferenceBox
 
 __all__ = [
     "BoxBehaviour", "BoxConfig", "BoxConnection", "BoxThread", "Cycle", "Decision", "FrameLog", "PrimerTrajectory",

@@ -709,7 +709,7 @@ def _pose_text(frame: Frame) -> str:
 
 def run_robot(session: RobotSession, loop: str = "asyncio") -> RobotResult:
     """Run a session to completion from synchronous code."""
-    from .box import run_loop
+    from .loop import run_loop
 
     return run_loop(session.run(), loop)  # type: ignore[no-any-return]
 
