@@ -11,6 +11,7 @@ import sys
 from collections.abc import Sequence
 
 from . import __version__, clauses_cli, wireshark_cli
+from .analyze import cli as analyze_cli
 from .options import add_profile_options, profile_from_options
 from .protocol import (
     ProtocolError,
@@ -82,6 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
     clauses_cli.add_parser(sub)
     wireshark_cli.add_parser(sub)
     diff_cli.add_parser(sub)
+    analyze_cli.add_parser(sub)
     return parser
 
 

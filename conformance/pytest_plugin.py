@@ -14,7 +14,7 @@ passes its settings as the same flags). Every hook forwards:
 * ``pytest_sessionfinish`` finds the root causes and writes the reports, also for a run
   cut short by Ctrl-C, SIGTERM or SIGHUP (marked INCOMPLETE, the cases not run listed).
 
-Only items marked with :func:`conformance.suite.catalogue.case` are touched, so the
+Only items marked with :func:`conformance.suite.record.case` are touched, so the
 plugin is inert in any other test session.
 """
 
@@ -33,8 +33,8 @@ import pytest
 from . import __version__
 from .harness.transcript import Transcript
 from .suite import signals
-from .suite.catalogue import info_of
 from .suite.context import CaseContext
+from .suite.record import info_of
 from .suite.results import attach_evidence, result_of
 from .suite.rootcause import SessionFacts, find_root_causes
 from .suite.session import SessionState
@@ -133,7 +133,8 @@ def isight(request: pytest.FixtureRequest) -> Generator[CaseContext, None, None]
     state = item.config.stash[STATE]
     item.stash[CASE_START] = time.monotonic()
     transcript = Transcript(case_id=info.id)
-    ctx = CaseContext(state, info, transcript)
+    callspec = getattr(item, "callspec", None)
+    ctx = CaseContext(state, info, transcript, dict(callspec.params) if callspec is not None else None)
     item.stash[CTX] = ctx
     ctx.pcap = attach_evidence(transcript, state.settings, info.id)
     try:

@@ -29,7 +29,7 @@ from .protocol.clauses import families as registry_families
 from .pytest_plugin import CAUSES, results, suite_info
 from .report.diff_cli import apply_baseline, load_baseline
 from .rundirs import default_run_dirs
-from .suite.catalogue import CaseInfo, info_of
+from .suite.record import CaseRecord, info_of
 from .suite.settings import SuiteSettings, add_suite_options
 from .suite.verdicts import CaseResult, RootCause, Verdict
 
@@ -71,7 +71,7 @@ class _RunPlugin:
     def __init__(self, progress: Any = None) -> None:
         self.progress = progress
         self.config: pytest.Config | None = None
-        self.collected: list[CaseInfo] = []
+        self.collected: list[CaseRecord] = []
         self.collect_errors: list[str] = []
 
     def pytest_configure(self, config: pytest.Config) -> None:
@@ -109,16 +109,16 @@ def _pytest_args(settings: SuiteSettings, collect_only: bool = False) -> list[st
     return args
 
 
-def collect(settings: SuiteSettings) -> list[CaseInfo] | None:
+def collect(settings: SuiteSettings) -> list[CaseRecord] | None:
     """The selected cases' metadata (None if the catalogue fails to load)."""
     plugin = _RunPlugin()
     code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
     return None if code not in (0, 5) or plugin.collect_errors else plugin.collected
 
 
-def catalogue_markdown(cases: list[CaseInfo]) -> str:
+def catalogue_markdown(cases: list[CaseRecord]) -> str:
     """docs/CATALOGUE.md: one table per clause family, parametrised cases folded into one row."""
-    rows: dict[str, tuple[CaseInfo, list[str]]] = {}
+    rows: dict[str, tuple[CaseRecord, list[str]]] = {}
     for info in cases:
         base, _, param = info.id.partition("[")
         if base not in rows:
@@ -132,7 +132,7 @@ def catalogue_markdown(cases: list[CaseInfo]) -> str:
            "(`isight-conformance clauses ID` prints one). Levels: a MUST broken is FAIL, a SHOULD broken "
            "NON-STRICT, a MAY is INFORMATIONAL.",
            "", f"{len(rows)} cases ({len(cases)} with every parameter).", ""]
-    by_family: dict[str, list[tuple[str, CaseInfo, list[str]]]] = {}
+    by_family: dict[str, list[tuple[str, CaseRecord, list[str]]]] = {}
     for base, (info, params) in rows.items():
         family = base[0] if base.split("-", 1)[0] in clause_ids() else "other"  # "F1-01" is F; "FUZZ-01" other
         by_family.setdefault(family, []).append((base, info, params))

@@ -113,7 +113,7 @@ def test_worst_follows_verdict_order():
 
 
 def test_clause_catalogue_matches_the_suites_clause_ids():
-    from conformance.suite.catalogue import _CLAUSE
+    from conformance.suite.record import _CLAUSE
 
     assert len(CLAUSES) == 37
     assert all(_CLAUSE.match(c) for c in CLAUSES)

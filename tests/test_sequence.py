@@ -21,9 +21,9 @@ from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.loop import BoxThread
 from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, ProtocolError, StreamDecoder, answer, encode
-from conformance.suite.catalogue import CaseInfo
 from conformance.suite.context import CaseContext, SessionState
 from conformance.suite.judge import CaseVerdict, Inconclusive
+from conformance.suite.record import CaseRecord
 from conformance.suite.sequence import (
     SHIPPED_DIR,
     StreamResult,
@@ -66,7 +66,7 @@ def session() -> Any:
 
 
 def _ctx(session: SessionState) -> CaseContext:
-    return CaseContext(session, CaseInfo("SEQ-T-1", ("S1",), Level.MUST, "t", "e"), Transcript())
+    return CaseContext(session, CaseRecord("SEQ-T-1", ("S1",), Level.MUST, "t", "e"), Transcript())
 
 
 @pytest.mark.parametrize("name", [p.stem for p in sorted(SHIPPED_DIR.glob("[A-Z]*.json"))])
@@ -275,7 +275,8 @@ def test_a_box_that_never_answers_gets_clear_bounded_verdicts(tmp_path: Path) ->
     assert elapsed < 60
 
 
-#: against a box that answers only NONE (so the baseline and liveness checks pass), each of these FAILs
+#: against a box that answers only NONE (so the baseline and liveness checks pass), each of these FAILs, or, once
+#: two cases established that an action is not answered within time_out, ends INCONCLUSIVE under that root cause
 SILENT_BOX_FAILS = ["S1-01", "S2-01", "S3-01", "S3-02", "S3-03", "S3-04", "S6-01", "T1-01", "T2-01", "R4-01", "R5-01",
                     "SEQ-S1", "SEQ-T2", "SEQ-S4", "SEQ-S5", "SEQ-R3", "SEQ-R4", "SEQ-R5"]
 
@@ -288,7 +289,11 @@ def test_a_box_answering_only_pings_fails_each_case_within_bounded_time(tmp_path
     finally:
         box.stop()
     verdicts = _verdicts(cases)
-    assert {cid: verdicts[cid] for cid in SILENT_BOX_FAILS} == dict.fromkeys(SILENT_BOX_FAILS, "FAIL")
+    assert {verdicts[cid] for cid in SILENT_BOX_FAILS} <= {"FAIL", "INCONCLUSIVE"}, verdicts
+    assert sum(verdicts[cid] == "FAIL" for cid in SILENT_BOX_FAILS) >= 8, verdicts
+    for cid in SILENT_BOX_FAILS:
+        if verdicts[cid] == "INCONCLUSIVE":  # not run again: explained by the root cause that established it
+            assert "is not answered within time_out" in cases[cid]["message"] and cases[cid]["root_cause"], cases[cid]
     assert "ERROR" not in verdicts.values(), verdicts
     assert verdicts["SEQ-E4"] == "SKIP"  # no extension: detection saw silence
     assert all(c["message"] for c in cases.values() if c["verdict"] != "PASS")

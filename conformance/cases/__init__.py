@@ -1,6 +1,6 @@
 """The conformance case catalogue, as pytest modules.
 
 Run with ``isight-conformance run`` or ``pytest --pyargs conformance.cases --target HOST:PORT``.
-Every case is marked with :func:`conformance.suite.catalogue.case` (stable ID, clauses,
+Every case is marked with :func:`conformance.suite.record.case` (stable ID, clauses,
 level, expectation) and takes the ``isight`` fixture (:class:`~conformance.suite.context.CaseContext`).
 """

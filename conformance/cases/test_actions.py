@@ -27,13 +27,19 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Inconclusive, Skip, answered, check, fail
+from conformance.suite.judge import NOT_OK, Skip, answered
+from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
 ON, OFF, NONE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE
+#: A1-01/A1-02: what a sequence of requests is judged by
+SEQUENCE = {
+    "order": Requirement("A1: every well-formed request is answered with exactly one frame, in request order"),
+    "once": Requirement("A1: exactly one answer per request"),
+    "taken": Requirement("A1: the box answers every request"),
+}
 
 
 def _requests(first: int) -> list[Frame]:
@@ -67,30 +73,29 @@ def _judge_sequence(isight: CaseContext, conn: TcpConnection, frames: list[Frame
         got = action_of(outcome)
         if got != frame.action:
             before = ", ".join(_name(action_of(o)) for o in outcomes[max(0, i - 2): i + 1])
-            raise fail(Level.MUST, "A1: every well-formed request is answered with exactly one frame, in request order",
-                       f"answer {i + 1} of {len(frames)} echoes {frame.action.name}",
-                       f"{outcome.describe()} (answers {max(1, i - 1)}..{i + 1}: {before})",
-                       sent=sent, received=isight.transcript.received(conn.conn_id))
+            raise isight.broken("order", expected=f"answer {i + 1} of {len(frames)} echoes {frame.action.name}",
+                                observed=f"{outcome.describe()} (answers {max(1, i - 1)}..{i + 1}: {before})",
+                                sent=sent, received=isight.transcript.received(conn.conn_id))
     extra = conn.drain(isight.settings.settle_s)
     if any(not isinstance(o, Closed) for o in extra):
-        raise fail(Level.MUST, "A1: exactly one answer per request",
-                   f"{len(frames)} answers and nothing more", "after them: " + "; ".join(o.describe() for o in extra),
-                   sent=sent, received=isight.transcript.received(conn.conn_id))
+        raise isight.broken("once", expected=f"{len(frames)} answers and nothing more",
+                            observed="after them: " + "; ".join(o.describe() for o in extra),
+                            sent=sent, received=isight.transcript.received(conn.conn_id))
 
 
 # -- A1: one answer per request, in order ------------------------------------------------------
 
 
 @case("A1-01", ["A1", "S6", "R4"], Level.MUST, "20 pipelined mixed requests are answered once each, in order",
-      "20 answers whose actions follow the requests' order, and nothing after them")
+      "20 answers whose actions follow the requests' order, and nothing after them", checks=SEQUENCE)
 def test_pipelined_order(isight: CaseContext) -> None:
     frames = _requests(isight.profile.first_index)
     data = b"".join(encode(f, isight.profile) for f in frames)
     conn = isight.connect()
     start = time.monotonic()
     if not conn.send(data, f"{len(frames)} requests in one send: " + " ".join(f.action.name for f in frames)):
-        raise fail(Level.MUST, "A1: the box answers every request", "the requests to be taken", "the box closed the connection",
-                   sent=data)
+        raise isight.broken("taken", expected="the requests to be taken", observed="the box closed the connection",
+                            sent=data)
     outcomes: list[Outcome] = []
     for _ in frames:
         outcome = conn.next_outcome(since=start)
@@ -103,7 +108,7 @@ def test_pipelined_order(isight: CaseContext) -> None:
 
 
 @case("A1-02", ["A1"], Level.MUST, "Requests sent one at a time are answered once each",
-      "each request's next frame is its own answer; nothing follows the last one")
+      "each request's next frame is its own answer; nothing follows the last one", checks=SEQUENCE)
 def test_lockstep_once(isight: CaseContext) -> None:
     frames = _requests(isight.profile.first_index)
     conn = isight.connect()
@@ -142,7 +147,10 @@ A2_ACTIONS = [
 
 
 @case("A2-01", ["A2", "F3"], Level.MUST, "Answers carry transfer type 10, echo the action and carry no blocks",
-      "every answer's bytes 4..9 are 10, the action, 00, 00, 00 00, and it is 14 bytes long")
+      "every answer's bytes 4..9 are 10, the action, 00, 00, 00 00, and it is 14 bytes long",
+      checks={"shape": Requirement("A2: an answer has transfer type 10, echoes the action and carries no blocks"),
+              "answered": Requirement("A1: the {action.name} request is answered",
+                                      accept=lambda action, **_: answered(action))})
 @pytest.mark.parametrize("actions", [a for _, a in A2_ACTIONS], ids=[i for i, _ in A2_ACTIONS])
 def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None:
     first = isight.profile.first_index
@@ -168,14 +176,14 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
             problems = _shape_problems(raw, action) if len(raw) >= 12 else ["not a frame"]
             if not problems:  # the shape is right; what is wrong (e.g. A4) is judged elsewhere
                 continue
-            raise fail(Level.MUST, "A2: an answer has transfer type 10, echoes the action and carries no blocks",
-                       "10 | action | 00 | 00 | 00 00", "; ".join(problems) or str(outcome.error), sent=sent, received=raw)
-        check(outcome, answered(action), Level.MUST, f"A1: the {action.name} request is answered", sent=sent)
+            raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00",
+                                observed="; ".join(problems) or str(outcome.error), sent=sent, received=raw)
+        isight.judge(outcome, "answered", sent=sent, action=action)
         assert isinstance(outcome, Answer)
         problems = _shape_problems(outcome.raw, action)
         if problems:
-            raise fail(Level.MUST, "A2: an answer has transfer type 10, echoes the action and carries no blocks",
-                       "10 | action | 00 | 00 | 00 00 (14 bytes)", "; ".join(problems), sent=sent, received=outcome.raw)
+            raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00 (14 bytes)", observed="; ".join(problems),
+                                sent=sent, received=outcome.raw)
 
 
 # -- A3: error codes ----------------------------------------------------------------------------
@@ -197,7 +205,11 @@ def _malformed_set(action: Action, first: int, profile: Profile) -> list[tuple[s
 
 
 @case("A3-01", ["A3", "B3", "B5"], Level.MUST, "Malformed 23/24/25 requests get the action's error, never 0000",
-      "on one connection, each is not answered 0000 (MUST) and is answered 1001 (23/24) or 1002 (25) (SHOULD)")
+      "on one connection, each is not answered 0000 (MUST) and is answered 1001 (23/24) or 1002 (25) (SHOULD)",
+      checks={"no-0000": Requirement("A3: a {action.name} request with {what} MUST NOT be answered 0000", accept=NOT_OK),
+              "code": Requirement("A3: a {action.name} request with {what} SHOULD be answered {error:04X}",
+                                  level=Level.SHOULD,
+                                  accept=lambda action, **_: answered(action, [ACTION_ERROR[action]]))})
 @pytest.mark.parametrize("action", [POSE, REG, TOL], ids=["pose", "register-pose", "tolerance"])
 def test_parse_error_codes(isight: CaseContext, action: Action) -> None:
     conn = isight.connect("malformed")
@@ -207,51 +219,45 @@ def test_parse_error_codes(isight: CaseContext, action: Action) -> None:
             conn = isight.connect("malformed (reconnected after the box closed)")
         results.append((what, bad, isight.send_malformed(bad, f"{action.name} request with {what}", conn=conn)))
     for what, bad, outcome in results:
-        check(outcome, NOT_OK, Level.MUST, f"A3: a {action.name} request with {what} MUST NOT be answered 0000", sent=bad)
-    error = ACTION_ERROR[action]
-    for what, bad, outcome in results:
-        check(outcome, answered(action, [error]), Level.SHOULD,
-              f"A3: a {action.name} request with {what} SHOULD be answered {error:04X}", sent=bad)
+        isight.judge(outcome, "no-0000", sent=bad, what=what)
+    for what, bad, outcome in results:  # the SHOULDs after every MUST
+        isight.judge(outcome, "code", sent=bad, what=what, error=ACTION_ERROR[action])
+
+
+NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
 
 
 @case("A3-02", ["A3", "S2"], Level.MUST, "CycleOn is answered 0000 or 0001, CycleOff 0000 or 0002",
-      "from an idle box: CycleOn answered 0000 (or 0001: not ready, then INCONCLUSIVE); CycleOff then answered 0000 or 0002")
+      "from an idle box: CycleOn answered 0000 (or 0001: not ready, then INCONCLUSIVE); CycleOff then answered 0000 or 0002",
+      checks={"idle": Requirement("S3: a CycleOff first brings the box to idle (its answer is not judged)",
+                                  inconclusive=NOT_ANSWERED, inconclusive_text="could not bring the box to idle"),
+              "on": Requirement("S2/A3: CycleOn is answered 0000, or 0001 when not ready", accept=answered(ON, [0, 1]),
+                                inconclusive=answered(ON, [1]),
+                                inconclusive_text="S2: CycleOn answered 0001 (box not ready): CycleOff after it is not judged"),
+              "off": Requirement("A3: CycleOff is answered 0000, or 0002 when the detection could not be closed",
+                                 accept=answered(OFF, [0, 2]), informational=answered(OFF, [2]),
+                                 informational_text="CycleOff answered 0002: the box could not close the detection (A3)")})
 def test_cycle_codes(isight: CaseContext) -> None:
     conn = isight.connect()
-    prep = conn.request(request(OFF), "CycleOff first, so the box is idle (its answer is not judged, S3)")
-    if not isinstance(prep, Answer):
-        raise Inconclusive(f"could not bring the box to idle: to CycleOff it {prep.describe()}")
-    on = conn.request(request(ON), "CycleOn request")
-    check(on, answered(ON, [0x0000, 0x0001]), Level.MUST, "S2/A3: CycleOn is answered 0000, or 0001 when not ready",
-          sent=isight.transcript.sent(conn.conn_id))
-    assert isinstance(on, Answer)
-    if on.frame.error_code == 0x0001:
-        raise Inconclusive("S2: CycleOn answered 0001 (box not ready): CycleOff after it is not judged")
-    off = conn.request(request(OFF), "CycleOff request")
-    check(off, answered(OFF, [0x0000, 0x0002]), Level.MUST,
-          "A3: CycleOff is answered 0000, or 0002 when the detection could not be closed",
-          sent=isight.transcript.sent(conn.conn_id))
-    assert isinstance(off, Answer)
-    if off.frame.error_code == 0x0002:
-        isight.inform("CycleOff answered 0002: the box could not close the detection (A3)")
+    isight.judge(conn.request(request(OFF), "CycleOff first, so the box is idle (its answer is not judged, S3)"), "idle")
+    isight.judge(conn.request(request(ON), "CycleOn request"), "on", sent=isight.transcript.sent(conn.conn_id))
+    isight.judge(conn.request(request(OFF), "CycleOff request"), "off", sent=isight.transcript.sent(conn.conn_id))
 
 
 # -- A4: NONE -----------------------------------------------------------------------------------
 
 
 @case("A4-01", ["A4"], Level.MUST, "NONE (action 00) is answered NONE with 0000",
-      "each NONE request, on a fresh connection and three in a row on one connection, is answered NONE 0000")
+      "each NONE request, on a fresh connection and three in a row on one connection, is answered NONE 0000",
+      checks={"": Requirement("A4: action 00 is answered with action 00 and error 0000", accept=answered(NONE, [0]))})
 def test_none_answered(isight: CaseContext) -> None:
-    outcome = isight.exchange(request(NONE), "NONE request on a fresh connection")
-    check(outcome, answered(NONE, [0]), Level.MUST, "A4: action 00 is answered with action 00 and error 0000",
-          sent=isight.last_sent)
+    isight.judge(isight.exchange(request(NONE), "NONE request on a fresh connection"))
     conn = isight.connect()
     for i in range(3):
         outcome = conn.request(request(NONE), f"NONE request {i + 1}/3")
         if isinstance(outcome, Answer):
             isight.latencies_ms.append(outcome.latency_s * 1000)
-        check(outcome, answered(NONE, [0]), Level.MUST, "A4: action 00 is answered with action 00 and error 0000",
-              sent=encode(request(NONE), isight.profile))
+        isight.judge(outcome, sent=encode(request(NONE), isight.profile))
 
 
 # -- A5: frames that are not requests -----------------------------------------------------------
@@ -291,16 +297,29 @@ def not_request(fields: dict[str, int], body: str, isight: CaseContext) -> bytes
 
 
 @case("A5-01", ["A5", "R1", "F1", "F2", "F3"], Level.MUST, "A frame that is not a request is never answered 0000",
-      "silence, a non-zero error, or a close; never 0000")
+      "silence, a non-zero error, or a close; never 0000",
+      checks={"": Requirement("A5: a frame that is not a request MUST NOT be answered 0000", accept=NOT_OK)})
 @pytest.mark.parametrize("fields,body", [c[1:] for c in NOT_REQUESTS], ids=[c[0] for c in NOT_REQUESTS])
 def test_not_a_request(isight: CaseContext, fields: dict[str, int], body: str) -> None:
     bad = not_request(fields, body, isight)
-    outcome = isight.send_malformed(bad, "not a request: " + ", ".join(f"{k}={v:#x}" for k, v in fields.items()))
-    check(outcome, NOT_OK, Level.MUST, "A5: a frame that is not a request MUST NOT be answered 0000", sent=bad)
+    isight.judge(isight.send_malformed(bad, "not a request: " + ", ".join(f"{k}={v:#x}" for k, v in fields.items())))
+
+
+def _type03_answer(action: Action, **_: object) -> Expect:
+    def seems_e(o: Outcome) -> bool:
+        header = o.error.header if isinstance(o, Malformed) else None
+        return header is not None and header.action == action and header.block_type == 0x03
+
+    return Expect("a type-03 block answer that does not parse", seems_e)
 
 
 @case("A5-02", ["A5", "R1", "E2", "E3"], Level.MUST, "Without extension E, actions 26 and 27 are unknown and never answered 0000",
-      "SKIP when the box implements E; else silence, a non-zero error, or a close to 26 and 27; never 0000")
+      "SKIP when the box implements E; else silence, a non-zero error, or a close to 26 and 27; never 0000",
+      checks={"": Requirement("A5: without E, action {action:02x} is unknown and MUST NOT be answered 0000", accept=NOT_OK,
+                              inconclusive=_type03_answer,
+                              inconclusive_text="the box answers {action:02x} with a type-03 block (it seems to implement "
+                                                "E), but the answer does not parse under this run's profile; check the "
+                                                "profile, e.g. --first-index")})
 @pytest.mark.parametrize("action", [Action.PROG_IDX, Action.VISION_RESULT], ids=["26-prog-idx", "27-vision-result"])
 def test_extension_actions_unknown(isight: CaseContext, action: Action) -> None:
     if isight.settings.extension == "off":
@@ -309,12 +328,7 @@ def test_extension_actions_unknown(isight: CaseContext, action: Action) -> None:
         raise Skip(f"the box implements extension E ({isight.session.extension_how}): 26/27 are known actions")
     blocks = value_blocks([7], isight.profile.first_index) if action is Action.PROG_IDX else ()
     bad = encode(request(action, blocks), isight.profile)
-    outcome = isight.send_malformed(bad, f"{action.name} ({action:#04x}) request to a box without extension E")
-    header = outcome.error.header if isinstance(outcome, Malformed) else None
-    if isinstance(outcome, Malformed) and header is not None and header.action == action and header.block_type == 0x03:
-        raise Inconclusive(f"the box answers {action:02x} with a type-03 block (it seems to implement E), but the answer "
-                           f"does not parse under this run's profile ({outcome.error}); check the profile, e.g. --first-index")
-    check(outcome, NOT_OK, Level.MUST, f"A5: without E, action {action:02x} is unknown and MUST NOT be answered 0000", sent=bad)
+    isight.judge(isight.send_malformed(bad, f"{action.name} ({action:#04x}) request to a box without extension E"))
 
 
 @case("A5-03", ["A5", "R6"], Level.MAY, "What the box does with frames that are not requests",

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from conformance.harness.client import Answer
 from conformance.protocol import Action, encode, request
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext, answers_none
 from conformance.suite.judge import CaseVerdict, answered, check
+from conformance.suite.record import case
 from conformance.suite.session import responsive
 from conformance.suite.verdicts import Level, Verdict
 

@@ -25,9 +25,9 @@ from conformance.protocol import (
     request,
     tolerance_blocks,
 )
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, answered, check
+from conformance.suite.record import case
 from conformance.suite.verdicts import Level
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE

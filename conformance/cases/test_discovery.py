@@ -38,9 +38,9 @@ from conformance.protocol import (
     request,
     value_blocks,
 )
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, Skip, fail
+from conformance.suite.record import case
 from conformance.suite.verdicts import Level
 
 ORDERS = ("big", "little")

@@ -31,9 +31,9 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.answers import CONFLICT, SENDABLE_RESULTS
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, answered, check, fail
+from conformance.suite.record import case
 from conformance.suite.verdicts import Level
 from conformance.trajectory import PrimerTrajectory
 

@@ -21,9 +21,9 @@ from __future__ import annotations
 from typing import Any
 
 from conformance.fuzz.campaign import Campaign, CampaignConfig
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import fail
+from conformance.suite.record import case
 from conformance.suite.verdicts import Level
 
 FRAMES_S = 2.0

@@ -12,9 +12,9 @@ import pytest
 
 from conformance.harness.client import Answer, Closed, TcpConnection
 from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import CLOSED, NOT_OK, Inconclusive, answered, check, fail
+from conformance.suite.record import case
 from conformance.suite.sequence import DEFAULT_POSE, latency_figures, pieces_of
 from conformance.suite.verdicts import Level
 

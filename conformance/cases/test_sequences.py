@@ -14,9 +14,9 @@ from typing import Any
 
 import pytest
 
-from conformance.suite.catalogue import MARKER, CaseInfo, case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Skip
+from conformance.suite.record import MARKER, CaseRecord, case
 from conformance.suite.sequence import Sequence, SequenceError, load, run_sequence, shipped
 from conformance.suite.verdicts import Level
 
@@ -38,7 +38,7 @@ def _case_for(seq: Sequence) -> Callable[[CaseContext], None]:
 for _seq in SHIPPED:
     globals()[_case_for(_seq).__name__] = _case_for(_seq)
 
-_NONE = CaseInfo("SEQ-USER", ("S1",), Level.MUST, "Sequence files given with --sequence FILE",
+_NONE = CaseRecord("SEQ-USER", ("S1",), Level.MUST, "Sequence files given with --sequence FILE",
                  "as each file says; SKIP when no file is given")
 
 
@@ -56,7 +56,7 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
             seq = load(path)
         except SequenceError as exc:
             raise pytest.UsageError(f"--sequence {exc}") from None
-        info = CaseInfo(seq.id, seq.clauses, seq.level, seq.title, seq.expect,
+        info = CaseRecord(seq.id, seq.clauses, seq.level, seq.title, seq.expect,
                         ("extension",) if "extension" in seq.requires else ())
         params.append(pytest.param(seq, marks=getattr(pytest.mark, MARKER)(info), id=seq.stem))
     if not params:

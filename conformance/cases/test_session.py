@@ -8,9 +8,9 @@ import time
 from conformance.harness.client import Answer, Closed, Outcome, Silence, TcpConnection
 from conformance.harness.transcript import Kind
 from conformance.protocol import Action, Frame, pose_blocks, request, tolerance_blocks
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import CLOSED, Inconclusive, answered, check, fail
+from conformance.suite.record import case
 from conformance.suite.sequence import PoseStream, judge_stream, latency_figures, percentile
 from conformance.suite.verdicts import Level
 

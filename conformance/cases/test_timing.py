@@ -6,9 +6,9 @@ import time
 
 from conformance.harness.client import Answer, Outcome
 from conformance.protocol import Action, Frame, encode, pose_blocks, request, tolerance_blocks
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import answered, check
+from conformance.suite.record import case
 from conformance.suite.sequence import DEFAULT_POSE, PoseStream, judge_stream, latency_figures
 from conformance.suite.verdicts import Level
 

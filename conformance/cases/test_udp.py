@@ -30,9 +30,9 @@ from conformance.protocol import (
     request,
     tolerance_blocks,
 )
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, answered, check, fail
+from conformance.suite.record import case
 from conformance.suite.verdicts import Level
 
 POSE = (500.0, -20.0, 300.0, 180.0, 0.0, 90.0)

@@ -34,9 +34,9 @@ from conformance.protocol import (
     parse_header,
     request,
 )
-from conformance.suite.catalogue import case
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, Expect, Inconclusive, Skip, answered, check
+from conformance.suite.record import case
 from conformance.suite.verdicts import Level
 from conformance.vectors import REPO_VECTORS, Vector, load_dir
 

@@ -20,7 +20,7 @@ from typing import Any
 from ..evidence.pcap import write_transcript
 from ..harness.transcript import Transcript
 from ..protocol import Frame, Profile, ProtocolError, TransferType, Transport, parse_frame
-from ..suite.catalogue import _CLAUSE
+from ..suite.record import _CLAUSE
 from ..vectors import frame_to_dict, write
 from .strategies import FuzzCase
 

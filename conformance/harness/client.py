@@ -137,6 +137,8 @@ class TcpConnection:
         self.max_bytes = FLOOD_BYTES
         #: called with every chunk before it is sent (the suite's session rules may stop a case here)
         self.before_send: Callable[[bytes], None] | None = None
+        #: called with the action of every request :meth:`request` saw answered within the wait
+        self.on_answered: Callable[[int], None] | None = None
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:
@@ -317,7 +319,12 @@ class TcpConnection:
         start = time.monotonic()
         if not self.send(data, note):
             return self.closed_by_peer or Closed(False, time.monotonic() - start)
-        return self.next_outcome(timeout_s, since=start)
+        outcome = self.next_outcome(timeout_s, since=start)
+        if self.on_answered is not None and isinstance(outcome, Answer):
+            raw = data if isinstance(data, bytes) else self.codec.encode(data)
+            if len(raw) > 5 and outcome.frame.action == raw[5]:
+                self.on_answered(raw[5])
+        return outcome
 
     def drain(self, quiet_s: float = 0.05) -> list[Outcome]:
         """Everything the box sends until it has been quiet for ``quiet_s`` (at most

@@ -23,8 +23,8 @@ from ..protocol import Action, Frame, Profile, encode, pose_blocks, request
 from ..protocol.answers import Seen
 from ..protocol.explain import explain
 from ..protocol.framings import End, Explanation
-from .catalogue import CaseInfo
-from .judge import Inconclusive, Skip
+from .judge import CaseVerdict, Inconclusive, Skip, broken, judge
+from .record import CaseRecord
 from .session import SessionState
 
 PROBE_POSE_VALUES = (100.25, -200.5, 300.75, 0.0, 90.0, -180.0)
@@ -39,9 +39,12 @@ def probe_pose(profile: Profile) -> Frame:
 class CaseContext:
     """The ``isight`` fixture: everything one case needs, all of it recorded."""
 
-    def __init__(self, session: SessionState, info: CaseInfo, transcript: Transcript) -> None:
+    def __init__(self, session: SessionState, info: CaseRecord, transcript: Transcript,
+                 params: dict[str, Any] | None = None) -> None:
         self.session = session
         self.info = info
+        #: the case's parameters (pytest's callspec): requirement words and expectations may name them
+        self.params: dict[str, Any] = dict(params or {})
         self.transcript = transcript
         self.settings = session.settings
         self.profile = session.profile
@@ -66,6 +69,7 @@ class CaseContext:
         """A connected, recorded TCP connection; an unreachable box ends the case INCONCLUSIVE."""
         conn = TcpConnection(self.transcript, target or self.target, self.profile, label, time_out_s)
         conn.before_send = self._not_known_late
+        conn.on_answered = self.session.note_answered
         self._connections.append(conn)
         try:
             return conn.connect()
@@ -187,6 +191,22 @@ class CaseContext:
         return self.session.probe(self.transcript)
 
     # -- verdict helpers ------------------------------------------------------------------
+    def judge(self, outcome: Outcome, check: str = "", *, sent: bytes | None = None, **values: Any) -> None:
+        """Judge ``outcome`` by the case record's requirement ``check`` (its words, its acceptable,
+        SHOULD and unjudgeable outcomes, its level): return for PASS, raise the verdict otherwise.
+        ``values`` (with the case's parameters) fill the requirement's words and expectations."""
+        note = judge(outcome, self.info.check(check), self.info.level, {**self.params, **values},
+                     sent=self.last_sent if sent is None else sent)
+        if note:
+            self.inform(note)
+
+    def broken(self, check: str = "", *, expected: str, observed: str, sent: bytes = b"", received: bytes = b"",
+               signature: str = "", **values: Any) -> CaseVerdict:
+        """The verdict of a requirement the case judged by its own logic (raise it): the record
+        gives the words and the level, the case what it expected and what it saw."""
+        return broken(self.info.check(check), self.info.level, expected, observed, {**self.params, **values},
+                      sent=sent, received=received, signature=signature)
+
     def inform(self, text: str) -> None:
         """Record behaviour that is reported, never judged (INFORMATIONAL)."""
         self.informational = text if self.informational is None else f"{self.informational}; {text}"

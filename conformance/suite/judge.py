@@ -9,11 +9,12 @@ verdict of the requirement's level, with expected, observed and the bytes.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from collections.abc import Iterable, Mapping
+from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..protocol import Action, ErrorCode, Frame, ProtocolError, TransferType, ValueBlock
+from .record import Expect, ExpectSpec, Requirement
 from .verdicts import Level, Verdict
 
 _CLAUSES = re.compile(r"^\s*\[?((?:[FBASTRE][1-7])(?:\s*[/,]\s*[FBASTRE][1-7])*)\]?\s*(?::|\(|\[| )")
@@ -77,19 +78,6 @@ class Inconclusive(CaseVerdict):
 class Skip(CaseVerdict):
     def __init__(self, message: str) -> None:
         super().__init__(Verdict.SKIP, message)
-
-
-@dataclass(frozen=True)
-class Expect:
-    """One acceptable outcome: a description and a predicate (and the action it expects answered)."""
-
-    text: str
-    matches: Callable[[Outcome], bool]
-    action: int | None = None
-
-    def __or__(self, other: Expect) -> Expect:
-        action = self.action if self.action is not None else other.action
-        return Expect(f"{self.text}, or {other.text}", lambda o: self.matches(o) or other.matches(o), action)
 
 
 def _err(code: int) -> str:
@@ -271,3 +259,53 @@ def fail(level: Level, requirement: str, expected: str, observed: str, sent: byt
         received=received,
         signature=signature,
     )
+
+
+# -- the one judging routine -----------------------------------------------------------------------
+
+
+def resolve(spec: ExpectSpec | None, values: Mapping[str, Any]) -> Expect | None:
+    """An Expect, or the one a function of the case's values returns."""
+    if spec is None or isinstance(spec, Expect):
+        return spec
+    return spec(**values)
+
+
+def words(text: str, values: Mapping[str, Any]) -> str:
+    """A requirement's words with the case's values filled in (``{action}`` ...)."""
+    try:
+        return text.format(**values)
+    except (KeyError, IndexError, ValueError):
+        return text
+
+
+def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapping[str, Any] | None = None, *,
+          sent: bytes = b"") -> str | None:
+    """Turn ``outcome`` into the requirement's verdict: raise it unless PASS.
+
+    First the outcomes that leave it unjudgeable (INCONCLUSIVE), then the acceptable ones
+    (else the level's broken verdict: FAIL for a MUST), then what a conforming box SHOULD
+    do (else NON-STRICT). Returns the words to record when the outcome is an acceptable one
+    worth recording (the requirement's ``informational``), else None."""
+    values = dict(values or {})
+    unjudgeable = resolve(requirement.inconclusive, values)
+    if unjudgeable is not None and unjudgeable.matches(outcome):
+        why = words(requirement.inconclusive_text or requirement.text, values)
+        raise Inconclusive(f"{why} (the box {outcome.describe()})")
+    accept = resolve(requirement.accept, values)
+    if accept is not None:
+        check(outcome, accept, requirement.level or level, words(requirement.text, values), sent=sent)
+    should = resolve(requirement.should, values)
+    if should is not None:
+        check(outcome, should, Level.SHOULD, words(requirement.should_text or requirement.text, values), sent=sent)
+    note = resolve(requirement.informational, values)
+    if note is not None and note.matches(outcome):
+        return f"{words(requirement.informational_text, {**values, 'outcome': outcome.describe()})}"
+    return None
+
+
+def broken(requirement: Requirement, level: Level, expected: str, observed: str, values: Mapping[str, Any] | None = None,
+           *, sent: bytes = b"", received: bytes = b"", signature: str = "") -> CaseVerdict:
+    """The verdict for a requirement judged by the case's own logic (raise it)."""
+    return fail(requirement.level or level, words(requirement.text, dict(values or {})), expected, observed, sent,
+                received, signature)

@@ -13,9 +13,9 @@ from typing import Any
 
 from ..harness.target import Unreachable
 from ..harness.transcript import Kind, Transcript
-from .catalogue import CaseInfo
 from .context import CaseContext
 from .judge import CaseVerdict, clauses_in
+from .record import CaseRecord
 from .settings import SuiteSettings
 from .verdicts import CaseResult, Verdict
 from .wirelog import wire_lines
@@ -55,7 +55,7 @@ def safe_name(case_id: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in case_id)
 
 
-def classify(exc: BaseException | None, info: CaseInfo, ctx: CaseContext | None,
+def classify(exc: BaseException | None, info: CaseRecord, ctx: CaseContext | None,
              skipped: bool = False) -> tuple[Verdict, dict[str, Any]]:
     """The verdict and the report fields for what the case raised (None: it returned)."""
     if exc is None:
@@ -79,7 +79,7 @@ def classify(exc: BaseException | None, info: CaseInfo, ctx: CaseContext | None,
     return Verdict.ERROR, {"message": f"suite error: {type(exc).__name__}: {exc}", "observed": tb}
 
 
-def result_of(info: CaseInfo, ctx: CaseContext | None, exc: BaseException | None, duration_s: float,
+def result_of(info: CaseRecord, ctx: CaseContext | None, exc: BaseException | None, duration_s: float,
               skipped: bool = False) -> CaseResult:
     """The case's result, with its evidence. A non-PASS verdict always carries a requirement
     (default: the case's clauses, level and title), the bytes, and the clause it judged,

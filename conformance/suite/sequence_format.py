@@ -18,8 +18,8 @@ from typing import Any
 
 from ..protocol import Action
 from ..vectors import REPO_VECTORS
-from .catalogue import _CLAUSE
 from .judge import CLOSED, NOT_OK, SILENCE, Expect
+from .record import _CLAUSE
 from .verdicts import Level
 
 FORMAT = "isight-sequence-1"

@@ -81,6 +81,8 @@ class SessionState:
     closed: int = 0
     #: action name -> ids of the cases that found it unanswered within time_out
     late: dict[str, list[str]] = field(default_factory=dict)
+    #: actions the box has answered within the wait at least once this session
+    answered: set[str] = field(default_factory=set)
     _target: Target | None = None
     _udp_target: Target | None = None
     _witness: TcpConnection | None = None
@@ -159,6 +161,8 @@ class SessionState:
         except Exception as exc:  # the bundled box failed to start: the suite's fault
             raise RuntimeError(f"could not start the bundled reference box: {exc}") from exc
         self.baseline = self.probe(transcript)
+        if isinstance(self.baseline, Answer):
+            self.answered.add(Action.NONE.name)
         if not responsive(self.baseline):
             self._mark_dead("session start", f"the box does not answer a NONE request (it {self.baseline.describe()}); "
                             "PROFILE-01 tells which profile it appears to use")
@@ -211,9 +215,16 @@ class SessionState:
                            signature=f"unreachable:{health.dead_since_case}")
 
     def known_late(self, action: str) -> list[str] | None:
-        """The cases that established that ``action`` is not answered within time_out (None: not established)."""
+        """The cases that established that ``action`` is not answered within time_out (None: not
+        established, or the box has answered it in time at least once: then the silences had another cause)."""
         cases = self.late.get(action, [])
-        return cases if len(cases) >= LATE_CASES else None
+        return cases if len(cases) >= LATE_CASES and action not in self.answered else None
+
+    def note_answered(self, action: int) -> None:
+        try:
+            self.answered.add(Action(action).name)
+        except ValueError:
+            pass
 
     def _mark_dead(self, case_id: str, reason: str) -> None:
         self.health.dead_since_case = case_id

@@ -1,0 +1,246 @@
+"""One direction of a TCP connection: its bytes in, iSight frames and typed errors out,
+each with the capture's frame numbers (sans-I/O).
+
+The codec's :class:`~conformance.protocol.StreamDecoder` frames the bytes and the
+codec judges each frame, so a frame is framed and judged here exactly as the suite
+does it everywhere else. Fast path: while no partial frame is waiting, a segment that
+holds whole frames is cut where each header says (the decoder's own rule: start word,
+version, at most the largest legal frame) and each frame goes straight to the codec's
+parser; anything else goes through the decoder (tests/test_analyze_framing.py checks
+that both give the same events for every split). A well-formed 14-byte frame (an
+answer without blocks: the stream's answers are all alike) is parsed once per reader.
+
+Where the bytes did not start at a frame (the capture began mid-connection) or after a
+gap, :class:`FrameReader` first skips to the next plausible header (start word,
+version, transfer type and a known action): those bytes are not judged. A frame cut by
+a gap or by the capture's end is counted (:attr:`FrameReader.cut`), never judged.
+
+``emit(event, raw, offset, first_frame, last_frame, ts)`` gets every event: ``offset``
+counts from the first byte this reader saw, ``first_frame`` is the packet that carried
+the frame's first byte, ``last_frame`` and ``ts`` the packet that completed it.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+from ..protocol import (
+    CLOSED,
+    NEED_DATA,
+    Action,
+    Profile,
+    ProtocolError,
+    StreamDecoder,
+    TransferType,
+    Transport,
+    codec_for,
+)
+from ..protocol.constants import MAX_BLOCK_COUNT, MAX_BLOCK_LEN
+
+__all__ = ["FrameReader", "plausible_header"]
+
+_MAX_BODY = MAX_BLOCK_COUNT * MAX_BLOCK_LEN
+_MAX_FRAME = _MAX_BODY + 14
+_TCP = Transport.TCP
+_ACTIONS = frozenset(int(a) for a in Action)
+_TRANSFER = frozenset(int(t) for t in TransferType)
+_CARRY = 5
+
+Emit = Callable[[Any, bytes, int, int, int, float], None]
+
+
+def plausible_header(data: bytes, start: int = 0, expect: int | None = None, byte_order: str = "big") -> int:
+    """Index of the first plausible iSight header at or after ``start``: FE FE, version 1
+    in ``byte_order``, transfer type ``expect`` (or either), a known action. -1 if none."""
+    version = b"\x00\x01" if byte_order == "big" else b"\x01\x00"
+    pos = data.find(b"\xfe\xfe", start)
+    while 0 <= pos <= len(data) - 6:
+        if data[pos + 2 : pos + 4] == version and (data[pos + 4] == expect if expect is not None
+                                                     else data[pos + 4] in _TRANSFER) and data[pos + 5] in _ACTIONS:
+            return pos
+        pos = data.find(b"\xfe\xfe", pos + 1)
+    return -1
+
+
+class FrameReader:
+    """Frames of one direction; ``expect`` is the transfer type its sender must use (F3)."""
+
+    def __init__(self, profile: Profile, expect: TransferType, emit: Emit, resync: bool = False) -> None:
+        self.profile = profile
+        self.expect = expect
+        self.emit = emit
+        self._parse = codec_for(profile).parse
+        self._u16 = struct.Struct(">H" if profile.byte_order == "big" else "<H").unpack_from
+        self._big = profile.byte_order == "big"
+        self._known: dict[bytes, Any] = {}  # 14-byte frames already parsed (immutable Frames)
+        self.decoder = StreamDecoder(profile, expect)
+        self.offset = 0  # stream offset of the next byte to read (of the carry, while resynchronising)
+        self._buf = bytearray()  # the bytes the decoder has not reported yet
+        self._base = 0  # stream offset of _buf[0]
+        self._shift = 0  # stream offset minus the decoder's own offset
+        self._marks: deque[tuple[int, int]] = deque()  # (stream offset, frame) where each waiting chunk starts
+        self.resync = resync
+        self._carry = b""
+        self.skipped = 0  # bytes skipped, not judged (before a plausible header)
+        self.cut = 0  # frames cut by a gap or the capture's end, not judged
+        self.eof = False
+        self._simple = False
+        self._settle()
+
+    def _settle(self) -> None:
+        """The short path is open when no partial frame waits, nothing is skipped, the stream is open
+        and headers are big-endian (the byte order the short path reads)."""
+        self._simple = not self._buf and not self.resync and not self.eof and self._big
+
+    def mark_midstart(self) -> None:
+        """The bytes do not start at a frame: skip to the first plausible header."""
+        self.resync = True
+        self._simple = False
+
+    # -- input -------------------------------------------------------------------------------------
+    def feed(self, data: bytes, no: int, ts: float) -> None:
+        n = len(data)
+        if (self._simple and n >= 14 and data[0] == 0xFE and data[1] == 0xFE and data[2] == 0 and data[3] == 1
+                and data[7] * ((data[8] << 8) | data[9]) + 14 == n and n <= _MAX_FRAME):
+            # one whole frame (big-endian header), no partial frame waiting: the codec judges it
+            offset = self.offset
+            self.offset = offset + n
+            event: Any = self._known.get(data) if n == 14 else None
+            if event is None:
+                try:
+                    event = self._parse(data, _TCP, self.expect)
+                    if n == 14 and len(self._known) < 256:
+                        self._known[data] = event  # an answer without blocks: the same bytes, the same frame
+                except ProtocolError as exc:
+                    exc.offset += offset
+                    event = exc
+            self.emit(event, data, offset, no, no, ts)
+            return
+        self._feed(data, no, ts)
+
+    def _feed(self, data: bytes, no: int, ts: float) -> None:
+        if self.eof:
+            return
+        if self.resync:
+            data = self._find_header(data)
+            if not data:
+                return
+        if not self._buf:
+            n = len(data)
+            pos = 0
+            u16, parse, expect, emit, offset = self._u16, self._parse, self.expect, self.emit, self.offset
+            while n - pos >= 14 and data[pos] == 0xFE and data[pos + 1] == 0xFE and u16(data, pos + 2)[0] == 1:
+                total = data[pos + 7] * u16(data, pos + 8)[0] + 14
+                if total > _MAX_BODY + 14 or pos + total > n:
+                    break
+                raw = data if total == n else data[pos : pos + total]
+                try:
+                    event: Any = parse(raw, _TCP, expect)
+                except ProtocolError as exc:
+                    exc.offset += offset + pos
+                    event = exc
+                emit(event, raw, offset + pos, no, no, ts)
+                pos += total
+            if pos == n:
+                self.offset = offset + n
+                self._settle()
+                return
+            if pos:
+                data = data[pos:]
+                self.offset = offset + pos
+        dec = self.decoder
+        if not dec.buffered:
+            self._shift = self.offset - dec.offset
+            self._base = self.offset
+            self._buf.clear()
+            self._marks.clear()
+        dec.receive_data(data)
+        self._buf += data
+        self._marks.append((self.offset, no))
+        self.offset += len(data)
+        self._drain(no, ts)
+        self._settle()
+
+    def close(self, no: int, ts: float) -> None:
+        """The sender closed its side (FIN): a frame left incomplete is an F5 error."""
+        if self.eof:
+            return
+        self.eof = True
+        if self.resync:
+            self.skipped += len(self._carry)
+            self._carry = b""
+            self._settle()
+            return
+        self.decoder.receive_data(b"")
+        self._drain(no, ts)
+        self._settle()
+
+    def gap(self, nbytes: int) -> None:
+        """``nbytes`` are missing here: drop the frame they cut, resynchronise after them."""
+        if self.eof:
+            return
+        if self.decoder.buffered:
+            self.cut += 1
+        self.skipped += len(self._carry)
+        self.offset += len(self._carry) + nbytes
+        self._reset()
+        self.resync = True
+        self._settle()
+
+    def end(self) -> None:
+        """The capture ended: a frame still incomplete is cut, not judged."""
+        if self.decoder.buffered and not self.eof:
+            self.cut += 1
+        self.skipped += len(self._carry)
+        self._reset()
+        self.eof = True
+        self._settle()
+
+    # -- internals ------------------------------------------------------------------------------------
+    def _reset(self) -> None:
+        self.decoder = StreamDecoder(self.profile, self.expect)
+        self._buf.clear()
+        self._marks.clear()
+        self._carry = b""
+
+    def _find_header(self, data: bytes) -> bytes:
+        combined = self._carry + data if self._carry else data
+        start = self.offset  # stream offset of combined[0]
+        pos = plausible_header(combined, 0, int(self.expect), self.profile.byte_order)
+        if pos < 0:
+            keep = combined[-_CARRY:] if len(combined) > _CARRY else combined
+            self.skipped += len(combined) - len(keep)
+            self.offset = start + len(combined) - len(keep)
+            self._carry = bytes(keep)
+            return b""
+        self.skipped += pos
+        self.offset = start + pos
+        self._carry = b""
+        self.resync = False
+        return combined[pos:]
+
+    def _drain(self, no: int, ts: float) -> None:
+        dec, buf, marks, emit, shift = self.decoder, self._buf, self._marks, self.emit, self._shift
+        while True:
+            start = dec.offset
+            event = dec.next_event()
+            if event is NEED_DATA or event is CLOSED:
+                break
+            begin = start + shift
+            end = dec.offset + shift
+            raw = bytes(buf[begin - self._base : end - self._base])
+            while len(marks) > 1 and marks[1][0] <= begin:
+                marks.popleft()
+            first = marks[0][1] if marks else no
+            if isinstance(event, ProtocolError):
+                event.offset += shift
+            emit(event, raw, begin, first, no, ts)
+        done = dec.offset + shift - self._base
+        if done > 0:
+            del buf[:done]
+            self._base += done
+            while len(marks) > 1 and marks[1][0] <= self._base:
+                marks.popleft()

@@ -1,0 +1,253 @@
+"""Sessions: the connections one robot opens to one box, judged as a whole (robot side).
+
+A session is the connections between one robot address and one box address and port
+that overlap in time (the command connection and the stream connections opened while
+it is open); it ends when the last of them ends. When it ends it is judged with
+certify-robot's session judgement (:mod:`conformance.certify.session`): the canonical
+order of S1 (or E4 when the session uses ProgIdx or the result request, or with
+``--extension``) across both connections, the robot awaiting each answer on the command
+connection (A1/T1), and here also that the robot closes what it opened (S5).
+
+What a capture cannot show is not judged: a session whose first connection was already
+open when the capture began is INCONCLUSIVE for S1/E4, and a gap, the box's refusal
+(a non-0000 answer, silence, its close) or the end of the capture is a *cut*: what the
+robot did not do after it is not judged (certify-robot's rule for a refusal).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..certify.records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord, SessionRecord
+from ..certify.session import Cut, SessionView, awaited, build_view, judge_order
+from ..certify.traffic import FrameRecord
+from ..protocol import Action
+from ..suite.verdicts import Verdict
+from .context import Context
+from .findings import ROBOT
+from .timing import StreamJudgement
+
+__all__ = ["ConnOutcome", "ObservedView", "Session", "SessionTracker"]
+
+
+@dataclass
+class ConnOutcome:
+    """What a finished connection leaves for its session's judgement."""
+
+    record: ConnRecord
+    requests: list[FrameRecord]  # the non-pose requests, in order (conn 0: renumbered by the session)
+    first_pose: tuple[float, int, int, Any] | None  # (t, frame, offset, event)
+    pose_after: tuple[float, int, int, Any] | None  # the first pose after the session's first CycleOn
+    handshake: bool
+    gap_t: float | None
+    refusals: list[tuple[float, str]]
+    frame_at: dict[float, int]
+    label: str
+    open_at_end: bool
+    t_end: float
+    stream: StreamJudgement
+    number: int
+
+
+@dataclass
+class ObservedView(SessionView):
+    """certify-robot's session view; its times also name the capture's frame."""
+
+    frame_at: dict[float, int] = field(default_factory=dict)
+
+    def ms(self, t: float | None) -> str:
+        text = super().ms(t)
+        frame = self.frame_at.get(t) if t is not None else None
+        return f"{text} (frame {frame})" if frame else text
+
+
+class Session:
+    def __init__(self, number: int, key: tuple[str, str, int], t0: float) -> None:
+        self.number = number
+        self.key = key
+        self.t0 = t0
+        self.open = 0
+        self.conns: list[Any] = []  # the live connections (their judges get the first CycleOn)
+        self.outcomes: list[ConnOutcome] = []
+        self.cycle_on: float | None = None
+
+    def on_cycle_on(self, t: float) -> None:
+        if self.cycle_on is None:
+            self.cycle_on = t
+            for conn in self.conns:
+                conn.judge.want_pose_after = t
+
+    @property
+    def label(self) -> str:
+        robot, box, port = self.key
+        return f"session {self.number} (robot {robot} → box {box}:{port})"
+
+
+class SessionTracker:
+    def __init__(self, ctx: Context) -> None:
+        self.ctx = ctx
+        self.open: dict[tuple[str, str, int], Session] = {}
+        self.count = 0
+
+    def attach(self, conn: Any) -> Session:
+        key = (conn.robot[0], conn.box[0], conn.box[1])
+        session = self.open.get(key)
+        if session is None:
+            self.count += 1
+            self.ctx.stats.sessions += 1
+            session = self.open[key] = Session(self.count, key, conn.t_open)
+        session.open += 1
+        session.conns.append(conn)
+        conn.judge.on_cycle_on = session.on_cycle_on
+        if session.cycle_on is not None:
+            conn.judge.want_pose_after = session.cycle_on
+        return session
+
+    def done(self, conn: Any, outcome: ConnOutcome) -> None:
+        session: Session = conn.session
+        session.outcomes.append(outcome)
+        session.open -= 1
+        if conn in session.conns:
+            session.conns.remove(conn)
+        if session.open <= 0:
+            if self.open.get(session.key) is session:
+                del self.open[session.key]
+            judge_session(self.ctx, session)
+
+
+def judge_session(ctx: Context, session: Session) -> None:
+    outcomes = sorted(session.outcomes, key=lambda o: (o.record.t_open, o.number))
+    records: list[ConnRecord] = []
+    frames: dict[int, list[FrameRecord]] = {}
+    frame_at: dict[float, int] = {}
+    for n, o in enumerate(outcomes, 1):
+        record = dataclasses.replace(o.record, number=n)
+        records.append(record)
+        kept = [dataclasses.replace(r, conn=n) for r in o.requests]
+        for pose in (o.first_pose, o.pose_after):
+            if pose is not None:
+                t, frame, offset, event = pose
+                kept.append(FrameRecord(n, "tcp", t, offset, b"", event))
+                frame_at.setdefault(t, frame)
+        frames[n] = sorted(kept, key=lambda r: r.t)
+        frame_at.update({t: f for t, f in o.frame_at.items() if t not in frame_at})
+    t_end = max(o.t_end for o in outcomes)
+    base = build_view(SessionRecord(session.number, session.t0, records, t_end, "capture"), ctx.profile)
+    view = ObservedView(**{f.name: getattr(base, f.name) for f in dataclasses.fields(SessionView)},
+                        frame_at=frame_at)
+    view.frames = frames
+    view.cut = _cut(view, outcomes)
+    label = session.label
+    extension = ctx.config.extension
+    if extension is None:
+        extension = any(a in (Action.PROG_IDX, Action.VISION_RESULT) for o in outcomes for a in o.record.actions)
+    _order(ctx, view, outcomes, label, extension)
+    _awaited(ctx, view, label)
+    _closes(ctx, view, outcomes, label)
+    _streams(ctx, outcomes)
+
+
+def _cut(view: SessionView, outcomes: list[ConnOutcome]) -> Cut | None:
+    cuts = [view.cut] if view.cut is not None else []
+    for o in outcomes:
+        cuts += [Cut(t, why) for t, why in o.refusals]
+        if o.gap_t is not None:
+            cuts.append(Cut(o.gap_t, f"the capture has a gap on {o.label}"))
+        if o.open_at_end:
+            cuts.append(Cut(o.t_end, f"the capture ends while {o.label} is open"))
+    return min(cuts, key=lambda c: c.t) if cuts else None
+
+
+def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label: str, extension: bool) -> None:
+    clause = "E4" if extension else "S1"
+    f = ctx.findings
+    first = outcomes[0]
+    seen = [r for rs in view.frames.values() for r in rs if r.action is not None]
+    if not first.handshake:
+        actions = sorted({r.action for r in seen if r.action is not None})
+        f.add(clause, ROBOT, Verdict.INCONCLUSIVE,
+              f"{label}: the capture starts mid-session ({first.label} was already open): the order is not judged; "
+              f"seen: {', '.join(_name(a) for a in actions) or 'no request'}",
+              (view.frame_at.get(first.record.t_open, 0),))
+        return
+    result = judge_order(view, extension)
+    steps = "; ".join(f"{name} {view.ms(t)}" for name, t in result.steps.items())
+    lines = [*result.violations, *result.missing]
+    frames = sorted({n for n in view.frame_at.values()})[:1]
+    if result.failed:
+        f.add(clause, ROBOT, Verdict.FAIL, f"{label}: {'; '.join(lines)} [steps: {steps}]", frames)
+    elif result.not_judged:
+        cut = view.cut
+        f.add(clause, ROBOT, Verdict.INCONCLUSIVE,
+              f"{label}: at {view.ms(cut.t if cut else None)} {cut.why if cut else 'the session was cut'}; not judged "
+              f"after it: {', '.join(result.not_judged)} [steps: {steps}]", frames)
+    else:
+        f.check(clause, ROBOT)
+        f.tally(clause, ROBOT).note(f"{label}: all {len(result.steps)} steps in order [steps: {steps}]"
+                                    + (f" ({'; '.join(result.notes)})" if result.notes else ""))
+
+
+def _awaited(ctx: Context, view: ObservedView, label: str) -> None:
+    if not view.commands:
+        return
+    checked, bad = awaited(view, ctx.profile)
+    f = ctx.findings
+    f.check("A1", ROBOT, checked)
+    for line in bad:
+        f.add("A1", ROBOT, Verdict.FAIL, f"{label}: {line}")
+
+
+def _closes(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label: str) -> None:
+    f = ctx.findings
+    cmd = view.cmd
+    cmd_closed = cmd.t_close if cmd is not None and cmd.closed_by in (BY_ROBOT, BY_ROBOT_RESET) else None
+    linger = ctx.config.linger_s
+    for o, record in zip(outcomes, view.session.conns):
+        if record.closed_by == BY_BOX:
+            continue  # the box closed first: nothing to judge of the robot
+        late = None
+        if cmd_closed is not None and record is not cmd:
+            end = record.t_close if record.t_close is not None else o.t_end
+            if end - cmd_closed > linger:
+                late = end - cmd_closed
+        if late is not None:
+            what = "closed" if record.t_close is not None else "still open when the capture ends"
+            f.add("S5", ROBOT, Verdict.FAIL, f"{label}: {o.label} {what} {late:.1f} s after the command connection "
+                  f"closed (more than --linger {linger:g} s): the robot left it open",
+                  (view.frame_at.get(record.t_close, 0),) if record.t_close is not None else ())
+        elif record.closed_by in (BY_ROBOT, BY_ROBOT_RESET):
+            f.check("S5", ROBOT)
+        elif o.open_at_end:
+            f.add("S5", ROBOT, Verdict.INCONCLUSIVE, f"{label}: {o.label} is open when the capture ends")
+
+
+def _streams(ctx: Context, outcomes: list[ConnOutcome]) -> None:
+    f = ctx.findings
+    for o in outcomes:
+        if o.record.role != "stream":
+            continue
+        j = o.stream
+        if not j.blocks:
+            f.add("T2", ROBOT, Verdict.INCONCLUSIVE, f"{o.label}: {j.poses} pose(s): too few to measure a rate")
+            continue
+        tally = f.tally("T2", ROBOT)
+        if len(tally.details.setdefault("streams", [])) < 20:
+            tally.details["streams"].append({"connection": o.label, "figures": j.described[:2],
+                                             "windows_hz": j.windows_hz[:120]})
+        if j.ok:
+            f.check("T2", ROBOT)
+            tally.note(f"{o.label}: {j.rate_text}; {j.jitter_text}")
+            continue
+        texts = [t for ok, t in ((j.rate_ok, j.rate_text), (j.jitter_ok, j.jitter_text)) if not ok]
+        f.add("T2", ROBOT, Verdict.FAIL, f"{o.label}: {'; '.join(texts)} ({j.described[0] if j.described else ''})",
+              (o.first_pose[1],) if o.first_pose else ())
+
+
+def _name(action: int) -> str:
+    try:
+        return Action(action).name
+    except ValueError:
+        return f"0x{action:02X}"
+

@@ -1,0 +1,139 @@
+"""The one case record: what a case is and what it expects, as data.
+
+Every case of the suite (``@case``), every check of ``certify-robot`` and every scripted
+sequence is a :class:`CaseRecord`: a stable ID, its clauses, its level, a title, its
+acceptable outcomes in words, and its *requirements* as data (like Autobahn's
+``expected[...]`` and h2spec's ``Requirement``): for each thing the case judges, the
+requirement's words, the outcomes that meet it, those a conforming box SHOULD show, and
+those that make it unjudgeable. One routine (:func:`conformance.suite.judge.judge`)
+turns an outcome into a verdict; a case body only sends, collects and names what it
+judges (``isight.judge(outcome, "answer")``), never restating a level or the words.
+
+The ``case`` decorator attaches the record as a pytest marker; the catalogue (``--list``,
+docs/CATALOGUE.md, reports) is generated from the markers.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from types import MappingProxyType
+from typing import Any, TypeVar
+
+import pytest
+
+from ..harness.client import Outcome
+from ..protocol.clauses import clause_ids
+from .verdicts import Level
+
+F = TypeVar("F", bound=Callable[..., Any])
+MARKER = "isight_case"
+_ID = re.compile(r"^[A-Z][0-9]?-[0-9]{2}[a-z]?$|^[A-Z]+-[A-Z0-9-]+$")
+_CLAUSE = re.compile("^(" + "|".join(sorted(clause_ids())) + ")$")  # the clause registry's ids
+
+@dataclass(frozen=True)
+class Expect:
+    """One acceptable outcome: a description and a predicate (and the action it expects answered)."""
+
+    text: str
+    matches: Callable[[Outcome], bool]
+    action: int | None = None
+
+    def __or__(self, other: Expect) -> Expect:
+        action = self.action if self.action is not None else other.action
+        return Expect(f"{self.text}, or {other.text}", lambda o: self.matches(o) or other.matches(o), action)
+
+
+#: An acceptable set of outcomes: an Expect, or a function of the case's values returning one.
+ExpectSpec = Expect | Callable[..., Expect]
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """One thing a case judges: the words and the outcomes, as data.
+
+    ``text`` (and ``should_text``, ``inconclusive_text``) may name the case's values in
+    braces (``"A3: a {action} request with {what} MUST NOT be answered 0000"``): the
+    case's parameters and what the body passes to ``judge``. ``accept``, ``should`` and
+    ``inconclusive`` are Expects, or functions of those values returning one.
+    """
+
+    text: str
+    accept: ExpectSpec | None = None  # the acceptable outcomes; else the level's broken verdict
+    level: Level | None = None  # None: the case's level
+    should: ExpectSpec | None = None  # what a conforming box SHOULD do; else NON-STRICT
+    should_text: str = ""
+    inconclusive: ExpectSpec | None = None  # outcomes that leave the requirement unjudgeable (checked first)
+    inconclusive_text: str = ""
+    informational: ExpectSpec | None = None  # acceptable outcomes worth recording (INFORMATIONAL, never failing)
+    informational_text: str = ""
+
+
+@dataclass(frozen=True)
+class CaseRecord:
+    id: str
+    clauses: tuple[str, ...]
+    level: Level
+    title: str
+    expect: str  # the set of acceptable outcomes, in words
+    needs: tuple[str, ...] = ()  # "udp", "extension", "any-profile", "always" ...
+    requirement: str = ""  # what PROTOCOL.md asks, in words (default: the clauses, level and title)
+    #: what the case judges, by name ("" is the default requirement)
+    checks: Mapping[str, Requirement] = field(default_factory=lambda: MappingProxyType({}))
+
+    @property
+    def family(self) -> str:
+        return self.clauses[0][0]
+
+    @property
+    def words(self) -> str:
+        """The requirement in words: as given, else the clauses, level and title."""
+        return self.requirement or f"{', '.join(self.clauses)} ({self.level.value}): {self.title}"
+
+    def check(self, name: str = "") -> Requirement:
+        """The named requirement (``""``: the default one, which always exists)."""
+        if name in self.checks:
+            return self.checks[name]
+        if name:
+            raise KeyError(f"case {self.id} has no requirement {name!r} (it has: {', '.join(self.checks) or 'none'})")
+        return Requirement(self.words)
+
+    def with_param(self, param_id: str) -> CaseRecord:
+        return replace(self, id=f"{self.id}[{param_id}]")
+
+
+def record(id: str, clauses: list[str] | tuple[str, ...], level: Level | str, title: str, expect: str,
+           needs: tuple[str, ...] = (), requirement: str = "",
+           checks: Mapping[str, Requirement] | None = None) -> CaseRecord:
+    """A checked record: the ID's form and every clause ID against the registry."""
+    if not _ID.match(id):
+        raise ValueError(f"case id {id!r} must look like 'F1-01' or 'SEQ-S1'")
+    bad = [c for c in clauses if not _CLAUSE.match(c)]
+    if bad or not clauses:
+        raise ValueError(f"case {id}: unknown clause IDs {bad or clauses}")
+    return CaseRecord(id, tuple(clauses), Level(level), title, expect, tuple(needs), requirement,
+                      MappingProxyType(dict(checks or {})))
+
+
+def case(id: str, clauses: list[str] | tuple[str, ...], level: Level | str, title: str, expect: str,
+         needs: tuple[str, ...] = (), requirement: str = "",
+         checks: Mapping[str, Requirement] | None = None) -> Callable[[F], F]:
+    """Mark a test function as conformance case ``id`` (see :class:`CaseRecord`)."""
+    info = record(id, clauses, level, title, expect, needs, requirement, checks)
+
+    def deco(fn: F) -> F:
+        return pytest.mark.isight_case(info)(fn)  # type: ignore[no-any-return]
+
+    return deco
+
+
+def info_of(item: pytest.Item) -> CaseRecord | None:
+    marker = item.get_closest_marker(MARKER)
+    if marker is None:
+        return None
+    info: CaseRecord = marker.args[0]
+    param = getattr(item, "callspec", None)
+    if param is not None and param.id:
+        return info.with_param(param.id)
+    return info
