@@ -10,6 +10,8 @@ import pytest
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
 from conformance.fuzz.campaign import Campaign
+from conformance.fuzz.stateful import run_stateful
+from conformance.fuzz.strategies import Strategies
 from conformance.protocol import Action, ErrorCode, Frame, ProtocolError, Transport, answer
 from conformance.suite.sequence import load as load_sequence
 from tests.test_fuzz_campaign import config, patched_box, target_of
@@ -80,3 +82,29 @@ def test_without_the_extension_no_26_or_27_is_sent(tmp_path: Path) -> None:
     assert summary["failures"] == []
     sent = [e.data for e in transcript.events if e.kind == Kind.SEND and len(e.data) >= 6 and e.data[:2] == b"\xfe\xfe"]
     assert sent and not [d for d in sent if d[4] == 0x01 and d[5] in (0x26, 0x27)]
+
+
+def test_run_stateful_keeps_to_the_budget_it_is_given_and_returns_what_it_did(tmp_path: Path) -> None:
+    asked: list[int] = []
+
+    def budget(steps: int) -> bool:
+        asked.append(steps)
+        return steps < 60
+
+    with patched_box() as box:
+        cfg = config(target_of(box), tmp_path, stateful_share=1.0)
+        result = run_stateful(cfg, Strategies(cfg.profile), 8, budget, number=1)
+    assert result.failures == [] and result.stopped == ""
+    assert result.runs >= 1 and result.steps >= 60
+    assert asked[0] == 0 and asked[-1] == result.steps  # asked before the first step, and once the budget was spent
+
+
+def test_a_session_failure_comes_back_in_the_result_with_the_number_it_was_given(tmp_path: Path) -> None:
+    with patched_box(pose_error_during_a_cycle) as box:
+        cfg = config(target_of(box), tmp_path, stateful_share=1.0)
+        result = run_stateful(cfg, Strategies(cfg.profile), 8, lambda steps: steps < 2000, number=4)
+    (failure,) = result.failures
+    assert result.stopped == "failure" and failure.kind == "stateful" and failure.number == 4
+    assert failure.sequence is not None and failure.sequence.name == "fuzz-failure-004.sequence.json"
+    assert load_sequence(failure.sequence).id == "SEQ-FUZZ-004"
+    assert result.steps > 0 and result.runs > 0

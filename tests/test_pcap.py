@@ -1048,14 +1048,13 @@ def test_checksums_equal_scapys_including_the_minus_zero_case(seed):
     from scapy.layers.inet import IP, TCP, UDP
     from scapy.layers.l2 import Ether
 
-    from conformance.evidence import pcap as P
+    from conformance.evidence import packets as P
 
     rng = random.Random(seed)
-    conn = P._Conn(None, False, bytes([127, 0, 0, 1]), bytes([127, 0, 0, 1]), 40000, 9004, {True: 1, False: 2})  # type: ignore[arg-type]
-    rec = PcapRecorder.__new__(PcapRecorder)  # only its header builders are used
+    conn = P.Flow(None, False, bytes([127, 0, 0, 1]), bytes([127, 0, 0, 1]), 40000, 9004, {True: 1, False: 2})  # type: ignore[arg-type]
 
     def build(proto: str, payload: bytes) -> bytes:
-        return rec._tcp(conn, True, 0x18, payload=payload) if proto == "tcp" else rec._udp(conn, True, payload)
+        return P.tcp(conn, True, 0x18, payload=payload) if proto == "tcp" else P.udp(conn, True, payload)
 
     for size in [0, 1, 2, 3, 39, 1460, 65000] + [rng.randrange(1, 3000) for _ in range(20)]:
         payload = bytes(rng.randrange(256) for _ in range(size))

@@ -17,14 +17,15 @@ from ..certify.catalogue import (
     JITTER_SPEC,
     RATE_SPEC,
     S1_SPEC,
-    Spec,
+    spec,
 )
 from ..protocol.clauses import clause as registry_clause
 from ..protocol.clauses import clause_ids, text_of
+from ..suite.record import CaseRecord
 from ..suite.verdicts import Level
 from .findings import BOX, ROBOT
 
-__all__ = ["SPECS", "Spec", "case_id", "spec_for"]
+__all__ = ["SPECS", "case_id", "spec_for"]
 
 MUST, SHOULD = Level.MUST, Level.SHOULD
 
@@ -34,13 +35,13 @@ def case_id(clause: str, side: str) -> str:
 
 
 def _box(clause: str, title: str, requirement: str, expect: str, level: Level = MUST,
-         clauses: tuple[str, ...] = ()) -> Spec:
-    return Spec(case_id(clause, BOX), clauses or (clause,), level, title, requirement, expect)
+         clauses: tuple[str, ...] = ()) -> CaseRecord:
+    return spec(case_id(clause, BOX), clauses or (clause,), level, title, requirement, expect)
 
 
-def _robot(clause: str, spec: Spec, clauses: tuple[str, ...] | None = None, title: str = "") -> Spec:
-    return Spec(case_id(clause, ROBOT), clauses or spec.clauses, spec.level, title or spec.title, spec.requirement,
-                spec.expect)
+def _robot(clause: str, box: CaseRecord, clauses: tuple[str, ...] | None = None, title: str = "") -> CaseRecord:
+    return spec(case_id(clause, ROBOT), clauses or box.clauses, box.level, title or box.title, box.requirement,
+                box.expect)
 
 
 _BOX_SPECS = (
@@ -119,25 +120,27 @@ _ROBOT_SPECS = (
     _robot("S1", S1_SPEC),
     _robot("E4", E4_SPEC),
     _robot("S5", CLOSE_SPEC),
-    Spec(case_id("T2", ROBOT), ("T2",), MUST, "Stream rate and send-interval jitter as declared",
+    spec(case_id("T2", ROBOT), ("T2",), MUST, "Stream rate and send-interval jitter as declared",
          f"{RATE_SPEC.requirement}; {JITTER_SPEC.requirement}", f"{RATE_SPEC.expect}; {JITTER_SPEC.expect}"),
 )
 
 #: Every case, keyed by (clause, side), in report order: the box's, then the robot's.
-SPECS: dict[tuple[str, str], Spec] = {
+SPECS: dict[tuple[str, str], CaseRecord] = {
     **{(s.id.split("-")[1], BOX): s for s in _BOX_SPECS},
     **{(s.id.split("-")[1], ROBOT): s for s in _ROBOT_SPECS},
 }
 
 
-def spec_for(clause: str, side: str) -> Spec:
+def spec_for(clause: str, side: str) -> CaseRecord:
     """The spec of (clause, side); a clause without one (a codec error naming an unusual
     clause) gets one from the clause registry, so no finding is ever dropped."""
-    spec = SPECS.get((clause, side))
-    if spec is None:
+    found = SPECS.get((clause, side))
+    if found is None:
         known = clause in clause_ids()
         level = Level(registry_clause(clause).level) if known else MUST
-        spec = Spec(case_id(clause, side), (clause,), level,
-                    f"{registry_clause(clause).title if known else clause} ({side})",
-                    f"{clause}: {text_of(clause) or 'as PROTOCOL.md states it'}", f"the {side} satisfies {clause}")
-    return spec
+        # not checked against the registry: the clause may be one it lacks (never drop a finding)
+        found = CaseRecord(case_id(clause, side), (clause,), level,
+                           f"{registry_clause(clause).title if known else clause} ({side})",
+                           f"the {side} satisfies {clause}",
+                           requirement=f"{clause}: {text_of(clause) or 'as PROTOCOL.md states it'}")
+    return found

@@ -17,8 +17,9 @@ from pathlib import Path
 
 from .. import __version__
 from ..report import write_reports
+from ..suite.record import CaseRecord
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, SuiteInfo, Verdict
-from .catalogue import SPECS, Spec, spec_for
+from .catalogue import SPECS, spec_for
 from .engine import Analysis
 from .findings import ROBOT, Series, Tally
 
@@ -40,7 +41,7 @@ def _item(clause: str, side: str, n: int) -> str:
     return f"{n:,} {word}{'' if n == 1 else 's'}"
 
 
-def _case(spec: Spec, tally: Tally | None, analysis: Analysis) -> CaseResult:
+def _case(spec: CaseRecord, tally: Tally | None, analysis: Analysis) -> CaseResult:
     clause, side = spec.id.split("-")[1], spec.id.split("-")[2]
     case = CaseResult(spec.id, spec.title, spec.clauses, spec.level, Verdict.SKIP, requirement=spec.requirement,
                       expected=spec.expect, pcap=str(analysis.path))

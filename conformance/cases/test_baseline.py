@@ -11,14 +11,19 @@ from __future__ import annotations
 from conformance.harness.client import Answer
 from conformance.protocol import Action, encode, request
 from conformance.suite.context import CaseContext, answers_none
-from conformance.suite.judge import CaseVerdict, answered, check
-from conformance.suite.record import case
+from conformance.suite.judge import answered
+from conformance.suite.record import Requirement, case
 from conformance.suite.session import responsive
-from conformance.suite.verdicts import Level, Verdict
+from conformance.suite.verdicts import Level
 
 
 @case("T1-00", ["A4", "T1"], Level.MUST, "Baseline: NONE is answered 0000 on a fresh connection within time_out",
-      "NONE answered with action 00 and error 0000 within time_out", needs=("any-profile", "always"))
+      "NONE answered with action 00 and error 0000 within time_out", needs=("any-profile", "always"),
+      checks={"": Requirement("A4/T1: action 00 is answered with action 00 and error 0000 within time_out",
+                              accept=answered(Action.NONE, [0])),
+              "unanswered": Requirement("A4/T1: the box does not answer a NONE request in this profile, so every "
+                                        "other case is INCONCLUSIVE (if the box is up, PROFILE-01 tells which profile "
+                                        "it appears to use)")})
 def test_baseline(isight: CaseContext) -> None:
     outcome = isight.session.baseline
     if outcome is None:  # the plugin checks once per session; be robust if it did not
@@ -29,16 +34,6 @@ def test_baseline(isight: CaseContext) -> None:
         return
     isight.last_sent = encode(request(Action.NONE), isight.profile)
     if responsive(outcome):  # it answers, wrongly: judged like any answer (a malformed one fails on its format)
-        check(outcome, answered(Action.NONE, [0]), Level.MUST,
-              "A4/T1: action 00 is answered with action 00 and error 0000 within time_out", sent=isight.last_sent)
-    raise CaseVerdict(
-        Verdict.FAIL,
-        f"A4/T1: the box does not answer a NONE request in this profile (it {outcome.describe()}); every other "
-        "case is INCONCLUSIVE. If the box is up, PROFILE-01 tells which profile it appears to use.",
-        requirement="A4: action 00 is answered with action 00 and error 0000; T1: within time_out",
-        expected="NONE answered 0000 within time_out",
-        observed=outcome.describe(),
-        sent=isight.last_sent,
-        received=outcome.raw if isinstance(outcome, Answer) else b"",
-        signature="unreachable:session start",
-    )
+        isight.judge(outcome)
+    raise isight.broken("unanswered", expected="NONE answered 0000 within time_out", observed=outcome.describe(),
+                        sent=isight.last_sent, received=outcome.raw, signature="unreachable:session start")

@@ -12,7 +12,7 @@ import struct
 
 import pytest
 
-from conformance.harness.client import Answer, Outcome
+from conformance.harness.client import Answer
 from conformance.protocol import (
     ACTION_ERROR,
     BLOCK_LEN,
@@ -26,8 +26,8 @@ from conformance.protocol import (
     tolerance_blocks,
 )
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, answered, check
-from conformance.suite.record import case
+from conformance.suite.judge import NOT_OK, answered
+from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
@@ -76,31 +76,34 @@ def sample_poses(n: int) -> list[tuple[float, ...]]:
     return [(500.0 + i, -20.5 * i, 300.25, 180.0, -0.5 * i, 90.0) for i in range(n)]
 
 
-def judge_parse_error(outcome: Outcome, action: int, bad: bytes, what: str) -> None:
-    """A3: a parse error MUST NOT be answered 0000 and SHOULD get the action's error."""
-    check(outcome, NOT_OK, Level.MUST, f"A3: a {what} is a parse error and MUST NOT be answered 0000", sent=bad)
+def _named_error(action: int, **_: object) -> Expect | None:
     error = ACTION_ERROR.get(Action(action))
-    if error is not None:
-        check(outcome, answered(action, [error]), Level.SHOULD,
-              f"A3: a {what} SHOULD be answered with error {error:04X}", sent=bad)
+    return None if error is None else answered(action, [error])
+
+
+#: A3: a parse error MUST NOT be answered 0000 and SHOULD get the action's error (where A3 names one)
+PARSE_ERROR = Requirement("A3: a {what} is a parse error and MUST NOT be answered 0000", accept=NOT_OK,
+                          should=_named_error, should_text="A3: a {what} SHOULD be answered with the action's error")
+
 
 
 # -- B1 / B2: layout and block counts ------------------------------------------------------------
 
 
 @case("B1-01", ["B1", "B3", "A1", "S3"], Level.MUST, "Pose and register-pose requests with 1, 3 and 255 blocks are answered 0000",
-      "answered with the request's action (23 or 24) and error 0000")
+      "answered with the request's action (23 or 24) and error 0000",
+      checks={"": Requirement("A1/B1: a well-formed {action.name} request with {count} block(s) is answered 0000",
+                              accept=lambda action, **_: answered(action, [0]))})
 @pytest.mark.parametrize("action", [POSE, REG], ids=["pose", "register-pose"])
 @pytest.mark.parametrize("count", [1, 3, 255])
 def test_pose_block_counts(isight: CaseContext, action: Action, count: int) -> None:
     frame = request(action, pose_blocks(sample_poses(count), isight.profile.first_index))
     outcome = isight.exchange(frame, f"{action.name} request with {count} pose block(s) (L=25)")
-    check(outcome, answered(action, [0]), Level.MUST,
-          f"A1/B1: a well-formed {action.name} request with {count} block(s) is answered 0000", sent=isight.last_sent)
+    isight.judge(outcome)
 
 
 @case("B1-02", ["B1", "B5", "A3", "R1"], Level.MUST, "A pose request whose block length is not 25 is not answered 0000",
-      "not 0000 (MUST); answered 1001 (SHOULD, A3)")
+      "not 0000 (MUST); answered 1001 (SHOULD, A3)", checks={"": PARSE_ERROR})
 @pytest.mark.parametrize("action", [POSE, REG], ids=["pose", "register-pose"])
 @pytest.mark.parametrize("length", [24, 26], ids=["L24", "L26"])
 def test_pose_wrong_length(isight: CaseContext, action: Action, length: int) -> None:
@@ -108,22 +111,23 @@ def test_pose_wrong_length(isight: CaseContext, action: Action, length: int) -> 
     body = block[:length] if length < 25 else block + b"\x00" * (length - 25)
     bad = data_request(action, [isight.profile.first_index], isight.profile, length=length, body=body)
     outcome = isight.send_malformed(bad, f"{action.name} request with block length {length}")
-    judge_parse_error(outcome, action, bad, f"{action.name} request with L={length}")
+    isight.judge(outcome, what=f"{action.name} request with L={length}")
 
 
 @case("B2-01", ["B2", "B3", "A1", "S3"], Level.MUST, "Tolerance requests with 1, 3 and 255 blocks are answered 0000",
-      "answered TOLERANCE with error 0000")
+      "answered TOLERANCE with error 0000",
+      checks={"": Requirement("A1/B2: a well-formed tolerance request with {count} block(s) is answered 0000",
+                              accept=answered(TOL, [0]))})
 @pytest.mark.parametrize("count", [1, 3, 255])
 def test_tolerance_block_counts(isight: CaseContext, count: int) -> None:
     values = [0.25 + 0.5 * i for i in range(count)]
     frame = request(TOL, tolerance_blocks(values, isight.profile.first_index))
     outcome = isight.exchange(frame, f"tolerance request with {count} block(s) (L=5)")
-    check(outcome, answered(TOL, [0]), Level.MUST,
-          f"A1/B2: a well-formed tolerance request with {count} block(s) is answered 0000", sent=isight.last_sent)
+    isight.judge(outcome)
 
 
 @case("B2-02", ["B2", "B5", "A3", "R1"], Level.MUST, "A tolerance request whose block length is not 5 is not answered 0000",
-      "not 0000 (MUST); answered 1002 (SHOULD, A3)")
+      "not 0000 (MUST); answered 1002 (SHOULD, A3)", checks={"": PARSE_ERROR})
 @pytest.mark.parametrize("length", [4, 6, 25], ids=["L4", "L6", "L25"])
 def test_tolerance_wrong_length(isight: CaseContext, length: int) -> None:
     first = isight.profile.first_index
@@ -134,7 +138,7 @@ def test_tolerance_wrong_length(isight: CaseContext, length: int) -> None:
         body = block[:length] if length < 5 else block + b"\x00" * (length - 5)
     bad = data_request(TOL, [first], isight.profile, length=length, body=body)
     outcome = isight.send_malformed(bad, f"tolerance request (type 02) with block length {length}")
-    judge_parse_error(outcome, TOL, bad, f"tolerance request with L={length}")
+    isight.judge(outcome, action=TOL, what=f"tolerance request with L={length}")
 
 
 # -- B3: indexes ---------------------------------------------------------------------------------
@@ -178,7 +182,7 @@ INDEX_ERRORS = [
 
 
 @case("B3-02", ["B3", "A3", "R1"], Level.MUST, "Block indexes with a gap, a repeat, a wrong start or descending are a parse error",
-      "not 0000 (MUST); answered 1001 for 23/24, 1002 for 25 (SHOULD, A3)")
+      "not 0000 (MUST); answered 1001 for 23/24, 1002 for 25 (SHOULD, A3)", checks={"": PARSE_ERROR})
 @pytest.mark.parametrize("action", [POSE, REG, TOL], ids=list(ACTION_IDS.values()))
 @pytest.mark.parametrize("kind,relative", INDEX_ERRORS, ids=[k for k, _ in INDEX_ERRORS])
 def test_index_errors(isight: CaseContext, action: Action, kind: str, relative: list[int] | None) -> None:
@@ -190,7 +194,7 @@ def test_index_errors(isight: CaseContext, action: Action, kind: str, relative: 
     if relative is None and not isight.profile.strict:
         isight.inform(f"lenient profile: first index 0 and 1 are both accepted; to {what} the box {outcome.describe()}")
         return
-    judge_parse_error(outcome, action, bad, what)
+    isight.judge(outcome, what=what)
 
 
 # -- B4: floats ----------------------------------------------------------------------------------
@@ -219,7 +223,11 @@ def with_odd_float(action: Action, bits: int, where: tuple[int, int], profile: P
 
 
 @case("B4-01", ["B4", "A3"], Level.SHOULD, "NaN and infinity in a pose or tolerance are treated as a parse error",
-      "answered 1001 (pose) / 1002 (tolerance); 0000 is NON-STRICT (B4 SHOULD), so are silence and a close (A3 SHOULD)")
+      "answered 1001 (pose) / 1002 (tolerance); 0000 is NON-STRICT (B4 SHOULD), so are silence and a close (A3 SHOULD)",
+      checks={"": Requirement("B4: NaN or infinity SHOULD be treated as a parse error (not answered 0000)", accept=NOT_OK,
+                              should=_named_error,
+                              should_text="A3: a parse error in a {action.name} request SHOULD be answered with the "
+                                          "action's error")})
 @pytest.mark.parametrize("action,bits,where", [p[1:] for p in NON_FINITE], ids=[p[0] for p in NON_FINITE])
 def test_non_finite(isight: CaseContext, action: Action, bits: int, where: tuple[int, int]) -> None:
     bad = with_odd_float(action, bits, where, isight.profile)
@@ -228,10 +236,7 @@ def test_non_finite(isight: CaseContext, action: Action, bits: int, where: tuple
     if not isight.profile.strict:
         isight.inform(f"lenient profile (B4 SHOULD not enforced): to {what} the box {outcome.describe()}")
         return
-    check(outcome, NOT_OK, Level.SHOULD, "B4: NaN or infinity SHOULD be treated as a parse error (not answered 0000)", sent=bad)
-    error = ACTION_ERROR[action]
-    check(outcome, answered(action, [error]), Level.SHOULD,
-          f"A3: a parse error in a {action.name} request SHOULD be answered {error:04X}", sent=bad)
+    isight.judge(outcome)
 
 
 #: legal float32 values a box must take: (id, bit pattern)
@@ -247,15 +252,15 @@ EDGE_FLOATS = [
 
 
 @case("B4-02", ["B4", "A1", "A3"], Level.MUST, "Legal float32 edge values (-0.0, subnormals, max) are accepted",
-      "answered with the request's action and 0000: the request is well-formed")
+      "answered with the request's action and 0000: the request is well-formed",
+      checks={"": Requirement("A1/A3/B4: float32 {bits:08X} is a legal value; the well-formed {action.name} request is "
+                              "answered 0000", accept=lambda action, **_: answered(action, [0]))})
 @pytest.mark.parametrize("action", [POSE, TOL], ids=["pose", "tolerance"])
 @pytest.mark.parametrize("bits", [b for _, b in EDGE_FLOATS], ids=[n for n, _ in EDGE_FLOATS])
 def test_edge_floats(isight: CaseContext, action: Action, bits: int) -> None:
     per = 6 if action is POSE else 1
     data = data_request(action, [isight.profile.first_index], isight.profile, [[bits] * per])
-    outcome = isight.exchange(data, f"{action.name} request, every float {bits:08X}")
-    check(outcome, answered(action, [0]), Level.MUST,
-          f"A1/A3/B4: float32 {bits:08X} is a legal value; the well-formed {action.name} request is answered 0000", sent=data)
+    isight.judge(isight.exchange(data, f"{action.name} request, every float {bits:08X}"))
 
 
 # -- B5: the shape each action fixes -------------------------------------------------------------
@@ -293,7 +298,7 @@ SHAPE_CASES = _shape_cases()
 
 @case("B5-01", ["B5", "A3", "R1"], Level.MUST, "A request whose block type, count or length does not fit its action is not answered 0000",
       "not 0000 (MUST); for 23/24 answered 1001, for 25 answered 1002 (SHOULD, A3); "
-      "for 00/01/02 PROTOCOL.md names no code: a non-zero error, silence or a close")
+      "for 00/01/02 PROTOCOL.md names no code: a non-zero error, silence or a close", checks={"": PARSE_ERROR})
 @pytest.mark.parametrize("action,btype,count,length,body_kind", [c[1:] for c in SHAPE_CASES], ids=[c[0] for c in SHAPE_CASES])
 def test_wrong_shape(isight: CaseContext, action: int, btype: int, count: int, length: int, body_kind: str) -> None:
     first = isight.profile.first_index
@@ -304,5 +309,4 @@ def test_wrong_shape(isight: CaseContext, action: int, btype: int, count: int, l
     header = Header(action=action, block_type=btype, block_count=count, block_length=length)
     bad = encode_raw(header, body, profile=isight.profile)
     what = f"{Action(action).name} request with block type {btype:02x}, N={count}, L={length}"
-    outcome = isight.send_malformed(bad, what)
-    judge_parse_error(outcome, action, bad, what)
+    isight.judge(isight.send_malformed(bad, what), what=what)

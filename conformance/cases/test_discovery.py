@@ -39,8 +39,8 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, Skip, fail
-from conformance.suite.record import case
+from conformance.suite.judge import Inconclusive, Skip
+from conformance.suite.record import Requirement, case
 from conformance.suite.verdicts import Level
 
 ORDERS = ("big", "little")
@@ -251,16 +251,18 @@ def _answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
     outcome = isight.exchange(data, f"NONE with {other}-endian header fields (the {isight.profile.byte_order}-endian "
                                     "one got no answer)")
     if _ok(outcome, Action.NONE):
-        raise fail(Level.MUST, f"F4: multi-byte header fields are {isight.profile.byte_order}-endian",
-                   f"NONE with {isight.profile.byte_order}-endian fields answered 0000",
-                   f"only NONE with {other}-endian fields (version {data[2:4].hex(' ')}) is answered 0000 "
-                   f"(rerun with --byte-order={other} to test the rest)", sent=sent, received=outcome.raw)
+        raise isight.broken("header-order", expected=f"NONE with {isight.profile.byte_order}-endian fields answered 0000",
+                            observed=f"only NONE with {other}-endian fields (version {data[2:4].hex(' ')}) is answered "
+                                     f"0000 (rerun with --byte-order={other} to test the rest)",
+                            sent=sent, received=outcome.raw, order=isight.profile.byte_order)
     raise Inconclusive("the box answered NONE in neither byte order: nothing to read (A4/T1 judge the silence)")
 
 
 @case("F4-01", ["F4"], Level.MUST, "Answers' multi-byte fields are in the profile's byte order (big-endian)",
       "the version reads 00 01, the error code of an answer to a malformed pose reads 10 01 (not 01 10), the "
-      "block length of a ProgIdx answer reads 00 05 (extension only); little-endian under --byte-order=little")
+      "block length of a ProgIdx answer reads 00 05 (extension only); little-endian under --byte-order=little",
+      checks={"header-order": Requirement("F4: multi-byte header fields are {order}-endian"),
+              "": Requirement("F4: multi-byte fields are {order}-endian ({what})")})
 def test_answer_byte_order(isight: CaseContext) -> None:
     order = isight.profile.byte_order
     judged: list[str] = []
@@ -276,8 +278,8 @@ def test_answer_byte_order(isight: CaseContext) -> None:
             return
         # the same defect as every other case sees in those answers: group them under one root cause
         signature = {2: f"answer:F2:version={got.hex()}", 10: "swapped:error-code"}.get(offset, "")
-        raise fail(Level.MUST, f"F4: multi-byte fields are {order}-endian ({what})", want.hex(" "),
-                   f"{got.hex(' ')}: {what} in the other byte order", sent=sent, received=raw, signature=signature)
+        raise isight.broken(expected=want.hex(" "), observed=f"{got.hex(' ')}: {what} in the other byte order",
+                            sent=sent, received=raw, signature=signature, order=order, what=what)
 
     conn = isight.connect()
     sent = encode(request(Action.NONE), isight.profile)

@@ -32,8 +32,8 @@ from conformance.protocol import (
 )
 from conformance.protocol.answers import CONFLICT, SENDABLE_RESULTS
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, answered, check, fail
-from conformance.suite.record import case
+from conformance.suite.judge import Inconclusive, answered
+from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 from conformance.trajectory import PrimerTrajectory
 
@@ -51,14 +51,25 @@ def _err(code: int) -> str:
     return f"0x{code:04X}"
 
 
-def judge_prog_idx(isight: CaseContext, outcome: Outcome, value: int, sent: bytes, clause: str = "E2") -> bool:
+def prog_idx_checks(clause: str) -> dict[str, Requirement]:
+    """E2's requirements for ProgIdx, under the clause label the case judges it with."""
+    return {
+        "prog-idx": Requirement(f"{clause}: ProgIdx (26) is answered with one type-03 block (index + int32, L = 5)",
+                                accept=answered(Action.PROG_IDX)),
+        "prog-idx-block": Requirement(f"{clause}: ProgIdx is answered with the same index ({{value}}) or 409 in the "
+                                      "block; the error field stays 0000 (profile progidx_conflict=block)"),
+        "prog-idx-error-code": Requirement(f"{clause}: ProgIdx is answered with the same index ({{value}}) and error "
+                                           "0000, or with 409 in the error field (profile progidx_conflict=error-code)"),
+    }
+
+
+def judge_prog_idx(isight: CaseContext, outcome: Outcome, value: int, sent: bytes) -> bool:
     """E2: the answer to ProgIdx(``value``) is one type-03 block with the same index, or 409.
 
     Honours ``profile.progidx_conflict``: "block" (409 in the block, error 0000) or
     "error-code" (409 in the error field). Returns True when the box reported a conflict.
     """
-    check(outcome, answered(Action.PROG_IDX), Level.MUST,
-          f"{clause}: ProgIdx (26) is answered with one type-03 block (index + int32, L = 5)", sent=sent)
+    isight.judge(outcome, "prog-idx", sent=sent)
     assert isinstance(outcome, Answer)
     frame = outcome.frame
     got = frame.blocks[0].value if frame.blocks and isinstance(frame.blocks[0], ValueBlock) else None
@@ -70,22 +81,19 @@ def judge_prog_idx(isight: CaseContext, outcome: Outcome, value: int, sent: byte
             return got == CONFLICT and value != CONFLICT
         hint = " (the box puts 409 in the error field: rerun with --progidx-conflict=error-code)" \
             if code in CONFLICT_ERRORS else ""
-        raise fail(Level.MUST,
-                   f"{clause}: ProgIdx is answered with the same index ({value}) or 409 in the block; "
-                   "the error field stays 0000 (profile progidx_conflict=block)",
-                   f"error 0x0000 and block value {value} or 409",
-                   f"error {_err(code)} and block value {got}{hint}", sent=sent, received=outcome.raw)
+        raise isight.broken("prog-idx-block", expected=f"error 0x0000 and block value {value} or 409",
+                            observed=f"error {_err(code)} and block value {got}{hint}", sent=sent,
+                            received=outcome.raw, value=value)
     if code == 0 and got == value:
         return False
     if code in CONFLICT_ERRORS:
         isight.details["conflict_error_code"] = _err(code)
         return True
     hint = " (409 travels in the block: rerun with --progidx-conflict=block)" if code == 0 and got == CONFLICT else ""
-    raise fail(Level.MUST,
-               f"{clause}: ProgIdx is answered with the same index ({value}) and error 0000, or with 409 in the "
-               "error field (profile progidx_conflict=error-code)",
-               f"error 0x0000 with block value {value}, or error 409 (0x0199 or 0x0409)",
-               f"error {_err(code)} and block value {got}{hint}", sent=sent, received=outcome.raw)
+    raise isight.broken("prog-idx-error-code",
+                        expected=f"error 0x0000 with block value {value}, or error 409 (0x0199 or 0x0409)",
+                        observed=f"error {_err(code)} and block value {got}{hint}", sent=sent, received=outcome.raw,
+                        value=value)
 
 
 # -- E1 ------------------------------------------------------------------------------------
@@ -94,12 +102,12 @@ def judge_prog_idx(isight: CaseContext, outcome: Outcome, value: int, sent: byte
 @pytest.mark.parametrize("value", [-1, -(2**31), 2**31 - 1, 0x01020304], ids=["negative", "int32-min", "int32-max", "bytes"])
 @case("E1-01", ["E1", "E2"], Level.MUST, "A ProgIdx block holds any signed big-endian int32",
       "a ProgIdx with a negative or large int32 is well-formed: answered with one type-03 block holding the "
-      "same value (or 409 per the profile's progidx_conflict)")
+      "same value (or 409 per the profile's progidx_conflict)", checks=prog_idx_checks("E1/E2"))
 def test_prog_idx_int32_range(isight: CaseContext, value: int) -> None:
     isight.require_extension()
     frame = _prog_idx(isight, value)
     outcome = isight.exchange(frame, f"ProgIdx with int32 {value} ({value & 0xFFFFFFFF:08x})")
-    if judge_prog_idx(isight, outcome, value, isight.last_sent, clause="E1/E2"):
+    if judge_prog_idx(isight, outcome, value, isight.last_sent):
         isight.inform(f"the box answered ProgIdx {value} with 409 (conflict); the int32 echo was not seen")
 
 
@@ -108,7 +116,7 @@ def test_prog_idx_int32_range(isight: CaseContext, value: int) -> None:
 
 @case("E2-01", ["E2", "E1"], Level.MUST, "ProgIdx is answered with the same index or 409",
       "one type-03 block holding the index sent, or 409 (in the block with error 0000, or in the error "
-      "field when the profile's progidx_conflict is error-code)")
+      "field when the profile's progidx_conflict is error-code)", checks=prog_idx_checks("E2"))
 def test_prog_idx_answer(isight: CaseContext) -> None:
     isight.require_extension()
     outcome = isight.exchange(_prog_idx(isight, 7), "ProgIdx: program index 7")
@@ -138,17 +146,17 @@ def _require_27(isight: CaseContext) -> None:
 
 
 @case("E3-01", ["E3", "E1"], Level.MUST, "A result request is answered with a ResultCode within vision_time_out",
-      "one type-03 block holding 1, 2, 10, 20, 202, 400 or 409 (never 0 or 404), within vision_time_out")
+      "one type-03 block holding 1, 2, 10, 20, 202, 400 or 409 (never 0 or 404), within vision_time_out",
+      checks={"": Requirement("E3: a result request is answered within vision_time_out ({vision_ms:.0f} ms) with one "
+                              "type-03 block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; "
+                              "never 0 or 404)", accept=answered(Action.VISION_RESULT, values=SENDABLE_RESULTS))})
 def test_vision_result(isight: CaseContext) -> None:
     _require_27(isight)
     vision_s = isight.profile.vision_time_out_ms / 1000
     conn = isight.connect()
     frame = request(Action.VISION_RESULT)
     outcome = conn.request(frame, "result request (27)", timeout_s=vision_s)
-    sent = isight.transcript.sent(conn.conn_id)
-    check(outcome, answered(Action.VISION_RESULT, values=SENDABLE_RESULTS), Level.MUST,
-          f"E3: a result request is answered within vision_time_out ({vision_s * 1000:.0f} ms) with one type-03 "
-          "block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; never 0 or 404)", sent=sent)
+    isight.judge(outcome, sent=isight.transcript.sent(conn.conn_id), vision_ms=vision_s * 1000)
     assert isinstance(outcome, Answer)
     isight.latencies_ms.append(outcome.latency_s * 1000)
     isight.details["result_code"] = outcome.frame.blocks[0].value  # type: ignore[union-attr]
@@ -166,8 +174,7 @@ def _stream_poses(isight: CaseContext, stream: TcpConnection, poses: Sequence[Se
         start = time.monotonic()
         frame = request(Action.POSE, pose_blocks([pose], first))
         outcome = stream.request(frame, f"{phase}: pose {i + 1}/{len(poses)}")
-        check(outcome, answered(Action.POSE, [0]), Level.MUST,
-              f"E4/S3: every pose of the stream is answered 0000 ({phase})", sent=stream.codec.encode(frame))
+        isight.judge(outcome, "pose", sent=stream.codec.encode(frame), phase=phase)
         assert isinstance(outcome, Answer)
         isight.latencies_ms.append(outcome.latency_s * 1000)
         time.sleep(max(0.0, period - (time.monotonic() - start)))
@@ -183,9 +190,7 @@ def _request_result(isight: CaseContext, conn: TcpConnection) -> int:
         tries += 1
         outcome = conn.request(request(Action.VISION_RESULT), f"result request (27), try {tries}",
                                timeout_s=max(0.001, deadline - time.monotonic()))
-        check(outcome, answered(Action.VISION_RESULT, values=SENDABLE_RESULTS), Level.MUST,
-              "E4/E3: the result request is answered within vision_time_out with a ResultCode "
-              "(1, 2, 10, 20, 202, 400, 409)", sent=isight.transcript.sent(conn.conn_id)[-14:])
+        isight.judge(outcome, "result", sent=isight.transcript.sent(conn.conn_id)[-14:])
         assert isinstance(outcome, Answer)
         value = outcome.frame.blocks[0].value  # type: ignore[union-attr]
         isight.details["result_tries"] = tries
@@ -200,31 +205,35 @@ def _request_result(isight: CaseContext, conn: TcpConnection) -> int:
 @case("E4-01", ["E4", "E2", "E3", "S1"], Level.MUST, "The extended canonical session completes",
       "ProgIdx → stream on → CycleOn → trajectory → CycleOff → stream off → 1 s → result request: ProgIdx "
       "echoed, every other answer 0000, a ResultCode within vision_time_out (202 retried; still busy is "
-      "INFORMATIONAL; ProgIdx 409, CycleOn 0001 or CycleOff 0002 make the rest INCONCLUSIVE)")
+      "INFORMATIONAL; ProgIdx 409, CycleOn 0001 or CycleOff 0002 make the rest INCONCLUSIVE)",
+      checks={**prog_idx_checks("E4/E2"),
+              "pose": Requirement("E4/S3: every pose of the stream is answered 0000 ({phase})",
+                                  accept=answered(Action.POSE, [0])),
+              "on": Requirement("E4/S2: CycleOn is answered 0000 (or 0001)", accept=answered(Action.CYCLE_ON, [0, 1]),
+                                inconclusive=answered(Action.CYCLE_ON, [ErrorCode.NOT_READY]),
+                                inconclusive_text="CycleOn answered 0001 (box not ready): the rest of the session is "
+                                                  "not judged (S2)"),
+              "off": Requirement("E4/S1: CycleOff is answered 0000", accept=answered(Action.CYCLE_OFF, [0, 2]),
+                                 inconclusive=answered(Action.CYCLE_OFF, [ErrorCode.CYCLE_OFF_FAILED]),
+                                 inconclusive_text="CycleOff answered 0002 (detection not closed): the result is not "
+                                                   "judged (A3)"),
+              "result": Requirement("E4/E3: the result request is answered within vision_time_out with a ResultCode "
+                                    "(1, 2, 10, 20, 202, 400, 409)",
+                                    accept=answered(Action.VISION_RESULT, values=SENDABLE_RESULTS))})
 def test_extended_session(isight: CaseContext) -> None:
     isight.require_extension()
     conn = isight.connect("command")
     outcome = conn.request(_prog_idx(isight, 3), "ProgIdx: program index 3")
-    if judge_prog_idx(isight, outcome, 3, isight.transcript.sent(conn.conn_id), clause="E4/E2"):
+    if judge_prog_idx(isight, outcome, 3, isight.transcript.sent(conn.conn_id)):
         raise Inconclusive("ProgIdx answered 409 (conflict / not ready): the session cannot go on (E2)")
     stream = isight.connect("stream", target=isight.session.stream_target())
     path = PrimerTrajectory(duration=0.3)
     rate = isight.profile.pose_rate_hz
     samples = [pose for _, pose in path.samples(rate)]
     _stream_poses(isight, stream, [path.home] * 3, "stream on, before CycleOn")
-    outcome = conn.request(request(Action.CYCLE_ON), "CycleOn")
-    if isinstance(outcome, Answer) and outcome.frame.action == Action.CYCLE_ON \
-            and outcome.frame.error_code == ErrorCode.NOT_READY:
-        stream.close()
-        raise Inconclusive("CycleOn answered 0001 (box not ready): the rest of the session is not judged (S2)")
-    check(outcome, answered(Action.CYCLE_ON, [0]), Level.MUST, "E4/S2: CycleOn is answered 0000 (or 0001)")
+    isight.judge(conn.request(request(Action.CYCLE_ON), "CycleOn"), "on", sent=b"")
     _stream_poses(isight, stream, samples, "trajectory")
-    outcome = conn.request(request(Action.CYCLE_OFF), "CycleOff")
-    if isinstance(outcome, Answer) and outcome.frame.action == Action.CYCLE_OFF \
-            and outcome.frame.error_code == ErrorCode.CYCLE_OFF_FAILED:
-        stream.close()
-        raise Inconclusive("CycleOff answered 0002 (detection not closed): the result is not judged (A3)")
-    check(outcome, answered(Action.CYCLE_OFF, [0]), Level.MUST, "E4/S1: CycleOff is answered 0000")
+    isight.judge(conn.request(request(Action.CYCLE_OFF), "CycleOff"), "off", sent=b"")
     stream.close("Send_Pos_Off")
     time.sleep(1.0)  # E4: the robot waits 1 s before it asks for the result
     isight.details["result_code"] = _request_result(isight, conn)
@@ -235,7 +244,10 @@ def test_extended_session(isight: CaseContext) -> None:
 
 
 @case("E5-01", ["E5", "T1"], Level.MUST, "time_out bounds every action except 27",
-      "ProgIdx and every core action (00, 01, 23, 24, 25, 02) are answered within time_out")
+      "ProgIdx and every core action (00, 01, 23, 24, 25, 02) are answered within time_out",
+      checks={"": Requirement("E5/T1: time_out ({time_out_ms:.0f} ms) bounds {name}: it is answered within time_out",
+                              accept=Expect("an answer within time_out",
+                                            lambda o: not isinstance(o, (Silence, Closed))))})
 def test_time_out_bounds_actions(isight: CaseContext) -> None:
     isight.require_extension()
     first = isight.profile.first_index
@@ -252,10 +264,8 @@ def test_time_out_bounds_actions(isight: CaseContext) -> None:
     latencies: dict[str, float] = {}
     for name, frame in steps:
         outcome = conn.request(frame, f"{name} request (E5: bounded by time_out)")
-        if isinstance(outcome, (Silence, Closed)):
-            raise fail(Level.MUST, f"E5/T1: time_out ({isight.time_out_s * 1000:.0f} ms) bounds {name}: it is answered "
-                       "within time_out", f"an answer to {name} within time_out", outcome.describe(),
-                       sent=conn.codec.encode(frame))
+        isight.judge(outcome, sent=conn.codec.encode(frame), name=name, time_out_ms=isight.time_out_s * 1000)
+        assert isinstance(outcome, (Answer, Malformed))
         latency = outcome.latency_s
         latencies[name] = round(latency * 1000, 3)
         isight.latencies_ms.append(latency * 1000)

@@ -22,8 +22,7 @@ from typing import Any
 
 from conformance.fuzz.campaign import Campaign, CampaignConfig
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import fail
-from conformance.suite.record import case
+from conformance.suite.record import Requirement, case
 from conformance.suite.verdicts import Level
 
 FRAMES_S = 2.0
@@ -50,7 +49,11 @@ def _campaign(isight: CaseContext, name: str, seconds: float, stateful_share: fl
     return summary
 
 
-def _judge(summary: dict[str, Any]) -> None:
+#: what a campaign's failures judge: the words come from the oracle's findings
+FINDINGS = {"failure": Requirement("{finding}"), "non-strict": Requirement("{finding}", level=Level.SHOULD)}
+
+
+def _judge(isight: CaseContext, summary: dict[str, Any]) -> None:
     failures = summary["failures"]
     if failures:
         first = failures[0]
@@ -60,27 +63,28 @@ def _judge(summary: dict[str, Any]) -> None:
         clause = first["clauses"][0] if first["clauses"] else "R1"
         # a malformed answer found by fuzzing groups with the cases that found the same malformation
         signature = f"fuzz:answer/{clause}" if "conforming frames" in first["message"] else f"fuzz:{clause}"
-        raise fail(Level.MUST, f"{', '.join(first['clauses'])}: {first['message']}{more}",
-                   "no failure: every example answered as PROTOCOL.md allows",
-                   f"fuzz failure ({first['kind']}, seed {summary['seed']}){where}", sent=sent, signature=signature)
+        raise isight.broken("failure", expected="no failure: every example answered as PROTOCOL.md allows",
+                            observed=f"fuzz failure ({first['kind']}, seed {summary['seed']}){where}", sent=sent,
+                            signature=signature, finding=f"{', '.join(first['clauses'])}: {first['message']}{more}")
     if summary["non_strict"]:
         obs = summary["non_strict"][0]
-        raise fail(Level.SHOULD, f"[{obs['clause']}] {obs['requirement']}",
-                   "every SHOULD of PROTOCOL.md kept", f"the box {obs['observed']} (×{obs['count']})",
-                   sent=bytes.fromhex(obs["hex"]), signature=f"fuzz:{obs['key']}")
+        raise isight.broken("non-strict", expected="every SHOULD of PROTOCOL.md kept",
+                            observed=f"the box {obs['observed']} (×{obs['count']})", sent=bytes.fromhex(obs["hex"]),
+                            signature=f"fuzz:{obs['key']}", finding=f"[{obs['clause']}] {obs['requirement']}")
 
 
 @case("FUZZ-01", ["R1", "R2", "A1", "A3", "A5", "B3", "B4", "B5", "F5", "R6"], Level.MUST,
       "Two seconds of fuzzed frames (every strategy, each followed by a probe)",
       "no 0000 to malformed input (R1, A5, A3), A3's error where PROTOCOL.md names one (SHOULD), every valid "
-      "request answered in order (A1), a fresh connection always answered (R2)")
+      "request answered in order (A1), a fresh connection always answered (R2)", checks=FINDINGS)
 def test_fuzz_frames(isight: CaseContext) -> None:
-    _judge(_campaign(isight, "FUZZ-01", FRAMES_S, stateful_share=0.0))
+    _judge(isight, _campaign(isight, "FUZZ-01", FRAMES_S, stateful_share=0.0))
 
 
 @case("FUZZ-02", ["S2", "S3", "S4", "S6", "A1", "R2", "E2", "E3"], Level.MUST,
       "One second of fuzzed sessions (cycles, streams, malformed input, reconnects)",
       "CycleOn 0000/0001 and CycleOff 0000/0002 as the cycle state allows (S2, S3), every pose and tolerance "
-      "answered 0000 on either connection (S3, S4, S6), ProgIdx/result as E2/E3 say, the box alive after (R2)")
+      "answered 0000 on either connection (S3, S4, S6), ProgIdx/result as E2/E3 say, the box alive after (R2)",
+      checks=FINDINGS)
 def test_fuzz_sessions(isight: CaseContext) -> None:
-    _judge(_campaign(isight, "FUZZ-02", SESSION_S, stateful_share=1.0))
+    _judge(isight, _campaign(isight, "FUZZ-02", SESSION_S, stateful_share=1.0))

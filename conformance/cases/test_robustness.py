@@ -13,12 +13,14 @@ import pytest
 from conformance.harness.client import Answer, Closed, TcpConnection
 from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import CLOSED, NOT_OK, Inconclusive, answered, check, fail
-from conformance.suite.record import case
+from conformance.suite.judge import CLOSED, NOT_OK, answered
+from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.sequence import DEFAULT_POSE, latency_figures, pieces_of
 from conformance.suite.verdicts import Level
 
-R2 = "R2: whatever bytes one connection sends, the box keeps accepting and answering new connections"
+#: R2: a fresh connection after the input gets NONE answered 0000
+ALIVE = Requirement("R2: whatever bytes one connection sends, the box keeps accepting and answering new connections "
+                    "(after {after})", accept=answered(Action.NONE, [0]))
 
 
 def _frames(isight: CaseContext) -> dict[str, Frame]:
@@ -32,8 +34,7 @@ def _frames(isight: CaseContext) -> dict[str, Frame]:
 
 
 def _alive(isight: CaseContext, after: str) -> None:
-    outcome = isight.check_alive()
-    check(outcome, answered(Action.NONE, [0]), Level.MUST, f"{R2} (after {after})", sent=isight.last_sent)
+    isight.judge(isight.check_alive(), "alive", after=after)
 
 
 def _no_fe(data: bytes) -> bytes:
@@ -49,17 +50,19 @@ GARBAGE = {
 
 
 @case("R2-01", ["R2", "A5"], Level.MUST, "After garbage, new connections are still accepted and answered",
-      "the garbage is not answered 0000, and a fresh connection gets NONE answered 0000")
+      "the garbage is not answered 0000, and a fresh connection gets NONE answered 0000",
+      checks={"": Requirement("A5: bytes that are not a request MUST NOT be answered 0000", accept=NOT_OK),
+              "alive": ALIVE})
 @pytest.mark.parametrize("kind", list(GARBAGE))
 def test_garbage_then_fresh_connection(isight: CaseContext, kind: str) -> None:
     bad = GARBAGE[kind]
-    outcome = isight.send_malformed(bad, f"{kind}: {len(bad)} bytes that are not a frame")
-    check(outcome, NOT_OK, Level.MUST, "A5: bytes that are not a request MUST NOT be answered 0000", sent=bad[:64])
+    isight.judge(isight.send_malformed(bad, f"{kind}: {len(bad)} bytes that are not a frame"), sent=bad[:64])
     _alive(isight, kind)
 
 
 @case("R2-02", ["R2"], Level.MUST, "A header then a reset leaves the box answering new connections",
-      "after a connection sends a pose header (12 bytes) and resets, a fresh connection gets NONE answered 0000")
+      "after a connection sends a pose header (12 bytes) and resets, a fresh connection gets NONE answered 0000",
+      checks={"alive": ALIVE})
 def test_header_then_reset(isight: CaseContext) -> None:
     conn = isight.connect("abuser")
     header = conn.codec.encode(_frames(isight)["pose"])[:12]
@@ -72,16 +75,26 @@ def test_header_then_reset(isight: CaseContext) -> None:
 # -- R3 / R4 ----------------------------------------------------------------------------------------------
 
 
+NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
+#: R3: the reference answer to the whole frame, to compare a split delivery with
+WHOLE = Requirement("R3: the whole {frame.action.name} request is answered, as a reference", inconclusive=NOT_ANSWERED,
+                    inconclusive_text="the whole {frame.action.name} request was not answered: nothing to compare the "
+                                      "split delivery with")
+#: R3: a split delivery is answered like the whole frame
+LIKE_WHOLE = lambda action, code, **_: answered(action, [code])  # noqa: E731
+
+
 def _like_whole(isight: CaseContext, frame: Frame) -> Answer:
     outcome = isight.exchange(frame, f"{frame.action.name} request, whole (reference)")
-    if not isinstance(outcome, Answer):
-        raise Inconclusive(f"the whole {frame.action.name} request was not answered ({outcome.describe()}): "
-                           "nothing to compare the split delivery with")
+    isight.judge(outcome, "whole", frame=frame)
+    assert isinstance(outcome, Answer)
     return outcome
 
 
 @case("R3-01", ["R3", "A1"], Level.MUST, "A frame sent one byte per segment is answered like the whole frame",
-      "the same action and error code as for the whole frame, within time_out")
+      "the same action and error code as for the whole frame, within time_out",
+      checks={"whole": WHOLE, "": Requirement("R3: a frame split down to one byte per segment is handled like the whole "
+                                              "frame", accept=LIKE_WHOLE)})
 @pytest.mark.parametrize("name", ["none", "pose", "tolerance"])
 def test_one_byte_segments(isight: CaseContext, name: str) -> None:
     frame = _frames(isight)[name]
@@ -90,14 +103,14 @@ def test_one_byte_segments(isight: CaseContext, name: str) -> None:
     data = conn.codec.encode(frame)
     start = time.monotonic()
     conn.send_pieces(pieces_of(data, {"pieces": "bytes"}), 0.001, "one byte per segment")
-    outcome = conn.next_outcome(since=start)
-    check(outcome, answered(frame.action, [whole.frame.error_code]), Level.MUST,
-          "R3: a frame split down to one byte per segment is handled like the whole frame", sent=data)
+    isight.judge(conn.next_outcome(since=start), sent=data, action=frame.action, code=whole.frame.error_code)
 
 
 @case("R3-02", ["R3", "A1"], Level.MUST, "Frames cut at random points over time are each answered like whole frames",
       "four requests sent as one byte stream cut into random 1-8 byte pieces (2 ms apart) get four answers in order, "
-      "each like the whole request's")
+      "each like the whole request's",
+      checks={"whole": WHOLE, "": Requirement("R3: request {n} of a randomly split stream is answered like the whole",
+                                              accept=LIKE_WHOLE)})
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_random_splits(isight: CaseContext, seed: int) -> None:
     frames = list(_frames(isight).values())
@@ -108,12 +121,13 @@ def test_random_splits(isight: CaseContext, seed: int) -> None:
     start = time.monotonic()
     conn.send_pieces(pieces_of(data, {"pieces": "random", "seed": seed}), 0.002, f"random split (seed {seed})")
     for i, (frame, code) in enumerate(zip(frames, expected)):
-        check(conn.next_outcome(since=start), answered(frame.action, [code]), Level.MUST,
-              f"R3: request {i + 1} of a randomly split stream is answered like the whole", sent=data)
+        isight.judge(conn.next_outcome(since=start), sent=data, n=i + 1, action=frame.action, code=code)
 
 
 @case("R4-01", ["R4", "A1"], Level.MUST, "Ten frames in one segment are each answered, in order",
-      "ten answers, echoing each request's action in order, each 0000")
+      "ten answers, echoing each request's action in order, each 0000",
+      checks={"": Requirement("R4: request {n} of 10 in one segment is answered, in order",
+                              accept=lambda action, **_: answered(action, [0]))})
 def test_coalesced(isight: CaseContext) -> None:
     frames = list(_frames(isight).values())
     batch = [frames[i % len(frames)] for i in range(10)]
@@ -126,8 +140,7 @@ def test_coalesced(isight: CaseContext) -> None:
         outcome = conn.next_outcome(since=start)
         if isinstance(outcome, Answer):
             isight.latencies_ms.append(outcome.latency_s * 1000)
-        check(outcome, answered(frame.action, [0]), Level.MUST,
-              f"R4: request {i + 1} of 10 in one segment is answered, in order", sent=data)
+        isight.judge(outcome, sent=data, n=i + 1, action=frame.action)
 
 
 # -- R5 ---------------------------------------------------------------------------------------------------
@@ -152,7 +165,6 @@ def _hold(isight: CaseContext, label: str, count: int, data: bytes, deadline: fl
 def _fresh_answered(isight: CaseContext, when: str) -> None:
     """A fresh connection gets NONE and a pose answered 0000 within time_out. A box may make room by
     evicting a stale connection: a fresh connection it resets is retried until time_out has passed."""
-    requirement = f"R5: partial frames, a 255×65535 header and idle connections do not stop the box answering others ({when})"
     deadline = time.monotonic() + isight.time_out_s
     attempts = 0
     while True:
@@ -160,8 +172,8 @@ def _fresh_answered(isight: CaseContext, when: str) -> None:
         left = deadline - time.monotonic()
         conn = isight.try_connect(f"fresh ({when}, attempt {attempts})", time_out_s=max(0.05, left))
         if conn is None:
-            raise fail(Level.MUST, requirement, "a fresh connection is accepted within time_out",
-                       f"connection attempt {attempts} was not accepted")
+            raise isight.broken(expected="a fresh connection is accepted within time_out",
+                                observed=f"connection attempt {attempts} was not accepted", when=when)
         outcome = conn.request(request(Action.NONE), f"NONE on a fresh connection ({when})", timeout_s=max(0.05, left))
         if isinstance(outcome, Closed) and time.monotonic() + 0.1 < deadline:
             conn.close()
@@ -175,15 +187,16 @@ def _fresh_answered(isight: CaseContext, when: str) -> None:
         action = Action.NONE if frame is None else frame.action
         if isinstance(outcome, Answer):
             isight.latencies_ms.append(outcome.latency_s * 1000)
-        check(outcome, answered(action, [0]), Level.MUST, requirement,
-              sent=conn.codec.encode(frame or request(Action.NONE)))
+        isight.judge(outcome, sent=conn.codec.encode(frame or request(Action.NONE)), action=action, when=when)
     conn.close()
 
 
 @case("R5-01", ["R5", "T1"], Level.MUST, "Partial frames, a 255×65535 announcement and 300 idle connections "
       "do not stop the box answering others",
       "while 200 connections hold half a frame, one announces 255×65535 bytes and 300 are idle, a fresh connection "
-      "gets NONE and a pose answered 0000 within time_out; again after they are released")
+      "gets NONE and a pose answered 0000 within time_out; again after they are released",
+      checks={"": Requirement("R5: partial frames, a 255×65535 header and idle connections do not stop the box "
+                              "answering others ({when})", accept=lambda action, **_: answered(action, [0]))})
 def test_bounded_resources(isight: CaseContext) -> None:
     deadline = time.monotonic() + 10 + 2 * isight.time_out_s
     pose = encode_raw(Header(action=Action.POSE, block_type=1, block_count=1, block_length=25))
@@ -213,16 +226,19 @@ RESYNC_GARBAGE = {
 }
 
 
+def _resynced(action: Action, **_: object) -> Expect:
+    return answered(action, [0]) | CLOSED
+
+
 @case("R6-01", ["R6"], Level.SHOULD, "After garbage the box resynchronises on the next valid frame, or closes",
       "the valid request right after the garbage, on the same connection, is answered 0000, or the connection is "
-      "closed; staying silent is NON-STRICT")
+      "closed; staying silent is NON-STRICT",
+      checks={"": Requirement("R6: after garbage the box SHOULD resynchronise on the next valid header or close the "
+                              "connection", accept=_resynced)})
 @pytest.mark.parametrize("kind", list(RESYNC_GARBAGE))
 def test_resynchronise(isight: CaseContext, kind: str) -> None:
     bad = RESYNC_GARBAGE[kind]
     isight.send_malformed(bad, f"garbage ({kind}) then a valid request on the same connection")
-    probe = isight.last_probe
-    if probe is None:
-        raise Inconclusive("no probe outcome recorded")
+    assert isight.last_probe is not None  # send_malformed always records what became of the probe
     action = Action.POSE if len(bad) > 5 and bad[5] == Action.NONE else Action.NONE
-    check(probe, answered(action, [0]) | CLOSED, Level.SHOULD,
-          "R6: after garbage the box SHOULD resynchronise on the next valid header or close the connection", sent=bad)
+    isight.judge(isight.last_probe, action=action)

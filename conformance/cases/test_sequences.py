@@ -16,7 +16,7 @@ import pytest
 
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Skip
-from conformance.suite.record import MARKER, CaseRecord, case
+from conformance.suite.record import MARKER, record
 from conformance.suite.sequence import Sequence, SequenceError, load, run_sequence, shipped
 from conformance.suite.verdicts import Level
 
@@ -24,9 +24,7 @@ SHIPPED = shipped()
 
 
 def _case_for(seq: Sequence) -> Callable[[CaseContext], None]:
-    needs = ("extension",) if "extension" in seq.requires else ()
-
-    @case(seq.id, list(seq.clauses), seq.level, seq.title, seq.expect, needs=needs)
+    @getattr(pytest.mark, MARKER)(seq.record)
     def test(isight: CaseContext) -> None:
         run_sequence(isight, seq)
 
@@ -38,8 +36,8 @@ def _case_for(seq: Sequence) -> Callable[[CaseContext], None]:
 for _seq in SHIPPED:
     globals()[_case_for(_seq).__name__] = _case_for(_seq)
 
-_NONE = CaseRecord("SEQ-USER", ("S1",), Level.MUST, "Sequence files given with --sequence FILE",
-                 "as each file says; SKIP when no file is given")
+_NONE = record("SEQ-USER", ("S1",), Level.MUST, "Sequence files given with --sequence FILE",
+               "as each file says; SKIP when no file is given")
 
 
 def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
@@ -56,9 +54,7 @@ def pytest_generate_tests(metafunc: pytest.Metafunc) -> None:
             seq = load(path)
         except SequenceError as exc:
             raise pytest.UsageError(f"--sequence {exc}") from None
-        info = CaseRecord(seq.id, seq.clauses, seq.level, seq.title, seq.expect,
-                        ("extension",) if "extension" in seq.requires else ())
-        params.append(pytest.param(seq, marks=getattr(pytest.mark, MARKER)(info), id=seq.stem))
+        params.append(pytest.param(seq, marks=getattr(pytest.mark, MARKER)(seq.record), id=seq.stem))
     if not params:
         params = [pytest.param(None, marks=getattr(pytest.mark, MARKER)(_NONE), id="none")]
     metafunc.parametrize("sequence", params)

@@ -7,9 +7,9 @@ import time
 from conformance.harness.client import Answer, Outcome
 from conformance.protocol import Action, Frame, encode, pose_blocks, request, tolerance_blocks
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import answered, check
-from conformance.suite.record import case
-from conformance.suite.sequence import DEFAULT_POSE, PoseStream, judge_stream, latency_figures
+from conformance.suite.judge import answered
+from conformance.suite.record import Requirement, case
+from conformance.suite.sequence import DEFAULT_POSE, PoseStream, latency_figures
 from conformance.suite.verdicts import Level
 
 
@@ -30,14 +30,15 @@ def _requests(isight: CaseContext) -> list[Frame]:
 def _within(isight: CaseContext, outcome: Outcome, frame: Frame, where: str) -> None:
     if isinstance(outcome, Answer):
         isight.latencies_ms.append(outcome.latency_s * 1000)
-    check(outcome, answered(frame.action), Level.MUST,
-          f"T1: every answer arrives within time_out ({isight.time_out_s * 1000:.0f} ms) of its request ({where})",
-          sent=encode(frame, isight.profile))
+    isight.judge(outcome, sent=encode(frame, isight.profile), action=frame.action, where=where,
+                 time_out_ms=isight.time_out_s * 1000)
 
 
 @case("T1-01", ["T1", "A1"], Level.MUST, "Every answer arrives within time_out",
       "each request of a session (NONE, Tolerance, RegisterPose, CycleOn, 20 poses, CycleOff, a 255-pose frame) "
-      "and five requests on fresh connections are answered within time_out; latency distribution reported")
+      "and five requests on fresh connections are answered within time_out; latency distribution reported",
+      checks={"": Requirement("T1: every answer arrives within time_out ({time_out_ms:.0f} ms) of its request ({where})",
+                              accept=lambda action, **_: answered(action))})
 def test_every_answer_within_time_out(isight: CaseContext) -> None:
     conn = isight.connect()
     for i, frame in enumerate(_requests(isight)):
@@ -58,7 +59,8 @@ def test_every_answer_within_time_out(isight: CaseContext) -> None:
 
 @case("T2-01", ["T2", "S6", "T1"], Level.MUST, "The pose stream at the profile rate: every pose answered, no backlog",
       "streaming at the profile rate for --stream-seconds, every pose answered 0000 within time_out, none lost, "
-      "and last-quarter p50 latency ≤ first-quarter p50 + max(20 ms, 3×)")
+      "and last-quarter p50 latency ≤ first-quarter p50 + max(20 ms, 3×)",
+      checks={"stream": Requirement("T2: at the configured stream rate")})
 def test_stream_at_rate(isight: CaseContext) -> None:
     rate, seconds = isight.profile.pose_rate_hz, isight.settings.stream_seconds
     conn = isight.connect("stream", target=isight.session.stream_target())
@@ -68,5 +70,5 @@ def test_stream_at_rate(isight: CaseContext) -> None:
     if result.max_send_lag_ms > max(2000 / rate, 10.0):
         isight.details["note"] = (f"the suite's sender fell {result.max_send_lag_ms:.0f} ms behind its schedule "
                                   "(a loaded test machine): poses were sent in catch-up bursts")
-    judge_stream(result, Level.MUST, "T2: at the configured stream rate", backlog=True)
+    isight.judge_stream(result, backlog=True)
     conn.close("Send_Pos_Off")

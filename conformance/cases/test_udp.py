@@ -31,8 +31,8 @@ from conformance.protocol import (
     tolerance_blocks,
 )
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, answered, check, fail
-from conformance.suite.record import case
+from conformance.suite.judge import Inconclusive, answered
+from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 
 POSE = (500.0, -20.0, 300.0, 180.0, 0.0, 90.0)
@@ -79,25 +79,28 @@ def _valid_requests(isight: CaseContext) -> list[tuple[str, Frame]]:
 
 
 @case("F7-01", ["F7", "A1"], Level.MUST, "A UDP request with the correct CRC is answered",
-      "a NONE and a pose datagram carrying the profile's CRC each get an answer datagram")
+      "a NONE and a pose datagram carrying the profile's CRC each get an answer datagram",
+      checks={"": Requirement("F7/A1: a datagram with exactly one frame and the correct CRC is answered (if the box "
+                              "uses another CRC or byte order, PROFILE-01 tells which)",
+                              accept=Expect("answered within time_out", lambda o: not isinstance(o, Silence)),
+                              inconclusive=Expect("refused (ICMP port unreachable)", lambda o: isinstance(o, Closed)),
+                              inconclusive_text="the UDP target refused the datagram (ICMP port unreachable)")})
 def test_udp_request_answered(isight: CaseContext) -> None:
     ch = isight.udp()
     for name, frame in _valid_requests(isight):
         data = udp_bytes(isight, frame)
         outcome = ch.request(data, f"{name} datagram with {isight.profile.crc} CRC ({isight.profile.crc_byte_order})")
-        if isinstance(outcome, Closed):
-            raise Inconclusive(f"the UDP target {ch.target} refused the datagram (ICMP port unreachable)")
-        if isinstance(outcome, Silence):
-            raise fail(Level.MUST, "F7/A1: a datagram with exactly one frame and the correct CRC is answered",
-                       f"an answer to the {name} datagram within time_out", outcome.describe() +
-                       " (if the box uses another CRC or byte order, PROFILE-01 tells which)", sent=data)
+        isight.judge(outcome, sent=data)
         if isinstance(outcome, Answer):
             isight.latencies_ms.append(outcome.latency_s * 1000)
 
 
 @case("F7-02", ["F7"], Level.MUST, "UDP answers are one frame with the profile's CRC",
       "every answer datagram is exactly 12+N×L+2 bytes and its check field is the CRC-16 of bytes 0..12+N×L-1 "
-      "under the profile's algorithm and byte order")
+      "under the profile's algorithm and byte order",
+      checks={"header": Requirement("F7: a datagram carries exactly one frame"),
+              "length": Requirement("F7: one datagram carries exactly one frame (12+N×L+2 bytes)"),
+              "crc": Requirement("F7: the check field is the CRC-16 ({crc}, {order}-endian) of the frame")})
 def test_udp_answer_crc(isight: CaseContext) -> None:
     ch = isight.udp()
     profile = isight.profile
@@ -111,35 +114,36 @@ def test_udp_answer_crc(isight: CaseContext) -> None:
         judged += 1
         count, length = (raw[7], header_field(raw, 8, profile)) if len(raw) >= 12 else (0, None)
         if length is None:
-            raise fail(Level.MUST, "F7: a datagram carries exactly one frame", "at least a 12-byte header",
-                       f"{len(raw)} bytes", sent=data, received=raw)
+            raise isight.broken("header", expected="at least a 12-byte header", observed=f"{len(raw)} bytes", sent=data,
+                                received=raw)
         end = 12 + count * length
         if len(raw) != end + 2:
-            raise fail(Level.MUST, "F7: one datagram carries exactly one frame (12+N×L+2 bytes)",
-                       f"{end + 2} bytes (N={count}, L={length})", f"{len(raw)} bytes", sent=data, received=raw)
+            raise isight.broken("length", expected=f"{end + 2} bytes (N={count}, L={length})",
+                                observed=f"{len(raw)} bytes", sent=data, received=raw)
         want = profile.check_bytes(raw[:end])
         if raw[end:] != want:
             seen = crc_matches(raw[:end], raw[end:])
             hint = f"; it matches {' or '.join(seen)}" if seen else "; it matches no crcmod 16-bit algorithm"
-            raise fail(Level.MUST,
-                       f"F7: the check field is the CRC-16 ({profile.crc}, {profile.crc_byte_order}-endian) of the frame",
-                       want.hex(" "), raw[end:].hex(" ") + hint, sent=data, received=raw)
+            raise isight.broken("crc", expected=want.hex(" "), observed=raw[end:].hex(" ") + hint, sent=data,
+                                received=raw, crc=profile.crc, order=profile.crc_byte_order)
     if not judged:
         raise Inconclusive("the box answered no UDP request: nothing to judge (F7-01 judges the silence)")
 
 
 @case("F7-03", ["F7", "A4"], Level.MUST, "NONE over UDP is answered NONE 0000",
-      "the answer datagram echoes action 00 with error 0000")
+      "the answer datagram echoes action 00 with error 0000",
+      checks={"": Requirement("A4: action 00 is answered with action 00 and 0000 (over UDP)",
+                              accept=answered(Action.NONE, [0]))})
 def test_udp_none(isight: CaseContext) -> None:
     ch = isight.udp()
     data = udp_bytes(isight, request(Action.NONE))
-    outcome = ch.request(data, "NONE datagram")
-    check(outcome, answered(Action.NONE, [0]), Level.MUST, "A4: action 00 is answered with action 00 and 0000 (over UDP)",
-          sent=data)
+    isight.judge(ch.request(data, "NONE datagram"), sent=data)
 
 
 @case("F7-04", ["F7", "A2", "S3"], Level.MUST, "Poses and tolerances over UDP are answered 0000 with no blocks",
-      "23, 24 and 25 datagrams are each answered with their action, error 0000, no blocks")
+      "23, 24 and 25 datagrams are each answered with their action, error 0000, no blocks",
+      checks={"": Requirement("A2/S3: a well-formed {action.name} is answered 0000 with no blocks (over UDP)",
+                              accept=lambda action, **_: answered(action, [0]))})
 def test_udp_pose_answers(isight: CaseContext) -> None:
     ch = isight.udp()
     first = isight.profile.first_index
@@ -147,8 +151,7 @@ def test_udp_pose_answers(isight: CaseContext) -> None:
                   request(Action.TOLERANCE, tolerance_blocks([0.25], first))):
         data = udp_bytes(isight, frame)
         outcome = ch.request(data, f"{frame.action.name} datagram")
-        check(outcome, answered(frame.action, [0]), Level.MUST,
-              f"A2/S3: a well-formed {frame.action.name} is answered 0000 with no blocks (over UDP)", sent=data)
+        isight.judge(outcome, sent=data, action=frame.action)
         assert isinstance(outcome, Answer)
         isight.latencies_ms.append(outcome.latency_s * 1000)
 
@@ -222,7 +225,10 @@ def _send(ch: UdpChannel, data: bytes, note: str) -> float:
 @pytest.mark.parametrize("kind", ["wrong-crc", "truncated", "trailing-bytes", "two-frames"])
 @case("R7-01", ["R7", "R1", "F7"], Level.MUST, "A bad datagram is never answered 0000 and is dropped silently",
       "a datagram with a wrong CRC or not exactly one frame long is never answered 0000 (MUST) and gets no "
-      "answer at all (SHOULD: an answer with a non-zero error is NON-STRICT)")
+      "answer at all (SHOULD: an answer with a non-zero error is NON-STRICT)",
+      checks={"no-0000": Requirement("R7: a datagram with a wrong CRC or not exactly one frame MUST NOT be answered 0000"),
+              "dropped": Requirement("R7: a datagram with a wrong CRC or not exactly one frame SHOULD be dropped "
+                                     "silently", level=Level.SHOULD)})
 def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
     ch = isight.udp()
     probe = _require_udp_answers(isight, ch)
@@ -237,9 +243,8 @@ def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
         isight.details["probe"] = "not answered within time_out"
     ok = [o for o in replies if header_field(o.raw, 10, isight.profile) == 0]
     if ok:
-        raise fail(Level.MUST, "R7: a datagram with a wrong CRC or not exactly one frame MUST NOT be answered 0000",
-                   "silence (or a non-zero error)", f"{len(replies)} answer(s), {ok[0].describe()}",
-                   sent=bad, received=ok[0].raw)
+        raise isight.broken("no-0000", expected="silence (or a non-zero error)",
+                            observed=f"{len(replies)} answer(s), {ok[0].describe()}", sent=bad, received=ok[0].raw)
     if replies:
-        raise fail(Level.SHOULD, "R7: a datagram with a wrong CRC or not exactly one frame SHOULD be dropped silently",
-                   "silence", "; ".join(o.describe() for o in replies), sent=bad, received=replies[0].raw)
+        raise isight.broken("dropped", expected="silence", observed="; ".join(o.describe() for o in replies), sent=bad,
+                            received=replies[0].raw)

@@ -35,8 +35,8 @@ from conformance.protocol import (
     request,
 )
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Expect, Inconclusive, Skip, answered, check
-from conformance.suite.record import case
+from conformance.suite.judge import NOT_OK, Skip, answered
+from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 from conformance.vectors import REPO_VECTORS, Vector, load_dir
 
@@ -135,7 +135,18 @@ def _valid_expect(v: Vector, action: Action) -> Expect:
 
 @case("A1-10", ["A1", "A4", "B1", "B2", "B3", "B4", "B5"], Level.MUST, "Valid golden vectors are answered 0000",
       "answered with the vector's action and 0000 (CycleOn 0001: INCONCLUSIVE, S2; CycleOff 0002 allowed, A3; "
-      "ProgIdx: the same index or 409, E2)")
+      "ProgIdx: the same index or 409, E2)",
+      checks={"prep": Requirement("S3: {prep.name} brings the box to the state the vector expects",
+                                  inconclusive=Expect("not answered", lambda o: not isinstance(o, Answer)),
+                                  inconclusive_text="could not prepare the box's cycle state with {prep.name}"),
+              "started": Requirement("S2: a cycle is started before the CycleOff vector",
+                                     inconclusive=Expect("not answered 0000",
+                                                         lambda o: not (isinstance(o, Answer) and not o.frame.error_code)),
+                                     inconclusive_text="S2: could not start a cycle before the CycleOff vector"),
+              "": Requirement("A1: the well-formed request of vector {vector.name} is answered 0000",
+                              accept=lambda vector, action, **_: _valid_expect(vector, action),
+                              inconclusive=lambda action, **_: answered(action, [1]) if action is Action.CYCLE_ON else None,
+                              inconclusive_text="S2: CycleOn answered 0001 (box not ready)")})
 @pytest.mark.parametrize("vector", _params("valid"))
 def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = _applicable(isight, vector)
@@ -144,22 +155,17 @@ def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
     if action in (Action.CYCLE_ON, Action.CYCLE_OFF):  # judge from a known state (S3: CycleOn twice MAY fail)
         prep = Action.CYCLE_OFF if action is Action.CYCLE_ON else Action.CYCLE_ON
         before = conn.request(request(prep), f"preparation: {prep.name}, so the vector meets the state it expects")
-        if not isinstance(before, Answer):
-            raise Inconclusive(f"could not prepare the box's cycle state: to {prep.name} it {before.describe()}")
-        if prep is Action.CYCLE_ON and before.frame.error_code != 0:
-            raise Inconclusive(f"S2: could not start a cycle before the CycleOff vector: the box {before.describe()}")
+        isight.judge(before, "prep", sent=b"", prep=prep)
+        if prep is Action.CYCLE_ON:
+            isight.judge(before, "started", sent=b"")
     outcome = conn.request(v.data, f"golden vector {v.name}: {v.comment[:80]}")
     if isinstance(outcome, Answer):
         isight.latencies_ms.append(outcome.latency_s * 1000)
-    expect = _valid_expect(v, action)
-    check(outcome, expect, Level.MUST, f"A1: the well-formed request of vector {v.name} is answered 0000", sent=v.data)
+    _restore_idle(isight, outcome, conn)  # a CycleOn it took: off again, whatever the verdict
+    isight.judge(outcome, sent=v.data, vector=v, action=action)
     assert isinstance(outcome, Answer)
     code = outcome.frame.error_code
-    if action is Action.CYCLE_ON:
-        _restore_idle(isight, outcome, conn)
-        if code == 1:
-            raise Inconclusive("S2: CycleOn answered 0001 (box not ready)")
-    elif action is Action.CYCLE_OFF and code == 2:
+    if action is Action.CYCLE_OFF and code == 2:
         isight.inform("CycleOff answered 0002: the box could not close the detection (A3)")
     elif action is Action.VISION_RESULT and code:
         isight.inform(f"result request answered with error field {code:04X} (E3 names none)")
@@ -198,7 +204,10 @@ def _send_cut_short(isight: CaseContext, data: bytes) -> Outcome:
 
 
 @case("R1-10", ["R1", "A5", "A3", "B5", "F5"], Level.MUST, "Invalid golden vectors are never answered 0000",
-      "not 0000 (MUST: silence, a non-zero error or a close); a B3-B5 parse error of 23/24/25 answered 1001/1002 (SHOULD, A3)")
+      "not 0000 (MUST: silence, a non-zero error or a close); a B3-B5 parse error of 23/24/25 answered 1001/1002 (SHOULD, A3)",
+      checks={"": Requirement("R1: vector {vector.name} breaks {clauses} and MUST NOT be answered 0000", accept=NOT_OK,
+                              should=lambda named, action, **_: None if named is None else answered(action, [named]),
+                              should_text="A3: a parse error under {clause} SHOULD be answered {named:04X}")})
 @pytest.mark.parametrize("vector", _params("invalid"))
 def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = _applicable(isight, vector)
@@ -213,11 +222,8 @@ def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
         isight.inform(f"this run's profile ({isight.profile.describe()}) reads vector {v.name} as valid; "
                       f"the box {outcome.describe()}")
         return
-    check(outcome, NOT_OK, Level.MUST, f"R1: vector {v.name} breaks {', '.join(v.clauses)} and MUST NOT be answered 0000",
-          sent=v.data)
-    if named is not None:
-        check(outcome, answered(v.data[5], [named]), Level.SHOULD,
-              f"A3: a parse error under {v.clauses[0]} SHOULD be answered {named:04X}", sent=v.data)
+    isight.judge(outcome, sent=v.data, vector=v, clauses=", ".join(v.clauses), clause=v.clauses[0], named=named,
+                 action=v.data[5] if len(v.data) > 5 else None)
 
 
 # -- acceptable ------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..protocol import Action
+from ..suite.record import CaseRecord
 from ..suite.verdicts import CaseResult, Verdict, WireLine
 from .catalogue import (
     ANY_FRAME,
@@ -30,7 +31,6 @@ from .catalogue import (
     JITTER_SPEC,
     RATE_SPEC,
     S1_SPEC,
-    Spec,
     catalogue,
 )
 from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, RunRecord, SessionRecord
@@ -66,7 +66,7 @@ class Ctx:
     def answers(self) -> dict[tuple[int, int], str]:
         return {k: ex.answer_text or "nothing" for k, ex in self.view.exchanges.items()}
 
-    def result(self, spec: Spec, verdict: Verdict, message: str, observed: str = "", **kw: object) -> CaseResult:
+    def result(self, spec: CaseRecord, verdict: Verdict, message: str, observed: str = "", **kw: object) -> CaseResult:
         case = CaseResult(id=spec.id + self.suffix, title=spec.title, clauses=spec.clauses, level=spec.level,
                           verdict=verdict, message=message, requirement=spec.requirement, expected=spec.expect,
                           observed=observed or message, pcap=self.pcap())
@@ -307,7 +307,7 @@ def judge_session(run: RunRecord, session: SessionRecord, suffix: str) -> list[C
         return [_error_case(ERROR_SPEC.id + suffix, f"decoding session {session.number}: {_exc_line(exc)}")]
     ctx = Ctx(run, session, view, suffix)
     cases: list[CaseResult] = []
-    checks: list[tuple[Spec, Callable[[], list[CaseResult]]]] = [
+    checks: list[tuple[CaseRecord, Callable[[], list[CaseResult]]]] = [
         (FRAME_SPECS["F1"], lambda: frame_cases(ctx)),
         (E4_SPEC if run.config.extension else S1_SPEC, lambda: [order_case(ctx)]),
         (AWAIT_SPEC, lambda: [awaited_case(ctx)]),
@@ -331,7 +331,7 @@ def _exc_line(exc: BaseException) -> str:
     return traceback.format_exception_only(type(exc), exc)[-1].strip()
 
 
-def _error_case(case_id: str, message: str, spec: Spec = ERROR_SPEC) -> CaseResult:
+def _error_case(case_id: str, message: str, spec: CaseRecord = ERROR_SPEC) -> CaseResult:
     return CaseResult(case_id, spec.title, spec.clauses, spec.level, Verdict.ERROR, message=message,
                       requirement=spec.requirement, expected=spec.expect,
                       observed="the suite failed; this says nothing about the robot: rerun")
@@ -341,4 +341,4 @@ def pcap_paths(run: RunRecord) -> list[Path]:
     return [p for s in run.sessions for p in [s.pcap, *(c.pcap for c in s.conns)] if p is not None]
 
 
-__all__ = ["FRAME_SPECS", "INJECT_SPECS", "Spec", "catalogue", "judge", "judge_session", "pcap_paths"]
+__all__ = ["FRAME_SPECS", "INJECT_SPECS", "catalogue", "judge", "judge_session", "pcap_paths"]

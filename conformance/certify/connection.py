@@ -3,24 +3,62 @@ in the connection's transcript, answers through the reference box's
 :class:`~conformance.endpoints.connection.BoxConnection` (its trace says what the box
 decided for each request, which becomes an :class:`~.records.Exchange`), holds answers
 back (``--inject slow``), closes mid-cycle (``--inject close-mid-cycle``) and records who
-closed the connection. Session bookkeeping is the listener's (:mod:`.listener`).
+closed the connection. Session bookkeeping is the listener's (:mod:`.listener`); this
+module knows it only as a :class:`Listener` (what a connection asks of it), so the
+listener imports the connections and not the other way round.
 """
 
 from __future__ import annotations
 
 import asyncio
 from collections import deque
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from contextlib import AbstractContextManager
+from typing import Any, Protocol
 
-from ..endpoints.behaviour import Decision, Reaction
+from ..endpoints.behaviour import BoxBehaviour, Decision, Reaction
 from ..endpoints.connection import BoxConnection
 from ..harness.transcript import Endpoint, Kind
 from ..protocol import Action, Frame, ProtocolError
 from ..protocol.frames import ValueBlock
-from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, ConnRecord, Exchange, InjectionEvent, SessionRecord
+from .records import (
+    BY_BOX,
+    BY_ROBOT,
+    BY_ROBOT_RESET,
+    BY_SUITE,
+    CertifyConfig,
+    ConnRecord,
+    Exchange,
+    InjectionEvent,
+    SessionRecord,
+)
 
-if TYPE_CHECKING:
-    from .listener import CertifyListener
+
+class Listener(Protocol):
+    """What a connection asks of the listener that accepted it (:class:`~.listener.CertifyListener`)."""
+
+    @property
+    def config(self) -> CertifyConfig: ...
+
+    @property
+    def behaviour(self) -> BoxBehaviour: ...
+
+    @property
+    def clock(self) -> Callable[[], float]: ...
+
+    def guard(self, what: str) -> AbstractContextManager[Any]:
+        """Turns the suite's own failures inside the block into an ERROR of the run."""
+        ...
+
+    def accept(self, proto: TcpConnection, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
+        """The connection's session and record, or None: refused."""
+        ...
+
+    def activity(self, session: SessionRecord | None) -> None: ...
+
+    def closed(self, session: SessionRecord | None, rec: ConnRecord) -> None: ...
+
+    def datagram(self, data: bytes, addr: Any, transport: asyncio.DatagramTransport | None) -> None: ...
 
 
 def endpoint(address: object) -> Endpoint:
@@ -32,7 +70,7 @@ def endpoint(address: object) -> Endpoint:
 class TcpConnection(asyncio.Protocol):
     """One robot connection: record, answer through the box logic, inject."""
 
-    def __init__(self, listener: CertifyListener) -> None:
+    def __init__(self, listener: Listener) -> None:
         self.listener = listener
         self.transport: asyncio.Transport | None = None
         self.rec: ConnRecord | None = None
@@ -184,7 +222,7 @@ def exchange_of(offset: int, t: float, action: int | None, decision: Decision) -
 
 
 class UdpEndpoint(asyncio.DatagramProtocol):
-    def __init__(self, listener: CertifyListener) -> None:
+    def __init__(self, listener: Listener) -> None:
         self.listener = listener
         self.transport: asyncio.DatagramTransport | None = None
 

@@ -22,7 +22,7 @@ Details that a plain ``sniff(iface="lo")`` gets wrong, handled here:
   is called are drained into the file, not dropped.
 
 Packets are written as they arrive with the kernel's time stamps, each in one
-write to an unbuffered file (:class:`~conformance.evidence.pcap.PcapNgFile`), so an
+write to an unbuffered file (:class:`~conformance.evidence.pcapng.PcapNgFile`), so an
 interrupted run leaves a readable file.
 """
 
@@ -36,7 +36,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from conformance.evidence.pcap import PcapNgFile
+from conformance.evidence.pcapng import PcapNgFile
 from conformance.protocol.constants import DEFAULT_PORT
 
 __all__ = ["CaptureError", "LiveCapture", "default_bpf"]

@@ -6,7 +6,8 @@ malformed frame, ``valid`` with its ``frame`` for a well-formed request the box
 mishandled) and a ``comment`` saying what the box did. ``isight-conformance replay
 FILE`` resends it. The pcap is synthesised from the socket transcript of the
 evidence run (a fresh connection: the bytes, the probe, the liveness check) with
-:func:`~conformance.evidence.pcap.write_transcript`.
+:func:`~conformance.evidence.pcap.write_transcript`. A failing session of the state
+machine (:mod:`.stateful`) is also written as an ``isight-sequence-1`` file.
 """
 
 from __future__ import annotations
@@ -128,4 +129,21 @@ def write_summary(path: Path, summary: dict[str, Any]) -> Path:
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(summary, indent=1, default=str) + "\n", encoding="utf-8")
     tmp.replace(path)
+    return path
+
+
+def write_sequence(path: Path, number: int, failure: Failure, steps: list[dict[str, Any]]) -> Path:
+    """A failing session as an ``isight-sequence-1`` file (``run --sequence FILE``)."""
+    doc = {
+        "format": "isight-sequence-1",
+        "id": f"SEQ-FUZZ-{number:03d}",
+        "title": f"Fuzz session failure {number} [{', '.join(failure.clauses)}], {len(failure.steps)} steps",
+        "description": failure.message,
+        "clauses": failure.clauses or ["A1"],
+        "level": "MUST",
+        "expect": "every answer as the fuzz oracle requires (see the notes of each step)",
+        "steps": steps,
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     return path

@@ -13,14 +13,19 @@ on a fresh connection (R2).
 A failure is shrunk by hypothesis to the shortest session that still fails and
 written as a vector file (the request that failed), an ``isight-sequence-1`` file
 replaying the whole session (``isight-conformance run --sequence FILE``) and a pcap.
+
+:func:`run_stateful` is given what it needs (the configuration, the strategies, the seed,
+a budget and the next failure's number) and returns a :class:`StatefulResult` (sessions
+run, steps, failures, why it stopped) that the campaign adds to its own counts.
 """
 
 from __future__ import annotations
 
 import struct
 import time
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
 
 from hypothesis import HealthCheck, Phase, Verbosity, settings
 from hypothesis import strategies as st
@@ -33,13 +38,11 @@ from ..harness.transcript import Transcript
 from ..protocol import BLOCK_LEN, Action, BlockType, Header, Transport, codec_for
 from ..protocol.answers import SENDABLE_RESULTS
 from ..suite.verdicts import Verdict
-from .evidence import Failure, clauses_of
+from .config import CampaignConfig
+from .evidence import Failure, clauses_of, write_pcap, write_sequence, write_vectors
 from .executor import Executor, FuzzConnection, alive
 from .oracle import Expectation, Finding, Rule, judge
-from .strategies import FuzzCase, _finite
-
-if TYPE_CHECKING:
-    from .campaign import Campaign
+from .strategies import FuzzCase, Strategies, _finite
 
 #: Steps per session (hypothesis's stateful_step_count) and sessions per hypothesis run.
 STEPS = 25
@@ -47,6 +50,28 @@ RUNS_PER_CHUNK = 10
 #: Frame categories the machine interleaves as malformed input (stream-safe: no truncation at EOF, no UDP).
 MALFORMED = ("F1-start-word", "F2-version", "F3-direction", "A5-unknown-action", "B5-shape", "B3-index",
              "B4-floats", "F5-trailing", "F5-spliced", "F6-check", "R5-oversized", "mutation", "F1-garbage")
+
+
+@dataclass
+class StatefulResult:
+    """What the session runs did: the campaign adds the counts and the failures to its own."""
+
+    runs: int = 0
+    steps: int = 0
+    failures: list[Failure] = field(default_factory=list)
+    stopped: str = ""  # why the runs ended before the budget did: "failure", "hang", "flaky" ("": budget spent)
+
+
+@dataclass
+class _Run:
+    """The state the session machine shares with :func:`run_stateful`."""
+
+    budget: Callable[[int], bool]  # may another step run, after this many steps?
+    result: StatefulResult = field(default_factory=StatefulResult)
+    shrinking: bool = False  # hypothesis is shrinking a failure: every step runs
+
+    def left(self) -> bool:
+        return self.shrinking or self.budget(self.result.steps)
 
 
 class StatefulFailure(AssertionError):
@@ -72,11 +97,9 @@ def _codes(codes: set[int] | frozenset[int] | None) -> Any:
     return "answered" if codes is None else {"errors": [f"{c:04X}" for c in sorted(codes)]}
 
 
-def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
-    cfg = campaign.config
+def machine_for(cfg: CampaignConfig, strategies: Strategies, run: _Run) -> type[RuleBasedStateMachine]:
     profile = cfg.profile
     codec = codec_for(profile)
-    strategies = campaign.strategies
     malformed_cases = strategies.cases(tuple(c for c in MALFORMED if c in strategies.categories()))
     first = profile.first_index
     order = ">" if profile.float_byte_order == "big" else "<"
@@ -96,7 +119,7 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
             self.conns: dict[str, FuzzConnection] = {}
             self.executor = Executor(cfg.target, profile, self.tr, extension=cfg.extension, settle_s=cfg.settle_s)
             self.cycle: bool | None = None
-            campaign.stateful_runs += 1
+            run.result.runs += 1
             for name in ("command", "stream"):
                 self._open(name)
             # a known state to start from: whatever CycleOff gets, the cycle is then off (or unknown)
@@ -117,13 +140,13 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
             self.log.append(f"open {name}")
 
         def _fail(self, finding: Finding, case: FuzzCase, hang: bool = False) -> None:
-            if hang and not campaign.stateful_shrinking:
+            if hang and not run.shrinking:
                 raise StatefulHang(StatefulFailure(finding, self, case))
-            campaign.stateful_shrinking = True  # from now on every step runs: hypothesis is shrinking
+            run.shrinking = True  # from now on every step runs: hypothesis is shrinking
             raise StatefulFailure(finding, self, case)
 
         def _budget(self) -> bool:
-            return campaign.stateful_shrinking or campaign.stateful_left()
+            return run.left()
 
         def _send(self, name: str, data: bytes, action: Action, ok: set[int] | frozenset[int] | None,
                   what: str, values: frozenset[int] | None = None) -> Outcome:
@@ -134,7 +157,7 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
                 step["expect"] = dict(step["expect"] if isinstance(step["expect"], dict) else {}, values=sorted(values))
             self.sequence.append(step)
             outcome = conn.request(data, what)
-            campaign.stateful_steps += 1
+            run.result.steps += 1
             exp = Expectation(Rule.ANSWER, "", int(action), what, frozenset(ok) if ok is not None else None,
                               values=values)
             answers = [outcome] if isinstance(outcome, (Answer, Malformed)) else []
@@ -212,7 +235,7 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
                     end = o
                     break
                 outcomes.append(o)
-            campaign.stateful_steps += count
+            run.result.steps += count
             for finding in judge(case.expects, outcomes, end, profile).failures:
                 self._fail(finding, case, hang=isinstance(end, Silence))
 
@@ -256,7 +279,7 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
             self.log.append(f"malformed on {on}: {case.describe()}")
             self.sequence.append({"raw": case.wire.hex(), "on": on, "probe": True, "note": case.describe()[:200]})
             result = self.executor.exchange(self.conns[on], case, f"malformed: {case.describe()}")
-            campaign.stateful_steps += 1
+            run.result.steps += 1
             for finding in result.judgement.failures:
                 self._fail(finding, case, hang=isinstance(result.end, Silence))
             if any(e.action in (Action.CYCLE_ON, Action.CYCLE_OFF) for e in case.expects):
@@ -285,77 +308,60 @@ def machine_for(campaign: Campaign) -> type[RuleBasedStateMachine]:
     return IsightSession
 
 
-def run_stateful(campaign: Campaign) -> None:
-    """Session runs until the campaign's stateful budget is spent (or a failure is found)."""
-    machine = machine_for(campaign)
-    cfg = campaign.config
+def run_stateful(cfg: CampaignConfig, strategies: Strategies, campaign_seed: int, budget: Callable[[int], bool],
+                 number: int) -> StatefulResult:
+    """Session runs while ``budget(steps)`` allows (or until a failure is found, written as failure ``number``)."""
+    run = _Run(budget)
+    machine = machine_for(cfg, strategies, run)
+    result = run.result
     chunk = 0
-    campaign.stateful_started = time.monotonic()
-    while campaign.stateful_left() and len(campaign.failures) < cfg.max_failures:
-        machine._hypothesis_internal_use_seed = campaign.seed * 7919 + chunk  # type: ignore[attr-defined]
+    while run.budget(result.steps):
+        machine._hypothesis_internal_use_seed = campaign_seed * 7919 + chunk  # type: ignore[attr-defined]
         hyp = settings(
             max_examples=RUNS_PER_CHUNK, stateful_step_count=STEPS, deadline=None, database=cfg.database,
             phases=[Phase.generate, Phase.shrink] if chunk else [Phase.reuse, Phase.generate, Phase.shrink],
             suppress_health_check=list(HealthCheck), report_multiple_bugs=False, derandomize=False,
             verbosity=Verbosity.quiet, print_blob=False,
         )
-        campaign.stateful_shrinking = False
+        run.shrinking = False
         try:
             run_state_machine_as_test(machine, settings=hyp)
         except StatefulFailure as exc:
-            _record(campaign, exc)
-            return
+            result.failures.append(_record(cfg, campaign_seed, number, exc))
+            result.stopped = "failure"
+            return result
         except StatefulHang as exc:  # not shrunk: each step would wait time_out
-            _record(campaign, exc.failure, shrunk=False)
-            return
+            result.failures.append(_record(cfg, campaign_seed, number, exc.failure, shrunk=False))
+            result.stopped = "hang"
+            return result
         except Flaky as exc:
             cfg.log(f"fuzz: a session failure did not reproduce when hypothesis replayed it ({type(exc).__name__})")
-            return
+            result.stopped = "flaky"
+            return result
         chunk += 1
+    return result
 
 
-def _record(campaign: Campaign, exc: StatefulFailure, shrunk: bool = True) -> None:
-    from .evidence import write_pcap, write_vectors
-
-    cfg = campaign.config
-    number = len(campaign.failures) + 1
+def _record(cfg: CampaignConfig, campaign_seed: int, number: int, exc: StatefulFailure, shrunk: bool = True) -> Failure:
+    """The session failure's vector file (the failing request), sequence file and pcap, and a line in the log."""
     name = f"{cfg.name}-{number:03d}"
     f = exc.finding
     how = "shrunk by hypothesis" if shrunk else "not shrunk: the box hung, each shrink step would wait time_out"
     message = f"{f.requirement}; the box {f.observed} (session of {len(exc.steps)} steps, {how})"
     failure = Failure(number, "stateful", clauses_of(exc.case, [f.clause]), message, [exc.case] if exc.case.data else [],
                       shrunk=shrunk, steps=exc.steps)
-    desc = f"isight-conformance fuzz: session failure {number} against {cfg.target} (seed {campaign.seed})"
+    desc = f"isight-conformance fuzz: session failure {number} against {cfg.target} (seed {campaign_seed})"
     if failure.cases and cfg.report_dir is not None:
         failure.vector = write_vectors(cfg.report_dir / f"{name}.json", failure, cfg.profile, desc)
     if cfg.report_dir is not None:
         failure.sequence = write_sequence(cfg.report_dir / f"{name}.sequence.json", number, failure, exc.sequence)
     if cfg.capture != "off" and cfg.pcap_dir is not None:
         failure.pcap = write_pcap(exc.transcript, cfg.pcap_dir / f"{name}.pcapng")
-    campaign.failures.append(failure)
     cfg.log(f"fuzz: FAIL {number} [{', '.join(failure.clauses)}] {message}\n      steps: "
             + "; ".join(exc.steps) + f"\n      sequence: {failure.sequence}"
             + (f"\n      vector: {failure.vector}" if failure.vector else "")
             + (f"\n      pcap: {failure.pcap}" if failure.pcap else ""))
+    return failure
 
 
-def write_sequence(path: Path, number: int, failure: Failure, steps: list[dict[str, Any]]) -> Path:
-    """The failing session as an ``isight-sequence-1`` file (``run --sequence FILE``)."""
-    import json
-
-    doc = {
-        "format": "isight-sequence-1",
-        "id": f"SEQ-FUZZ-{number:03d}",
-        "title": f"Fuzz session failure {number} [{', '.join(failure.clauses)}], {len(failure.steps)} steps",
-        "description": failure.message,
-        "clauses": failure.clauses or ["A1"],
-        "level": "MUST",
-        "expect": "every answer as the fuzz oracle requires (see the notes of each step)",
-        "steps": steps,
-    }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    return path
-
-
-__all__ = ["STEPS", "StatefulFailure", "machine_for", "run_stateful", "write_sequence", "Transport"]
+__all__ = ["STEPS", "StatefulFailure", "StatefulResult", "machine_for", "run_stateful", "write_sequence", "Transport"]

@@ -23,7 +23,7 @@ from ..protocol import Action, Frame, Profile, encode, pose_blocks, request
 from ..protocol.answers import Seen
 from ..protocol.explain import explain
 from ..protocol.framings import End, Explanation
-from .judge import CaseVerdict, Inconclusive, Skip, broken, judge
+from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
 from .record import CaseRecord
 from .session import SessionState
 
@@ -206,6 +206,16 @@ class CaseContext:
         gives the words and the level, the case what it expected and what it saw."""
         return broken(self.info.check(check), self.info.level, expected, observed, {**self.params, **values},
                       sent=sent, received=received, signature=signature)
+
+    def judge_stream(self, result: Any, check: str = "stream", *, max_lost: int = 0, backlog: bool = False,
+                     **values: Any) -> None:
+        """Judge a pose stream (every pose answered 0000, none lost, no backlog) under the record's
+        requirement ``check``: its words name each sub-requirement, its level sets the verdict."""
+        from .pose_stream import judge_stream
+
+        requirement = self.info.check(check)
+        judge_stream(result, requirement.level or self.info.level, words(requirement.text, {**self.params, **values}),
+                     max_lost=max_lost, backlog=backlog)
 
     def inform(self, text: str) -> None:
         """Record behaviour that is reported, never judged (INFORMATIONAL)."""

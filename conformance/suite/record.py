@@ -29,7 +29,7 @@ from .verdicts import Level
 
 F = TypeVar("F", bound=Callable[..., Any])
 MARKER = "isight_case"
-_ID = re.compile(r"^[A-Z][0-9]?-[0-9]{2}[a-z]?$|^[A-Z]+-[A-Z0-9-]+$")
+_ID = re.compile(r"^[A-Z][0-9]?-[0-9]{2}[a-z]?$|^[A-Z]+-[A-Za-z0-9-]+$")
 _CLAUSE = re.compile("^(" + "|".join(sorted(clause_ids())) + ")$")  # the clause registry's ids
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class Expect:
 
 
 #: An acceptable set of outcomes: an Expect, or a function of the case's values returning one.
-ExpectSpec = Expect | Callable[..., Expect]
+ExpectSpec = Expect | Callable[..., Expect | None]
 
 
 @dataclass(frozen=True)

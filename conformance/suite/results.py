@@ -88,7 +88,7 @@ def result_of(info: CaseRecord, ctx: CaseContext | None, exc: BaseException | No
     judged = tuple(c for c in fields.pop("judged", ()) if c)
     signature = fields.pop("signature", "") or ""
     if verdict is not Verdict.PASS:
-        fields["requirement"] = fields.get("requirement") or f"{', '.join(info.clauses)} ({info.level.value}): {info.title}"
+        fields["requirement"] = fields.get("requirement") or info.words
         if ctx is not None and not fields.get("sent_hex") and ctx.last_sent:
             fields["sent_hex"] = bounded_hex(ctx.last_sent)
         if verdict in (Verdict.FAIL, Verdict.NON_STRICT) and not judged:

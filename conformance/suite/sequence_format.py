@@ -19,7 +19,7 @@ from typing import Any
 from ..protocol import Action
 from ..vectors import REPO_VECTORS
 from .judge import CLOSED, NOT_OK, SILENCE, Expect
-from .record import _CLAUSE
+from .record import _CLAUSE, CaseRecord, record
 from .verdicts import Level
 
 FORMAT = "isight-sequence-1"
@@ -177,15 +177,33 @@ def verb_of(step: dict[str, Any]) -> str:
 
 @dataclass(frozen=True)
 class Sequence:
+    """A loaded sequence file: its case record (the suite's one record) and its steps."""
+
     path: Path
-    id: str
-    title: str
-    clauses: tuple[str, ...]
-    level: Level
-    expect: str
+    record: CaseRecord
     steps: list[dict[str, Any]]
     requires: tuple[str, ...] = ()
     deadline_s: float | None = None
+
+    @property
+    def id(self) -> str:
+        return self.record.id
+
+    @property
+    def title(self) -> str:
+        return self.record.title
+
+    @property
+    def clauses(self) -> tuple[str, ...]:
+        return self.record.clauses
+
+    @property
+    def level(self) -> Level:
+        return self.record.level
+
+    @property
+    def expect(self) -> str:
+        return self.record.expect
 
     @property
     def stem(self) -> str:
@@ -243,9 +261,11 @@ def load(path: str | Path) -> Sequence:
         raise SequenceError(f"{path}: {exc}") from None
     except ValueError as exc:
         raise SequenceError(f"{path}: {where}: {exc}") from None
-    return Sequence(path, doc["id"], doc["title"], tuple(doc["clauses"]), Level(doc["level"]),
-                    str(doc.get("expect") or doc.get("description") or doc["title"]), doc["steps"],
-                    tuple(doc.get("requires", ())), doc.get("deadline_s"))
+    requires = tuple(doc.get("requires", ()))
+    case = record(doc["id"], doc["clauses"], doc["level"], doc["title"],
+                  str(doc.get("expect") or doc.get("description") or doc["title"]),
+                  needs=("extension",) if "extension" in requires else ())
+    return Sequence(path, case, doc["steps"], requires, doc.get("deadline_s"))
 
 
 class _StepError(ValueError):
