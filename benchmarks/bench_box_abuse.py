@@ -41,8 +41,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_box_load import BoxProcess, pose_frames  # noqa: E402
 
-from conformance.endpoints.box import raise_fd_limit  # noqa: E402
 from conformance.endpoints.robot import RobotSession, run_robot  # noqa: E402
+from conformance.endpoints.serve import raise_fd_limit  # noqa: E402
 from conformance.protocol import DEFAULT_PROFILE, Header, encode_raw  # noqa: E402
 
 

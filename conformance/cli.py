@@ -128,7 +128,7 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 def _serve(args: argparse.Namespace) -> int:
     from .endpoints.behaviour import BoxConfig
-    from .endpoints.box import main_serve
+    from .endpoints.serve import main_serve
 
     config = BoxConfig(
         profile=profile_from_options(args),
@@ -176,7 +176,7 @@ def _add_robot(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
 
 
 def _robot(args: argparse.Namespace) -> int:
-    from .endpoints.box import new_event_loop
+    from .endpoints.loop import new_event_loop
     from .endpoints.robot import RobotSession, run_robot
 
     new_event_loop(args.loop).close()  # an unavailable loop is a usage error (exit 2)

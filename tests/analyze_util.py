@@ -27,8 +27,9 @@ from scapy.packet import Raw
 from scapy.utils import wrpcap, wrpcapng
 
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.box import ReferenceBox
-from conformance.endpoints.robot import RobotResult, RobotSession
+from conformance.endpoints.robot import RobotSession
+from conformance.endpoints.robot_result import RobotResult
+from conformance.endpoints.server import ReferenceBox
 from conformance.evidence.pcap import write_transcript
 from conformance.harness.transcript import Endpoint, Kind, Transcript
 from conformance.protocol import Action, Profile, answer, encode, pose_blocks, request

@@ -26,8 +26,9 @@ import pytest
 
 from conformance.analyze import AnalyzeConfig, analyze, build_cases
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.box import ReferenceBox
-from conformance.endpoints.robot import RobotFaults, RobotSession
+from conformance.endpoints.robot import RobotSession
+from conformance.endpoints.robot_steps import RobotFaults
+from conformance.endpoints.server import ReferenceBox
 from conformance.protocol import Action, Profile, answer, encode, encode_udp, request
 from conformance.suite.verdicts import Verdict
 from tests.analyze_util import FAST, POSE, POSE_OK, Capture, canonical, exchange, record

@@ -6,8 +6,6 @@ import struct
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
 
 from conformance.endpoints.behaviour import (
     BOX_STATES,
@@ -18,10 +16,10 @@ from conformance.endpoints.behaviour import (
     TRANSITIONS,
     BoxBehaviour,
     BoxConfig,
-    BoxConnection,
     Cycle,
     Reaction,
 )
+from conformance.endpoints.connection import BoxConnection
 from conformance.protocol import (
     DEFAULT_PROFILE,
     REQUEST_SHAPE,
@@ -116,7 +114,7 @@ def test_config_validation():
 
 def test_canonical_cycle():
     b = box()
-    conn = b.connection()
+    conn = BoxConnection(b)
     assert one_answer(conn.receive_data(req(Action.NONE))) == Frame(TransferType.BOX_TO_ROBOT, Action.NONE)
     assert one_answer(conn.receive_data(pose_frame())).error_code == 0  # S3: before CycleOn
     on = one_answer(conn.receive_data(req(Action.CYCLE_ON)))
@@ -170,7 +168,7 @@ def test_request_error_field_is_ignored():
 @pytest.mark.parametrize("index", [7, 0, -1, 2**31 - 1, -(2**31)])
 def test_prog_idx_echoes_the_index(index):
     b = box()
-    a = one_answer(b.connection().receive_data(req(Action.PROG_IDX, value_blocks([index]))))
+    a = one_answer(BoxConnection(b).receive_data(req(Action.PROG_IDX, value_blocks([index]))))
     assert (a.action, a.error_code, [blk.value for blk in a.blocks]) == (Action.PROG_IDX, 0, [index])
     assert a.blocks[0].index == 0
     assert b.prog_idx == index
@@ -189,25 +187,25 @@ def test_prog_idx_conflict_409_in_the_error_field_too():
 
 @pytest.mark.parametrize("code", SENDABLE_RESULTS)
 def test_vision_result_codes(code):
-    a = one_answer(box(vision_result=code).connection().receive_data(req(Action.VISION_RESULT)))
+    a = one_answer(BoxConnection(box(vision_result=code)).receive_data(req(Action.VISION_RESULT)))
     assert (a.action, a.error_code, a.blocks[0].value, a.blocks[0].index) == (Action.VISION_RESULT, 0, code, 0)
 
 
 def test_first_index_1_profile_answers_blocks_from_1():
     profile = Profile(first_index=1)
     b = box(profile=profile)
-    a = one_answer(b.connection().receive_data(req(Action.PROG_IDX, value_blocks([5], 1), profile)), profile)
+    a = one_answer(BoxConnection(b).receive_data(req(Action.PROG_IDX, value_blocks([5], 1), profile)), profile)
     assert a.blocks[0].index == 1 and a.blocks[0].value == 5
-    assert one_answer(b.connection().receive_data(pose_frame(profile=profile)), profile).error_code == 0
+    assert one_answer(BoxConnection(b).receive_data(pose_frame(profile=profile)), profile).error_code == 0
     bad = pose_frame(profile=profile, index=0)
-    assert one_answer(b.connection().receive_data(bad), profile).error_code == ErrorCode.POSE_ERROR
+    assert one_answer(BoxConnection(b).receive_data(bad), profile).error_code == ErrorCode.POSE_ERROR
 
 
 @pytest.mark.parametrize("action", [Action.PROG_IDX, Action.VISION_RESULT])
 def test_extension_off_makes_26_27_unknown(action):
     blocks = value_blocks([1]) if action is Action.PROG_IDX else ()
     b = box(extension=False)
-    conn = b.connection()
+    conn = BoxConnection(b)
     assert conn.receive_data(req(action, blocks)) == b""
     assert b.stats.not_requests == 1
     # and the connection is still in step
@@ -255,7 +253,7 @@ MALFORMED_CASES = [
 @pytest.mark.parametrize("name,data,code", MALFORMED_CASES, ids=[c[0] for c in MALFORMED_CASES])
 def test_malformed_and_not_requests(name, data, code):
     b = box()
-    conn = b.connection()
+    conn = BoxConnection(b)
     out = conn.receive_data(data)
     if code is None:
         assert out == b"", "A5: silence"
@@ -272,14 +270,14 @@ def test_malformed_and_not_requests(name, data, code):
 
 def test_lenient_profile_accepts_non_finite_and_either_first_index():
     profile = Profile(strict=False)
-    conn = box(profile=profile).connection()
+    conn = BoxConnection(box(profile=profile))
     nan_pose = encode_raw(_header(0x23, 1, 1, 25), bytes([0]) + struct.pack(">6f", math.nan, 0, 0, 0, 0, 0))
     assert [a.error_code for a in answers(conn.receive_data(nan_pose * 3))] == [0, 0, 0]
     assert len(answers(conn.receive_data(pose_frame(index=1) * 2))) == 2
 
 
 def test_oversize_announcement_is_answered_1001_and_skipped():
-    conn = box().connection()
+    conn = BoxConnection(box())
     header = encode_raw(_header(0x23, 1, 255, 0xFFFF))[:12]
     out = conn.receive_data(header + bytes(1000) + pose_frame())
     got = answers(out)
@@ -288,7 +286,7 @@ def test_oversize_announcement_is_answered_1001_and_skipped():
 
 
 def test_close_on_garbage_knob():
-    conn = box(on_garbage="close").connection()
+    conn = BoxConnection(box(on_garbage="close"))
     assert conn.receive_data(pose_frame()) == box().pose_ok
     assert conn.receive_data(b"\x00\x01garbage") == b""
     assert conn.should_close
@@ -308,7 +306,7 @@ def test_never_0000_to_any_invalid_vector():
                 data = bytes.fromhex(test["hex"])
                 b = box(profile=profile)
                 if group["transport"] == "tcp":
-                    out = b.connection().receive_data(data) if data else b""
+                    out = BoxConnection(b).receive_data(data) if data else b""
                 else:
                     out = b.receive_datagram(data) or b""
                     if out:
@@ -327,85 +325,6 @@ def test_never_0000_to_any_invalid_vector():
                         assert got[0].error_code == 0, label
                 checked += 1
     assert checked > 100
-
-
-# -- split, coalesced, and the fast path agreeing with the decoder ---------------------------------------------
-
-SESSION = b"".join([
-    req(Action.NONE), pose_frame(), req(Action.CYCLE_ON), pose_frame(), pose_frame((1, 2, 3, 4, 5, 6)),
-    req(Action.TOLERANCE, tolerance_blocks([0.1])), req(Action.PROG_IDX, value_blocks([4])), pose_frame(),
-    req(Action.CYCLE_OFF), req(Action.VISION_RESULT), pose_frame(),
-])
-
-
-def test_split_byte_by_byte_equals_whole():
-    whole = box().connection().receive_data(SESSION)
-    conn = box().connection()
-    pieces = b"".join(conn.receive_data(SESSION[i : i + 1]) for i in range(len(SESSION)))
-    assert pieces == whole
-    assert len(answers(whole)) == 11
-
-
-def test_coalesced_poses_each_answered():
-    b = box()
-    out = b.connection().receive_data(pose_frame() * 100 + pose_frame()[:20])
-    assert out == b.pose_ok * 100
-    assert b.stats.requests == 100 and b.stats.answers == 100
-
-
-def test_fast_path_checks_every_frame_of_a_chunk():
-    bad = encode_raw(_header(0x23, 1, 1, 25), bytes([0]) + struct.pack(">6f", 0, 0, math.inf, 0, 0, 0))
-    out = box().connection().receive_data(pose_frame() * 5 + bad + pose_frame() * 5)
-    assert [a.error_code for a in answers(out)] == [0] * 5 + [0x1001] + [0] * 5
-    big = pose_frame((-3.0e38, 3.0e38, 0, 0, 0, 0))  # 0xff / 0x7f sign-exponent bytes, yet finite
-    out = box().connection().receive_data(big * 4)
-    assert [a.error_code for a in answers(out)] == [0] * 4
-
-
-def _reference(profile: Profile, chunks: list[bytes], config: BoxConfig) -> bytes:
-    """The same bytes through the decoder and decide() only (a tracer disables the fast path)."""
-    conn = BoxConnection(BoxBehaviour(config), trace=lambda *a: None)
-    return b"".join(conn.receive_data(c) for c in chunks)
-
-
-_PROFILES = [DEFAULT_PROFILE, Profile(float_byte_order="little"), Profile(byte_order="little"), Profile(first_index=1),
-             Profile(strict=False)]
-
-
-@st.composite
-def _streams(draw):
-    profile = draw(st.sampled_from(_PROFILES))
-    floats = st.floats(width=32, allow_nan=True, allow_infinity=True)
-    parts = []
-    for _ in range(draw(st.integers(1, 25))):
-        kind = draw(st.sampled_from(["pose", "pose", "pose", "poses", "other", "garbage", "bad-index", "cut"]))
-        if kind == "pose":
-            parts.append(pose_frame(tuple(draw(floats) for _ in range(6)), profile))
-        elif kind == "poses":
-            parts.append(pose_frame(POSE, profile) * draw(st.integers(2, 40)))
-        elif kind == "other":
-            action = draw(st.sampled_from([Action.NONE, Action.CYCLE_ON, Action.CYCLE_OFF, Action.VISION_RESULT]))
-            parts.append(req(action, (), profile))
-        elif kind == "bad-index":
-            parts.append(pose_frame(POSE, profile, index=draw(st.integers(0, 255))))
-        elif kind == "cut":
-            parts.append(pose_frame(POSE, profile)[: draw(st.integers(1, 38))])
-        else:
-            parts.append(draw(st.binary(max_size=60)))
-    data = b"".join(parts)
-    cuts = sorted(draw(st.lists(st.integers(0, len(data)), max_size=12)))
-    chunks = [data[a:b] for a, b in zip([0, *cuts], [*cuts, len(data)]) if b > a]
-    return profile, chunks
-
-
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(_streams())
-def test_fast_path_agrees_with_the_decoder(stream):
-    profile, chunks = stream
-    config = BoxConfig(profile=profile)
-    conn = BoxConnection(BoxBehaviour(config))
-    fast = b"".join(conn.receive_data(c) for c in chunks)
-    assert fast == _reference(profile, chunks, config)
 
 
 # -- UDP (F7, R7) --------------------------------------------------------------------------------------------------
@@ -433,37 +352,6 @@ def test_datagrams(profile):
     assert a.error_code == 0x1001
     # a TCP-style 00 00 check is a wrong CRC over UDP
     assert b.receive_datagram(codec.encode(request(Action.CYCLE_ON))) is None
-
-
-def test_a_wrapped_decide_sees_every_pose():
-    b = box()
-    original = b.decide
-    seen = []
-
-    def decide(event, transport=Transport.TCP):
-        seen.append(event)
-        return original(event, transport)
-
-    b.decide = decide
-    b.fast_path = False  # every frame through the patched decide()
-    conn = b.connection()
-    assert conn.receive_data(pose_frame() * 3) == b.pose_ok * 3
-    assert len(seen) == 3
-    b2 = box()
-    b2.fast_path = False
-    assert b2.connection().receive_data(pose_frame()) == b2.pose_ok
-
-
-def test_trace_sees_every_event_with_its_bytes():
-    seen = []
-    conn = BoxConnection(box(), trace=lambda raw, event, decision: seen.append((raw, event, decision)))
-    data = b"junk" + pose_frame() + req(Action.CYCLE_ON)
-    for i in range(len(data)):
-        conn.receive_data(data[i : i + 1])
-    assert b"".join(raw for raw, _, _ in seen) == data
-    # garbage fed a byte at a time is reported as it comes, each piece an F1 event
-    assert [d.reaction for _, _, d in seen[-2:]] == [Reaction.OK, Reaction.OK]
-    assert all(d.reaction is Reaction.SILENT and e.clause == "F1" for _, e, d in seen[:-2])
 
 
 def test_the_box_picks_its_answers_from_the_protocol_table():

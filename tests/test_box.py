@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 
 from conformance.cli import main
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.box import BoxThread, ReferenceBox
+from conformance.endpoints.loop import BoxThread
+from conformance.endpoints.server import ReferenceBox
 from conformance.protocol import (
     DEFAULT_PROFILE,
     Action,

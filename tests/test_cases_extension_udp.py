@@ -26,7 +26,7 @@ from typing import Any
 import pytest
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Decision, Reaction
-from conformance.endpoints.box import BoxThread
+from conformance.endpoints.loop import BoxThread
 from conformance.protocol import (
     Action,
     Frame,

@@ -23,7 +23,9 @@ import pytest
 
 from conformance.certify import CertifyConfig, certify
 from conformance.certify.runner import CertifyOutcome
-from conformance.endpoints.robot import RobotFaults, RobotResult, RobotSession
+from conformance.endpoints.robot import RobotSession
+from conformance.endpoints.robot_result import RobotResult
+from conformance.endpoints.robot_steps import RobotFaults
 from conformance.protocol import Action, Profile, encode, encode_udp, pose_blocks, request
 from conformance.suite.verdicts import Verdict
 

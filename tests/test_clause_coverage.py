@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
-from conformance.endpoints.box import BoxThread
+from conformance.endpoints.loop import BoxThread
 from conformance.protocol import (
     Action,
     ErrorCode,

@@ -16,7 +16,7 @@ import pytest
 from hypothesis.database import DirectoryBasedExampleDatabase
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Decision, Reaction
-from conformance.endpoints.box import BoxThread
+from conformance.endpoints.loop import BoxThread
 from conformance.fuzz.campaign import Campaign, CampaignConfig
 from conformance.harness.target import Target
 from conformance.protocol import Action, Frame, ProtocolError, Transport, answer

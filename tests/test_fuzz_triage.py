@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.endpoints.box import BoxThread
+from conformance.endpoints.loop import BoxThread
 from conformance.fuzz.config import CampaignConfig
 from conformance.fuzz.executor import Executor
 from conformance.fuzz.strategies import Strategies

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.box import BoxThread
+from conformance.endpoints.loop import BoxThread
 from conformance.harness.client import TcpConnection
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript

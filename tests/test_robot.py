@@ -10,21 +10,17 @@ import pytest
 
 from conformance.cli import main
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.box import BoxThread
-from conformance.endpoints.robot import (
-    E4_STEPS,
+from conformance.endpoints.loop import BoxThread
+from conformance.endpoints.robot import RobotSession, parse_target, run_robot
+from conformance.endpoints.robot_result import (
     EXIT_CONNECTION,
     EXIT_MISBEHAVED,
     EXIT_NOT_READY,
     EXIT_OK,
     EXIT_TIMEOUT,
-    S1_STEPS,
-    RobotFaults,
     RobotResult,
-    RobotSession,
-    parse_target,
-    run_robot,
 )
+from conformance.endpoints.robot_steps import E4_STEPS, S1_STEPS, RobotFaults
 from conformance.protocol import (
     DEFAULT_PROFILE,
     Action,

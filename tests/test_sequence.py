@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from conformance.endpoints.behaviour import BoxConfig
-from conformance.endpoints.box import BoxThread
+from conformance.endpoints.loop import BoxThread
 from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, ProtocolError, StreamDecoder, answer, encode
 from conformance.suite.context import CaseContext, SessionState

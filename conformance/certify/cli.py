@@ -121,7 +121,7 @@ async def _main(config: CertifyConfig, quiet: bool) -> CertifyOutcome:
 def main_certify(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from ..endpoints.box import run_loop
+    from ..endpoints.loop import run_loop
     from ..report.terminal import print_final_table
 
     try:

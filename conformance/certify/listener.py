@@ -22,7 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..endpoints.behaviour import BoxBehaviour, Decision
-from ..endpoints.box import format_address
+from ..endpoints.protocols import format_address
 from ..evidence.pcap import PcapRecorder
 from ..harness.transcript import Endpoint, Kind, Transcript
 from ..protocol import Frame, ProtocolError

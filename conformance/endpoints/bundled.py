@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from ..harness.target import Target
 from ..protocol import Profile
 from .behaviour import BoxConfig
-from .box import BoxThread
+from .loop import BoxThread
 
 
 @dataclass

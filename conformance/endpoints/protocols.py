@@ -1,0 +1,318 @@
+"""The reference box's connections on asyncio: one protocol per TCP connection, the UDP endpoint, and
+:class:`ConnectionTable`, which admits, evicts and sweeps them (:class:`~.server.ReferenceBox` builds on it).
+
+The hot path is one pose in, one cached answer out:
+
+* ``asyncio.BufferedProtocol`` per connection, reading into one shared buffer;
+  everything one read completes is answered with one ``transport.write``.
+* Bounded: a connection holds at most one partial frame (the decoder never waits
+  for more than 6389 bytes); at most ``max_connections`` connections, a new one
+  past the limit evicts the connection that has gone longest without an answer if
+  that is at least ``evict_after`` seconds ago, else it is refused; connections
+  that send nothing for ``idle_timeout`` seconds are closed; a connection whose
+  answers pile up unread (write buffer above 64 KiB) is not read until they drain.
+* ``latency_ms`` delays answers per connection in order (one timer per connection).
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections import deque
+from typing import Any
+
+from ..harness.target import Target
+from ..protocol import Frame, ProtocolError
+from .behaviour import BoxBehaviour, Decision
+from .connection import BoxConnection
+from .framelog import FrameLog
+
+DEFAULT_MAX_CONNECTIONS = 2000
+DEFAULT_IDLE_TIMEOUT = 300.0
+#: pause reading a connection whose unsent answers exceed this (back-pressure)
+WRITE_HIGH = 64 * 1024
+WRITE_LOW = 16 * 1024
+#: answers held back by ``latency_ms`` above which a connection stops being read
+DELAY_HIGH = 256 * 1024
+#: a UDP answer is dropped when the socket's send buffer backlog exceeds this
+UDP_BUFFER_LIMIT = 1 << 20
+
+
+def format_address(host: str, port: int) -> str:
+    """``host:port``, or ``[host]:port`` for an IPv6 address."""
+    return str(Target(host, port))
+
+
+#: One receive buffer for every connection: the loop is single-threaded and each read
+#: is consumed before the next, so connections need no buffer of their own. (A
+#: ``Protocol`` would get a fresh 256 KiB bytes object per read, which glibc serves
+#: with mmap/munmap: ~10 µs per read, the box's largest cost under load.)
+_READ_SIZE = 256 * 1024
+
+
+class TcpConnection(asyncio.BufferedProtocol):
+    """One robot connection (command or stream: the box does not care which)."""
+
+    __slots__ = (
+        "box", "id", "transport", "conn", "receive", "rx", "ans", "rx_seen", "ans_seen", "last_rx",
+        "last_progress", "delay", "queue", "queued", "timer", "write_paused", "read_paused", "peer", "closed",
+        "close_logged", "buffer", "view", "eof",
+    )
+
+    def __init__(self, box: ConnectionTable) -> None:
+        self.box = box
+        self.id = 0
+        self.transport: asyncio.Transport | None = None
+        self.rx = self.ans = self.rx_seen = self.ans_seen = 0
+        self.last_rx = self.last_progress = 0.0
+        self.delay = box.behaviour.config.latency_ms / 1000.0
+        self.queue: deque[tuple[float, bytes]] = deque()
+        self.queued = 0
+        self.timer: asyncio.TimerHandle | None = None
+        self.write_paused = self.read_paused = self.closed = self.close_logged = self.eof = False
+        self.peer = ""
+        self.buffer, self.view = box._read_buffer, box._read_view
+
+    # -- asyncio callbacks ----------------------------------------------------------------
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+        box = self.box
+        if not box._admit(self):
+            transport.abort()  # type: ignore[attr-defined]
+            return
+        peer = transport.get_extra_info("peername")
+        self.peer = format_address(peer[0], peer[1]) if isinstance(peer, tuple) else str(peer)
+        log = box.log
+        trace = None
+        if log is not None:
+            cid, peer_text = self.id, self.peer
+
+            def trace(raw: bytes, event: Frame | ProtocolError, decision: Decision) -> None:
+                log.frame(cid, "tcp", peer_text, raw, event, decision)
+
+            log.write({"conn": cid, "transport": "tcp", "peer": peer_text, "direction": "open"})
+        self.conn = BoxConnection(box.behaviour, trace)
+        self.receive = self.conn.receive_data
+        transport.set_write_buffer_limits(high=WRITE_HIGH, low=WRITE_LOW)  # type: ignore[attr-defined]
+
+    def get_buffer(self, sizehint: int) -> memoryview:
+        return self.view
+
+    def buffer_updated(self, nbytes: int) -> None:  # the hot path
+        self.rx += 1
+        out = self.receive(self.view[:nbytes].tobytes())
+        if out:
+            self.ans += 1
+            if self.delay:
+                self._hold(out)
+            else:
+                self.transport.write(out)  # type: ignore[union-attr]
+        if self.conn.should_close:
+            self._close(self.conn.close_reason)
+
+    def eof_received(self) -> bool:
+        # S5: close our side too, after the answers already written; answers still held
+        # back by --latency-ms are sent first (A1), then _release closes
+        if self.queue:
+            self.eof = True
+            return True  # keep the transport half-open until the queue drains
+        return False
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.closed = True
+        if self.timer is not None:
+            self.timer.cancel()
+        self.box._forget(self, "peer closed" if exc is None else f"lost: {exc}")
+
+    def pause_writing(self) -> None:
+        self.write_paused = True
+        self._update_reading()
+
+    def resume_writing(self) -> None:
+        self.write_paused = False
+        self._update_reading()
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _update_reading(self) -> None:
+        want_paused = self.write_paused or self.queued > DELAY_HIGH
+        transport = self.transport
+        if transport is None or self.closed or transport.is_closing() or want_paused == self.read_paused:
+            return
+        self.read_paused = want_paused
+        if want_paused:
+            transport.pause_reading()
+        else:
+            transport.resume_reading()
+
+    def _hold(self, out: bytes) -> None:
+        loop = self.box.loop
+        due = loop.time() + self.delay
+        self.queue.append((due, out))
+        self.queued += len(out)
+        if self.timer is None:
+            self.timer = loop.call_at(due, self._release)
+        if self.queued > DELAY_HIGH:
+            self._update_reading()
+
+    def _release(self) -> None:
+        self.timer = None
+        if self.closed:
+            return
+        now = self.box.loop.time()
+        queue = self.queue
+        chunks = []
+        while queue and queue[0][0] <= now:
+            chunks.append(queue.popleft()[1])
+        if chunks:
+            data = b"".join(chunks)
+            self.queued -= len(data)
+            self.transport.write(data)  # type: ignore[union-attr]
+        if queue:
+            self.timer = self.box.loop.call_at(queue[0][0], self._release)
+        elif self.eof:
+            self._close("peer closed its side; held answers sent")
+            return
+        self._update_reading()
+
+    def _close(self, reason: str, abort: bool = False) -> None:
+        transport = self.transport
+        if transport is None or transport.is_closing():
+            return
+        self.box._log_close(self, reason)
+        if abort:
+            transport.abort()
+        else:
+            transport.close()
+
+
+class UdpEndpoint(asyncio.DatagramProtocol):
+    def __init__(self, box: ConnectionTable) -> None:
+        self.box = box
+        self.transport: asyncio.DatagramTransport | None = None
+        self.delay = box.behaviour.config.latency_ms / 1000.0
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport = transport  # type: ignore[assignment]
+
+    def datagram_received(self, data: bytes, addr: Any) -> None:
+        box = self.box
+        trace = None
+        if box.log is not None:
+            log = box.log
+            peer = format_address(addr[0], addr[1]) if isinstance(addr, tuple) else str(addr)
+
+            def trace(raw: bytes, event: Frame | ProtocolError, decision: Decision) -> None:
+                log.frame("udp", "udp", peer, raw, event, decision)
+
+        out = box.behaviour.receive_datagram(data, trace)
+        transport = self.transport
+        if out is None or transport is None or transport.is_closing():
+            return
+        if transport.get_write_buffer_size() > UDP_BUFFER_LIMIT:  # type: ignore[attr-defined]
+            box.udp_dropped_answers += 1
+            return
+        if self.delay:
+            box.loop.call_later(self.delay, self._send, out, addr)
+        else:
+            transport.sendto(out, addr)
+
+    def _send(self, out: bytes, addr: Any) -> None:
+        if self.transport is not None and not self.transport.is_closing():
+            self.transport.sendto(out, addr)
+
+    def error_received(self, exc: Exception) -> None:  # e.g. ICMP port unreachable from a gone robot
+        pass
+
+
+class ConnectionTable:
+    """The box's live TCP connections and their counters: admission (R5's limit, eviction of the
+    connection that has gone longest without an answer), close logging and the idle sweep."""
+
+    def __init__(self, behaviour: BoxBehaviour, max_connections: int, idle_timeout: float, evict_after: float) -> None:
+        self.behaviour = behaviour
+        self.max_connections = max_connections
+        self.idle_timeout = idle_timeout
+        self.evict_after = evict_after
+        self.log: FrameLog | None = None
+        self.connections: dict[int, TcpConnection] = {}
+        self.accepted = self.refused = self.evicted = self.idle_closed = 0
+        self.peak_connections = 0
+        self.udp_dropped_answers = 0
+        self._next_id = 1
+        self._read_buffer = bytearray(_READ_SIZE)
+        self._read_view = memoryview(self._read_buffer)
+        self.loop: asyncio.AbstractEventLoop = None  # type: ignore[assignment]
+        self._closing = False
+
+    # -- connection bookkeeping ---------------------------------------------------------------
+    def _admit(self, conn: TcpConnection) -> bool:
+        if self._closing:
+            return False
+        if len(self.connections) >= self.max_connections:
+            victim = self._victim()
+            if victim is None:
+                self.refused += 1
+                if self.log is not None:
+                    self.log.write({"conn": None, "transport": "tcp", "direction": "refused",
+                                    "note": f"R5: connection limit {self.max_connections} reached"})
+                return False
+            self.evicted += 1
+            victim._close(f"R5: evicted for a new connection (limit {self.max_connections})", abort=True)
+            self.connections.pop(victim.id, None)
+        conn.id = self._next_id
+        self._next_id += 1
+        now = self.loop.time()
+        conn.last_rx = conn.last_progress = now
+        self.connections[conn.id] = conn
+        self.accepted += 1
+        self.peak_connections = max(self.peak_connections, len(self.connections))
+        return True
+
+    def _victim(self) -> TcpConnection | None:
+        """The connection that has gone longest without an answer, if long enough."""
+        now = self.loop.time()
+        best, best_key = None, None
+        for conn in self.connections.values():
+            progress = now if conn.ans != conn.ans_seen else conn.last_progress
+            key = (progress, conn.ans, conn.id)
+            if best_key is None or key < best_key:
+                best, best_key = conn, key
+        if best is None or best_key is None or now - best_key[0] < self.evict_after:
+            return None
+        return best
+
+    def _forget(self, conn: TcpConnection, reason: str) -> None:
+        if conn.id and self.connections.get(conn.id) is conn:
+            del self.connections[conn.id]
+        if conn.id:
+            self._log_close(conn, reason)
+
+    def _log_close(self, conn: TcpConnection, reason: str) -> None:
+        if self.log is not None and not conn.close_logged:
+            conn.close_logged = True
+            self.log.write({"conn": conn.id, "transport": "tcp", "peer": conn.peer, "direction": "close", "reason": reason})
+
+    async def _sweep(self) -> None:
+        """Idle time-outs and progress tracking, from counters (nothing on the hot path)."""
+        period = 1.0 if not self.idle_timeout else min(1.0, max(0.05, self.idle_timeout / 4))
+        while True:
+            await asyncio.sleep(period)
+            now = self.loop.time()
+            idle = []
+            for conn in self.connections.values():
+                if conn.rx != conn.rx_seen:
+                    conn.rx_seen, conn.last_rx = conn.rx, now
+                if conn.ans != conn.ans_seen:
+                    conn.ans_seen, conn.last_progress = conn.ans, now
+                if self.idle_timeout and now - conn.last_rx >= self.idle_timeout:
+                    idle.append(conn)
+            for conn in idle:
+                self.idle_closed += 1
+                conn._close(f"R5: idle for {self.idle_timeout:g} s", abort=True)
+                self.connections.pop(conn.id, None)
+            if self.log is not None:
+                self.log.flush()
+
+
+__all__ = [
+    "DEFAULT_IDLE_TIMEOUT", "DEFAULT_MAX_CONNECTIONS", "ConnectionTable", "TcpConnection", "UdpEndpoint", "format_address",
+]
