@@ -32,11 +32,7 @@ def _params() -> list[object]:
     out: list[object] = []
     for p in _markdown_files():
         rel = p.relative_to(ROOT).as_posix()
-        # README.md is the lead's: it links ../shared/PROTOCOL.md until the lead applies the change the
-        # spec helper proposed. Strict: once README.md is fixed these XPASS and fail; then delete the mark.
-        marks = [pytest.mark.xfail(strict=True, reason="README.md links ../shared/PROTOCOL.md, outside the repository "
-                                   "(pending the lead's README edit)")] if rel == "README.md" else []
-        out.append(pytest.param(p, id=rel, marks=marks))
+        out.append(pytest.param(p, id=rel))
     return out
 
 
