@@ -1,6 +1,8 @@
 """Fleet runs: wall time for 1, 3 and 6 bundled boxes with ``--jobs 1`` and ``--jobs 3``.
 
-Run on demand: ``python benchmarks/bench_fleet.py [--boxes 1,3,6] [--jobs 1,3] [--cases GLOB]``.
+Run on demand: ``python benchmarks/bench_fleet.py [--boxes 1,3,6] [--jobs 1,3] [--cases GLOB]``;
+``--xdist`` instead measures pytest-xdist over two boxes: the cases against two bundled
+reference boxes (``--target`` twice) serially, then with ``pytest -n 2``.
 Each measurement is one ``isight-conformance run --targets FILE --jobs J --quiet`` in a
 child process, on a fleet file of N boxes without a ``target`` (each box's run starts
 its own bundled reference box on loopback), the full suite unless ``--cases`` narrows
@@ -42,6 +44,31 @@ def measure(workdir: Path, boxes: int, jobs: int, cases: list[str], timeout: flo
             "statuses": ", ".join(f"{k} {v}" for k, v in doc["counts"].items())}
 
 
+def xdist_speedup(workdir: Path, cases: list[str], timeout: float) -> None:
+    """Two boxes, every case against each: serial pytest, then ``pytest -n 2`` (one box per worker)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from conformance.endpoints.bundled import start_bundled
+    from conformance.protocol import Profile
+
+    boxes = [start_bundled(Profile()), start_bundled(Profile())]
+    try:
+        walls = {}
+        for label, extra in (("serial", []), ("pytest -n 2", ["-n", "2"])):
+            cmd = [sys.executable, "-m", "pytest", "--pyargs", "conformance.cases", "-q", "-p", "no:cacheprovider",
+                   "--report-dir", str(workdir / label.replace(" ", "")), *extra,
+                   *[a for b in boxes for a in ("--target", str(b.target))], *[f"--cases={c}" for c in cases]]
+            start = time.monotonic()
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=workdir)
+            walls[label] = time.monotonic() - start
+            tail = proc.stdout.strip().splitlines()[-1] if proc.stdout.strip() else proc.stderr[-200:]
+            print(f"2 boxes, {label}: wall {walls[label]:.1f} s (exit {proc.returncode}: {tail})", flush=True)
+        ratio = walls["pytest -n 2"] / walls["serial"]
+        print(f"pytest -n 2 over 2 boxes: {ratio:.2f}× the serial time ({1 / ratio:.2f}× faster)")
+    finally:
+        for box in boxes:
+            box.stop()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--boxes", default="1,3,6", help="fleet sizes, comma-separated (default 1,3,6)")
@@ -49,7 +76,14 @@ def main() -> None:
     ap.add_argument("--cases", action="append", default=[], metavar="GLOB",
                     help="only these cases (repeatable; default: the whole suite)")
     ap.add_argument("--timeout", type=float, default=1800, help="give up on one fleet run after S seconds")
+    ap.add_argument("--xdist", action="store_true", help="measure pytest -n 2 over two boxes instead of fleets")
     args = ap.parse_args()
+    if args.xdist:
+        print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {os.cpu_count()} CPUs")
+        with tempfile.TemporaryDirectory(prefix="bench-xdist-") as tmp:
+            xdist_speedup(Path(tmp), args.cases, args.timeout)
+        print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return
     sizes = [int(x) for x in args.boxes.split(",")]
     jobs_list = [int(x) for x in args.jobs.split(",")]
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {os.cpu_count()} CPUs", flush=True)

@@ -25,35 +25,40 @@ plugin is inert in any other test session.
 
 from __future__ import annotations
 
-import datetime as _dt
 import fnmatch
-import shlex
-import sys
 import time
 from collections.abc import Generator
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import pytest
 
 from . import __version__
 from .harness.transcript import Transcript
 from .suite import signals
+from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
+    CAUSES,
+    FACTS,
+    RESULTS,
+    SELECTED,
+    SESSIONS,
+    STARTED,
+    STATE,
+    facts_of,
+    results,
+    root_causes,
+    session_facts,
+    suite_info,
+    target_keys,
+    wants_suite,
+)
 from .suite.context import CaseContext
 from .suite.record import info_of
 from .suite.results import attach_evidence, result_of, safe_name
-from .suite.rootcause import SessionFacts, find_root_causes
 from .suite.session import SessionState
 from .suite.settings import SuiteSettings, add_suite_options
-from .suite.verdicts import CaseResult, RootCause, SuiteInfo, Verdict
+from .suite.verdicts import CaseResult, RootCause, Verdict
 
-STATE = pytest.StashKey[SessionState]()  # the first box's session (the settings every session shares)
-SESSIONS = pytest.StashKey[dict[str, SessionState]]()  # target key ("" for one box) -> session
-RESULTS = pytest.StashKey[dict[str, list[CaseResult]]]()
-FACTS = pytest.StashKey[dict[str, SessionFacts]]()  # the controller's: what the workers' sessions learnt
-STARTED = pytest.StashKey[float]()
-SELECTED = pytest.StashKey[list[str]]()
 CTX = pytest.StashKey[CaseContext]()
 CASE_START = pytest.StashKey[float]()
 
@@ -87,22 +92,10 @@ def pytest_configure(config: pytest.Config) -> None:
         signals.install()  # SIGTERM and SIGHUP end the run like Ctrl-C: the reports are still written
 
 
-def target_keys(settings: SuiteSettings) -> dict[str, Any]:
-    """One session per box: "" for a run against one box (or the bundled one), else each box's HOST:PORT."""
-    if len(settings.targets) > 1:
-        return {str(t): t for t in settings.targets}
-    return {"": None}
-
-
 def pytest_unconfigure(config: pytest.Config) -> None:
     signals.restore()
     for state in config.stash.get(SESSIONS, {}).values():
         state.stop()
-
-
-def wants_suite(config: pytest.Config) -> bool:
-    """This pytest run runs the conformance cases (not, say, the project's own tests)."""
-    return bool(config.getoption("isight_target", None)) or any("conformance.cases" in str(a) for a in config.args)
 
 
 def pytest_report_header(config: pytest.Config) -> list[str] | None:
@@ -273,63 +266,6 @@ def _key_of(item: pytest.Item) -> str:
 # -- session end ---------------------------------------------------------------------------------
 
 
-def suite_info(config: pytest.Config, interrupted: bool = False, key: str = "") -> SuiteInfo:
-    state = config.stash[SESSIONS].get(key) or config.stash[STATE]
-    started = config.stash[STARTED]
-    done = {c.id for c in results(config, key)}
-    selected = config.stash.get(SELECTED, [])
-    not_run = [case_id for case_id in selected if case_id not in done]
-    return SuiteInfo(
-        version=__version__,
-        started=_dt.datetime.fromtimestamp(started, _dt.timezone.utc).isoformat(timespec="seconds"),
-        duration_s=round(time.time() - started, 3),
-        target=state.target_label(),
-        profile=state.profile.to_dict(),
-        udp_target=str(state.udp_target()) if state._target is not None and state.udp_target() else None,
-        extension=state.extension_how or ("not checked" if state.settings.extension == "auto" else state.settings.extension),
-        command=" ".join(shlex.quote(a) for a in sys.argv),
-        complete=not (interrupted or not_run),
-        cases_total=max(len(selected), len(done)),
-        not_run=not_run,
-        registry_version=_registry_version(),
-    )
-
-
-def _registry_version() -> str:
-    from .protocol.clauses import REGISTRY_VERSION
-
-    return REGISTRY_VERSION
-
-
-def results(config: pytest.Config, key: str = "") -> list[CaseResult]:
-    """The results of one box's cases (the first box's by default), in the order they ran."""
-    found = config.stash.get(RESULTS, {})
-    if key:
-        return list(found.get(key, []))
-    return list(found.get("", []) or next(iter(found.values()), []))
-
-
-def session_facts(config: pytest.Config, key: str = "") -> SessionFacts:
-    """What a box's session learnt (on an xdist controller: what its worker's session learnt)."""
-    sent = config.stash.get(FACTS, {})
-    if key in sent:
-        return sent[key]
-    return facts_of(config.stash[SESSIONS].get(key) or config.stash[STATE])
-
-
-def facts_of(state: SessionState) -> SessionFacts:
-    return SessionFacts(
-        unresponsive=next((d.detail for d in state.deaths if d.kind == "unresponsive"), ""),
-        one_at_a_time=state.concurrency_note if state.concurrent is False else "",
-        deaths=tuple((d.case_id, d.kind, d.detail, d.opened, d.closed) for d in state.deaths if d.kind != "unresponsive"),
-    )
-
-
-def root_causes(config: pytest.Config, key: str = "") -> list[RootCause]:
-    """A box's root causes (and each explained case marked with its id)."""
-    return find_root_causes(results(config, key), session_facts(config, key))
-
-
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
     config = session.config
     if hasattr(config, "workerinput"):  # an xdist worker: its controller writes the reports
@@ -349,6 +285,3 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
             info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED, key=key)
             write_reports(report_dir, info, cases, causes[key])
     config.stash[CAUSES] = next(iter(causes.values()), [])
-
-
-CAUSES = pytest.StashKey[list[RootCause]]()

@@ -26,9 +26,9 @@ import pytest
 from .harness.target import check_reachable
 from .protocol.clauses import all_clauses, clause_ids
 from .protocol.clauses import families as registry_families
-from .pytest_plugin import CAUSES, results, suite_info
 from .report.diff_cli import apply_baseline, load_baseline
 from .rundirs import default_run_dirs
+from .suite.collected import CAUSES, results, suite_info
 from .suite.record import CaseRecord, info_of
 from .suite.settings import SuiteSettings, add_suite_options
 from .suite.verdicts import CaseResult, RootCause, Verdict

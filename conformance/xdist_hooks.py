@@ -40,7 +40,7 @@ class XdistHooks:
     @pytest.hookimpl(tryfirst=True)
     def pytest_xdist_make_scheduler(self, config: pytest.Config, log: Any) -> Any:
         """``load`` (``-n N``'s default) and ``loadgroup`` schedule by box: one box's cases on one worker."""
-        from .pytest_plugin import SESSIONS, wants_suite
+        from .suite.collected import SESSIONS, wants_suite
 
         if config.getvalue("dist") not in ("load", "loadgroup") or not wants_suite(config):
             return None  # the user chose another distribution, or this is not a run of the cases: xdist's own
@@ -48,7 +48,7 @@ class XdistHooks:
         return box_scheduling(config, log, [k for k in config.stash[SESSIONS] if k])
 
     def pytest_configure_node(self, node: Any) -> None:
-        from .pytest_plugin import STATE
+        from .suite.collected import STATE
 
         state = node.config.stash[STATE]
         if state.settings.target is None and len(state.settings.targets) < 2:  # the bundled box: start it once
@@ -57,7 +57,7 @@ class XdistHooks:
             node.workerinput["isight_label"] = state.target_label()
 
     def pytest_testnodedown(self, node: Any, error: object) -> None:
-        from .pytest_plugin import FACTS, RESULTS, SELECTED, SESSIONS
+        from .suite.collected import FACTS, RESULTS, SELECTED, SESSIONS
 
         sent = getattr(node, "workeroutput", {}).get(OUTPUT)
         if not sent:
@@ -84,7 +84,7 @@ class XdistHooks:
         config = session.config
         if not hasattr(config, "workeroutput"):
             return
-        from .pytest_plugin import RESULTS, SELECTED, SESSIONS, facts_of
+        from .suite.collected import RESULTS, SELECTED, SESSIONS, facts_of
 
         boxes = {}
         for key, results in config.stash.get(RESULTS, {}).items():
