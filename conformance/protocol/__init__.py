@@ -3,9 +3,7 @@
 No sockets, threads or clocks live in this package (like h11 and wsproto).
 """
 
-from .codec import (
-    Codec,
-    codec_for,
+from .api import (
     decode_datagram,
     encode,
     encode_block,
@@ -17,6 +15,7 @@ from .codec import (
     parse_frame,
     parse_header,
 )
+from .codec import Codec, codec_for
 from .constants import (
     ACTION_ERROR,
     ANSWER_SHAPE,

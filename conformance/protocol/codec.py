@@ -1,12 +1,12 @@
-"""Encode frames and parse exactly one frame from bytes (sans-I/O).
+"""Encode frames and parse exactly one frame from bytes (sans-I/O): the compiled :class:`Codec`.
 
-``parse_frame`` checks a complete frame against F, B, A2/A4/A5 and E1–E3 and raises a
-typed :class:`~.errors.ProtocolError` naming the first clause it breaks. The order
-(the one vectors/README.md fixes) is: fewer than 12 bytes F5; the header (F1 start
-word, F2 version, F3 transfer type, A5 action, then the action's block type, length
-and count: B5/B1/B2/E1/E2/E3/A2); total length F5; F6 TCP check (per the profile's
-policy) or F7 UDP CRC; B3 indexes and B4 floats block by block; answer content
-(A4 action 00 answered 0000, E3 result code never 0 or 404).
+:meth:`Codec.parse` (``parse_frame`` in api.py) checks a complete frame against F, B,
+A2/A4/A5 and E1–E3 and raises a typed :class:`~.errors.ProtocolError` naming the first
+clause it breaks. The order (the one vectors/README.md fixes) is: fewer than 12 bytes F5;
+the header (F1 start word, F2 version, F3 transfer type, A5 action, then the action's
+block type, length and count: B5/B1/B2/E1/E2/E3/A2); total length F5; F6 TCP check (per
+the profile's policy) or F7 UDP CRC; B3 indexes and B4 floats block by block; answer
+content (A4 action 00 answered 0000, E3 result code never 0 or 404).
 """
 
 from __future__ import annotations
@@ -45,7 +45,17 @@ from .errors import (
     UnknownActionError,
     VersionError,
 )
-from .frames import Block, Frame, Header, PoseBlock, ToleranceBlock, ValueBlock
+from .frames import (
+    Block,
+    Frame,
+    Header,
+    PoseBlock,
+    ToleranceBlock,
+    ValueBlock,
+    new_frame,
+    new_pose_block,
+    new_pose_blocks,
+)
 from .profile import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc_function
 
 _ENDIAN = {"big": ">", "little": "<"}
@@ -63,40 +73,6 @@ _RULES = {
     # answers whose content is checked (A4, E3) take the reference path
     if not (tt is TransferType.BOX_TO_ROBOT and act in (Action.NONE, Action.VISION_RESULT))
 }
-
-
-# -- fast constructors -----------------------------------------------------------------
-# Frozen dataclasses pay for object.__setattr__ on every field. The hot paths build the
-# same objects cheaper: an instance of a mutable twin class with the identical slot
-# layout is filled with plain attribute stores, then becomes a PoseBlock / Frame by
-# __class__ assignment (CPython allows it because the layouts match). The result is an
-# ordinary frozen instance: equal to one built by the constructor, immutable afterwards.
-# tests/test_codec.py checks both (and that the fast path agrees with parse_checked).
-class _PoseTwin:
-    __slots__ = PoseBlock.__slots__
-
-
-class _FrameTwin:
-    __slots__ = Frame.__slots__
-
-
-def _frame(tt: TransferType, action: Action, blocks: tuple[Block, ...], error_code: int, check: int) -> Frame:
-    frame = _FrameTwin()
-    frame.transfer_type = tt  # type: ignore[attr-defined]
-    frame.action = action  # type: ignore[attr-defined]
-    frame.blocks = blocks  # type: ignore[attr-defined]
-    frame.error_code = error_code  # type: ignore[attr-defined]
-    frame.check = check  # type: ignore[attr-defined]
-    frame.__class__ = Frame  # type: ignore[assignment]
-    return frame  # type: ignore[return-value]
-
-
-def _pose(index: int, pose: tuple[float, ...]) -> PoseBlock:
-    block = _PoseTwin()
-    block.index = index  # type: ignore[attr-defined]
-    block.pose = pose  # type: ignore[attr-defined]
-    block.__class__ = PoseBlock  # type: ignore[assignment]
-    return block  # type: ignore[return-value]
 
 
 class Codec:
@@ -117,7 +93,6 @@ class Codec:
         self._unpack_one_pose = (
             struct.Struct(e + "HHBBBBHHB6fH").unpack if profile.byte_order == profile.float_byte_order else None
         )
-        self._block_struct = {PoseBlock: self.pose, ToleranceBlock: self.tolerance, ValueBlock: self.value}
         self._crc = crc_function(profile.crc)
         self._crc_order = profile.crc_byte_order
         self._first = profile.first_index
@@ -230,11 +205,7 @@ class Codec:
                 and (expect is None or rule[0] is expect)
                 and (not self._strict or isfinite(x + y + z + w + p + r))
             ):
-                block = _PoseTwin()
-                block.index = index  # type: ignore[attr-defined]
-                block.pose = (x, y, z, w, p, r)  # type: ignore[attr-defined]
-                block.__class__ = PoseBlock  # type: ignore[assignment]
-                return _frame(rule[0], rule[1], (block,), error_code, 0)  # type: ignore[arg-type]
+                return new_frame(rule[0], rule[1], (new_pose_block(index, (x, y, z, w, p, r)),), error_code, 0)
         if size >= 14 and transport is _TCP:
             start, version, tt, act, bt, count, blen, error_code = self._unpack_header(data)
             rule = _RULES.get((tt << 8) | act)
@@ -257,10 +228,10 @@ class Codec:
                     index, x, y, z, w, p, r = self._unpack_pose(data, 12)
                     if self._strict and not isfinite(x + y + z + w + p + r):
                         raise self._fail(FloatError, "block 0: non-finite pose value", data, HEADER_LEN + 1)
-                    blocks = (_pose(index, (x, y, z, w, p, r)),)
+                    blocks = (new_pose_block(index, (x, y, z, w, p, r)),)
                 else:
                     blocks = self._parse_blocks(data, rule[2], count)
-                return _frame(rule[0], rule[1], blocks, error_code, 0)  # type: ignore[arg-type]
+                return new_frame(rule[0], rule[1], blocks, error_code, 0)
         return self.parse_checked(data, transport, expect)
 
     def parse_checked(
@@ -298,7 +269,7 @@ class Codec:
         blocks = self._parse_blocks(data, btype, count) if count else ()
         if ttype is TransferType.BOX_TO_ROBOT:
             self._check_answer_content(data, action, error_code, blocks)
-        return _frame(ttype, action, blocks, error_code, check)
+        return new_frame(ttype, action, blocks, error_code, check)
 
     def check_header(self, data: bytes, expect: TransferType | None = None) -> tuple[TransferType, Action, BlockType]:
         """F1, F2, F3, A5 and the action's shape (B5/B1/B2/E1–E3/A2) of 12 header bytes."""
@@ -367,13 +338,7 @@ class Codec:
             if strict and not isfinite(sum(flat)):  # the indexes are finite: only the floats count
                 i = next(i for i in range(count) if not isfinite(sum(flat[7 * i + 1 : 7 * i + 7])))
                 raise self._fail(FloatError, f"block {i}: non-finite pose value", data, HEADER_LEN + i * 25 + 1)
-            for k in range(0, 7 * count, 7):
-                block = _PoseTwin()
-                block.index = flat[k]  # type: ignore[attr-defined]
-                block.pose = flat[k + 1 : k + 7]  # type: ignore[attr-defined]
-                block.__class__ = PoseBlock  # type: ignore[assignment]
-                blocks.append(block)  # type: ignore[arg-type]
-            return tuple(blocks)
+            return new_pose_blocks(flat, count)
         is_tolerance = btype == BlockType.TOLERANCE
         unpack = (self.tolerance if is_tolerance else self.value).unpack_from
         for i in range(count):
@@ -401,8 +366,6 @@ class Codec:
 
 
 _CODECS: dict[Profile, Codec] = {}
-
-
 _INDEX_RUNS: dict[tuple[int, int], tuple[int, ...]] = {}
 
 
@@ -422,69 +385,3 @@ def codec_for(profile: Profile = DEFAULT_PROFILE) -> Codec:
             _CODECS.clear()
         codec = _CODECS[profile] = Codec(profile)
     return codec
-
-
-# -- module-level API ----------------------------------------------------------------------
-
-
-def encode(frame: Frame, profile: Profile = DEFAULT_PROFILE, transport: Transport = Transport.TCP) -> bytes:
-    """The bytes of ``frame``: TCP with check 00 00 (F6), UDP with the CRC (F7)."""
-    return codec_for(profile).encode(frame, transport)
-
-
-def encode_tcp(frame: Frame, profile: Profile = DEFAULT_PROFILE) -> bytes:
-    return codec_for(profile).encode(frame, Transport.TCP)
-
-
-def encode_udp(frame: Frame, profile: Profile = DEFAULT_PROFILE) -> bytes:
-    return codec_for(profile).encode(frame, Transport.UDP)
-
-
-def encode_body(frame: Frame, profile: Profile = DEFAULT_PROFILE) -> bytes:
-    """Header and blocks of a frame, without the check field."""
-    return codec_for(profile).encode_body(frame)
-
-
-def encode_header(header: Header, profile: Profile = DEFAULT_PROFILE) -> bytes:
-    """Pack twelve header bytes, legal or not (fields must fit their widths)."""
-    return codec_for(profile).encode_header(header)
-
-
-def encode_block(block: Block, profile: Profile = DEFAULT_PROFILE) -> bytes:
-    return codec_for(profile).encode_block(block)
-
-
-def encode_raw(
-    header: Header,
-    body: bytes = b"",
-    check: bytes | None = None,
-    profile: Profile = DEFAULT_PROFILE,
-    transport: Transport = Transport.TCP,
-) -> bytes:
-    """Craft any frame: header fields and body as given; ``check=None`` computes it."""
-    return codec_for(profile).encode_raw(header, body, check, transport)
-
-
-def parse_header(data: bytes, profile: Profile = DEFAULT_PROFILE) -> Header:
-    """The header of ``data`` (at least 12 bytes) as raw integers."""
-    return codec_for(profile).parse_header(data)
-
-
-def parse_frame(
-    data: bytes,
-    profile: Profile = DEFAULT_PROFILE,
-    transport: Transport = Transport.TCP,
-    expect: TransferType | None = None,
-) -> Frame:
-    """Parse exactly one complete frame; raise a ProtocolError naming the clause.
-
-    ``expect`` is the transfer type the receiver expects (F3); None accepts both.
-    """
-    return codec_for(profile).parse(data, transport, expect)
-
-
-def decode_datagram(
-    data: bytes, profile: Profile = DEFAULT_PROFILE, expect: TransferType | None = None
-) -> Frame:
-    """F7/R7: one UDP datagram must be exactly one frame with a correct CRC."""
-    return codec_for(profile).parse(data, Transport.UDP, expect)

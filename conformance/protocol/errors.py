@@ -1,7 +1,7 @@
 """Typed parse errors. Each names the PROTOCOL.md clause it breaks and the offset.
 
 The stream decoder returns these as events (it never raises them); the datagram
-decoder and :func:`~conformance.protocol.codec.parse_frame` raise them. Either way a
+decoder and :func:`~conformance.protocol.api.parse_frame` raise them. Either way a
 verdict can quote ``clause``, ``offset``, ``raw`` and the parsed ``header``.
 """
 
