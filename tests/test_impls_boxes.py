@@ -367,3 +367,10 @@ def test_box_command_line_lists_and_refuses_unknown_variants() -> None:
     bad = subprocess.run([sys.executable, "-m", "tests.impls.box", "nope"], cwd=ROOT, capture_output=True,
                          text=True, timeout=60)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_close_on_garbage_answers_an_implausible_request_header_before_closing() -> None:
+    with box("close-on-garbage") as b, connect(b) as s:
+        s.sendall(bytes.fromhex("fefe 0001 01 25 02 54 faf7 0000") + b"/local")
+        assert read(s, 14) == answer(0x25, 0x1002)
+        assert closed(s)

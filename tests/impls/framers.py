@@ -142,8 +142,9 @@ class TrustHeader(Framer):
 
 class CloseOnGarbage(Framer):
     """(c) Every byte must belong to a request: the stream must start with a header of
-    a request for a known action (right start word, version and transfer type) with a
-    plausible length, which is taken whole. Anything else closes the connection."""
+    a request for a known action (right start word, version and transfer type), which
+    is taken whole. Anything else closes the connection; a request header announcing
+    more than 255 pose blocks is rejected (its action's error, A3) and then closed."""
 
     def events(self) -> Iterator[Event]:
         while not self.closed:
@@ -155,8 +156,11 @@ class CloseOnGarbage(Framer):
             if len(self.buf) < HEADER_LEN:
                 return
             h = Header.parse(self.buf)
-            if (not h.is_request_start() or h.transfer != ROBOT_TO_BOX or not known(h.action, self.extension)
-                    or h.body > MAX_BODY):
+            if not h.is_request_start() or h.transfer != ROBOT_TO_BOX or not known(h.action, self.extension):
+                yield from self._close()
+                return
+            if h.body > MAX_BODY:  # a request whose length cannot be right: its error (A3), then close
+                yield Rejected(h)
                 yield from self._close()
                 return
             frame = self._take(h)
