@@ -105,7 +105,9 @@ def judge(expectation: Expectation, exit_code: int | None, totals: dict[str, int
             return f"WRONG LEVEL ({level}, expected {expectation.level})"
         return "ok"
     if expectation.level == "FAIL" and bad == 0:
-        return "WRONG LEVEL (only NON-STRICT, expected FAIL)?"
+        return "WRONG LEVEL? (only NON-STRICT, expected FAIL)"
+    if expectation.level == "NON-STRICT" and bad:
+        return f"WRONG LEVEL? ({bad} FAIL/ERROR, expected only NON-STRICT)"
     if set(first_clauses) & set(expectation.clauses):
         return "ok?"
     return f"WRONG CLAUSE? (first failing case names {','.join(first_clauses) or '-'})"

@@ -270,6 +270,33 @@ def format_table(rows: list[Row]) -> str:
     return "\n".join(lines)
 
 
+def write_table(rows: list[Row], out: Path) -> int:
+    table = format_table(rows)
+    (out / "matrix.md").write_text(table + "\n")
+    (out / "matrix.json").write_text(json.dumps([asdict(r) for r in rows], indent=1) + "\n")
+    print(table)
+    print(f"\nreports: {out}")
+    return 0 if all(r.judgement == "ok" for r in rows) else 1
+
+
+def rejudge(out: Path) -> int:
+    """Judge an earlier matrix run again (e.g. after the expectations or the suite's summary changed)."""
+    try:
+        rows = [Row(**r) for r in json.loads((out / "matrix.json").read_text())]
+    except (OSError, ValueError, TypeError) as exc:
+        print(f"error: cannot read {out / 'matrix.json'}: {exc}", file=sys.stderr)
+        return 2
+    for row in rows:
+        row.first, row.root_causes, row.judgement = [], None, ""
+        row.notes = [n for n in row.notes if not n.startswith(("no summary.json", "root_causes is empty"))]
+        report = out / f"{row.name}-{row.seed}" / "report"
+        if report.exists():
+            _read_summary(row, report)
+        if not row.judgement:
+            _judge(row, None, ())
+    return write_table(rows, out)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.impls.matrix", description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", nargs="+", metavar="NAME", help="only these implementations")
@@ -280,7 +307,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit", type=float, default=1800, metavar="S", help="hard bound per suite run (s)")
     parser.add_argument("--mem-limit", type=float, default=4096, metavar="MB", help="suite RSS cap (default 4096)")
     parser.add_argument("--out", type=Path, help="where reports go (default reports/impls-matrix-<time>)")
+    parser.add_argument("--rejudge", type=Path, metavar="DIR",
+                        help="run nothing: re-read DIR's reports, judge them again and rewrite DIR's table")
     args = parser.parse_args(argv)
+    if args.rejudge is not None:
+        return rejudge(args.rejudge)
     names = args.only or list(EXPECTATIONS)
     unknown = [n for n in names if n not in EXPECTATIONS]
     if unknown or not 1 <= args.seeds <= 100 or not 1 <= args.jobs <= 8 or args.limit <= 0:
@@ -306,12 +337,7 @@ def main(argv: list[str] | None = None) -> int:
 
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(one, jobs))
-    table = format_table(rows)
-    (out / "matrix.md").write_text(table + "\n")
-    (out / "matrix.json").write_text(json.dumps([asdict(r) for r in rows], indent=1) + "\n")
-    print(table)
-    print(f"\nreports: {out}")
-    return 0 if all(r.judgement == "ok" for r in rows) else 1
+    return write_table(rows, out)
 
 
 if __name__ == "__main__":
