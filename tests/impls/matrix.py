@@ -93,7 +93,8 @@ class Proc:
             if pid:
                 self.rc = os.waitstatus_to_exitcode(status)
                 self.p.returncode = self.rc
-                self.peak_kb = max(self.peak_kb, usage.ru_maxrss)
+                # ru_maxrss can carry the forking parent's own peak: only a fallback for a very short life
+                self.peak_kb = self.peak_kb or usage.ru_maxrss
             else:
                 self.peak_kb = max(self.peak_kb, _vm_hwm_kb(self.p.pid))
         return self.rc

@@ -21,6 +21,7 @@ from . import wire
 from .wire import Answer, encode_request, split_answers
 
 HOME = (800.0, 0.0, 500.0, 180.0, 0.0, 0.0)
+SPIN = 0.0015  # seconds before each pose's due time the stream thread stops sleeping and spins
 
 
 @dataclass(frozen=True)
@@ -214,9 +215,11 @@ class Robot:
         sent = 0
         while not self.stream_done.is_set() and not self.stopping.is_set():
             now = time.perf_counter()
-            if now < due:
-                time.sleep(due - now)
+            if now < due - SPIN:
+                time.sleep(due - now - SPIN)
                 continue
+            while now < due:  # the last SPIN seconds spin: a controller's clock does not oversleep
+                now = time.perf_counter()
             pose = self._pose(now)
             if self.cycle_t0 is not None and nan_at >= 0:
                 nan_at -= 1
