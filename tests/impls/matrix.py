@@ -288,6 +288,7 @@ def rejudge(out: Path) -> int:
         print(f"error: cannot read {out / 'matrix.json'}: {exc}", file=sys.stderr)
         return 2
     for row in rows:
+        row.expected = _new_row(EXPECTATIONS[row.name], row.seed).expected
         row.first, row.root_causes, row.judgement = [], None, ""
         row.notes = [n for n in row.notes if not n.startswith(("no summary.json", "root_causes is empty"))]
         report = out / f"{row.name}-{row.seed}" / "report"
