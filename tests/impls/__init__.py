@@ -1,0 +1,7 @@
+"""Independent iSight implementations the conformance suite is proven against.
+
+Written from PROTOCOL.md alone, without importing anything from ``conformance``:
+boxes (server role, ``python -m tests.impls.box``), robots (client role,
+``python -m tests.impls.robot``) and the matrix that runs the suite against each
+(``python -m tests.impls.matrix``). Loopback only.
+"""

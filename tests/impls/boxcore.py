@@ -1,0 +1,226 @@
+"""A threaded AI Box (server role) built on plain sockets: one thread per connection.
+
+``ThreadBox(choices)`` listens on 127.0.0.1 port 0 (TCP, and UDP when the choices
+say so); use it as a context manager or call ``start()``/``stop()``. Every thread
+polls a stop event at least every 0.2 s and every write is bounded, so ``stop()``
+returns within about a second whatever the peers do.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import struct
+import threading
+import time
+
+from .framers import FRAMERS, Framer
+from .policy import Choices, Cycle, decide, decide_datagram
+
+POLL = 0.2
+WRITE_BOUND = 10.0  # seconds a peer may leave an answer unread before the box gives up on it
+MAX_CONNECTIONS = 1024  # R5: beyond this the box closes new connections at once
+LEAKY_LIMIT = 64
+FLOOD_HEADER = bytes.fromhex("fefe00011023 01ffffff0000".replace(" ", ""))
+
+
+class ThreadBox:
+    def __init__(self, choices: Choices, host: str = "127.0.0.1", port: int = 0) -> None:
+        self.choices = choices
+        self.stop_event = threading.Event()
+        self.cycle = Cycle()
+        self.lock = threading.Lock()
+        self.conns: set[socket.socket] = set()
+        self.threads: set[threading.Thread] = set()
+        self.leaked: list[socket.socket] = []
+        self.opened = 0
+        self.listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        self.listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.listener.bind((host, port))
+        self.listener.listen(512)
+        self.listener.settimeout(POLL)
+        self.port: int = self.listener.getsockname()[1]
+        self.udp: socket.socket | None = None
+        self.udp_port: int | None = None
+        if choices.udp:
+            self.udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            try:  # the same port number as TCP when it is free
+                self.udp.bind((host, self.port))
+            except OSError:
+                self.udp.bind((host, 0))
+            self.udp.settimeout(POLL)
+            self.udp_port = self.udp.getsockname()[1]
+        self._main: list[threading.Thread] = []
+        self._flood = os.urandom(1 << 16) if choices.defect == "flood-random" else FLOOD_HEADER * 4096
+
+    # -- life cycle ---------------------------------------------------------------------------
+    def __enter__(self) -> ThreadBox:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def start(self) -> ThreadBox:
+        targets = [self._accept_loop] + ([self._udp_loop] if self.udp is not None else [])
+        for target in targets:
+            thread = threading.Thread(target=target, name=f"box-{target.__name__}", daemon=True)
+            thread.start()
+            self._main.append(thread)
+        return self
+
+    def stop(self) -> None:
+        self.stop_event.set()
+        for thread in self._main:
+            thread.join(5)
+        with contextlib.suppress(OSError):
+            self.listener.close()
+        if self.udp is not None:
+            with contextlib.suppress(OSError):
+                self.udp.close()
+        with self.lock:
+            conns, threads = list(self.conns), list(self.threads)
+        for conn in conns + self.leaked:
+            with contextlib.suppress(OSError):
+                conn.close()
+        for thread in threads:
+            thread.join(5)
+
+    def wait(self, seconds: float) -> bool:
+        """Sleep up to ``seconds``; True when the box is stopping."""
+        return self.stop_event.wait(seconds)
+
+    # -- accepting ------------------------------------------------------------------------------
+    def _accept_loop(self) -> None:
+        while not self.stop_event.is_set():
+            try:
+                conn, _ = self.listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            self.opened += 1
+            defect = self.choices.defect
+            if defect == "leaky" and self.opened > LEAKY_LIMIT or len(self.conns) >= MAX_CONNECTIONS:
+                _reset(conn)
+                continue
+            if defect == "one-at-a-time":
+                self._serve(conn)  # the next connection waits in the backlog until this one closes
+                continue
+            thread = threading.Thread(target=self._serve, args=(conn,), name="box-conn", daemon=True)
+            with self.lock:
+                self.threads.add(thread)
+            thread.start()
+
+    def _serve(self, conn: socket.socket) -> None:
+        with self.lock:
+            self.conns.add(conn)
+        try:
+            conn.settimeout(POLL)
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            defect = self.choices.defect
+            if defect in ("flood-random", "flood-headers"):
+                self._flood_loop(conn)
+            else:
+                self._read_loop(conn)
+        except OSError:
+            pass
+        finally:
+            with self.lock:
+                self.conns.discard(conn)
+                self.threads.discard(threading.current_thread())
+            if self.choices.defect == "leaky":
+                self.leaked.append(conn)  # never closed, never freed
+            else:
+                with contextlib.suppress(OSError):
+                    conn.close()
+
+    # -- one connection ------------------------------------------------------------------------
+    def _read_loop(self, conn: socket.socket) -> None:
+        choices = self.choices
+        framer: Framer = FRAMERS[choices.framing](choices.extension)
+        cycle = self.cycle if choices.cycle_scope == "box" else Cycle()
+        hung = choices.defect == "dead"
+        while not self.stop_event.is_set():
+            try:
+                data = conn.recv(65536)
+            except TimeoutError:
+                continue
+            if not data:
+                return
+            if hung:
+                continue  # read and discard: the connection stays open, silent
+            framer.feed(data)
+            answered = 0
+            for event in framer.events():
+                reply = decide(choices, event, cycle)
+                if reply.hang:
+                    hung = True
+                    break
+                if reply.close:
+                    return
+                if not reply.data:
+                    continue
+                answered += 1
+                if choices.defect == "drops-coalesced" and answered > 1:
+                    continue  # only the first frame of each read is answered
+                if reply.delay and self.wait(reply.delay):
+                    return
+                if not self._write(conn, reply.data):
+                    return
+
+    def _write(self, conn: socket.socket, data: bytes) -> bool:
+        """Write one answer the box's way; False when the peer is gone or the box stops."""
+        defect, writer = self.choices.defect, self.choices.writer
+        if defect == "slow-bytes":
+            return all(self._send(conn, data[i : i + 1]) and not self.wait(0.5) for i in range(len(data)))
+        if writer == "bytes":
+            if not self._send(conn, data[:1]) or self.wait(0.010):
+                return False
+            return all(self._send(conn, data[i : i + 1]) for i in range(1, len(data)))
+        return self._send(conn, data)
+
+    def _send(self, conn: socket.socket, data: bytes) -> bool:
+        deadline = time.monotonic() + WRITE_BOUND
+        view = memoryview(data)
+        while view:
+            if self.stop_event.is_set() or time.monotonic() > deadline:
+                return False
+            try:
+                sent = conn.send(view)
+            except TimeoutError:
+                continue
+            view = view[sent:]
+        return True
+
+    def _flood_loop(self, conn: socket.socket) -> None:
+        """flood-random / flood-headers: write as fast as the peer reads, until it goes away."""
+        data = memoryview(self._flood)
+        offset = 0
+        while not self.stop_event.is_set():
+            try:
+                offset = (offset + conn.send(data[offset:])) % len(data)
+            except TimeoutError:
+                continue
+
+    def _udp_loop(self) -> None:
+        udp = self.udp
+        assert udp is not None
+        while not self.stop_event.is_set():
+            try:
+                data, peer = udp.recvfrom(65536)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            out = decide_datagram(self.choices, data, self.cycle)
+            if out is not None:
+                with contextlib.suppress(OSError):
+                    udp.sendto(out, peer)
+
+
+def _reset(conn: socket.socket) -> None:
+    """Close with an RST (SO_LINGER 0): the connection is refused after being accepted."""
+    with contextlib.suppress(OSError):
+        conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        conn.close()

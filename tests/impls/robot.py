@@ -1,0 +1,124 @@
+"""The independent robots: variants as data, and the command line.
+
+``python -m tests.impls.robot --list`` lists them; ``python -m tests.impls.robot VARIANT
+--target HOST:PORT`` plays one session against a box (e.g. ``isight-conformance
+certify-robot``) and exits 0, or non-zero with one line on stderr. In-process::
+
+    outcome = Robot(ROBOTS["canonical"].choices, ("127.0.0.1", port)).run()
+
+A broken robot is a conforming one with exactly one defect; ``clause`` names it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from dataclasses import dataclass, replace
+from typing import Any
+
+from .robots import Outcome, Robot, RobotChoices
+
+
+@dataclass(frozen=True)
+class RobotVariant:
+    name: str
+    choices: RobotChoices
+    description: str
+    clause: str | None = None  # the clause a broken robot breaks
+    level: str = "FAIL"
+
+    @property
+    def conforming(self) -> bool:
+        return self.clause is None
+
+    @property
+    def extension(self) -> bool:
+        return self.choices.session == "extension"
+
+
+_CANONICAL = RobotChoices()
+_LIST = [
+    RobotVariant("canonical", _CANONICAL,
+                 "S1: connect, stream on (waits for the first pose answer), CycleOn, 2 s trajectory, CycleOff, "
+                 "stream off (waits for the answers), disconnect; lock-step on the command connection"),
+    RobotVariant("karel-calls", replace(_CANONICAL, session="karel", read_late=True),
+                 "pings (00), tolerance with 3 blocks (25), stream on, a pose (23, ISIGHT(3,35)) and a register "
+                 "pose (24, ISIGHT(3,36,PR_ID)) on the command connection, then S1; reads the stream's answers in "
+                 "bursts every 0.5 s; closes the stream before the command connection"),
+    RobotVariant("extension", replace(_CANONICAL, session="extension"),
+                 "E4: ProgIdx (26) first, then S1, stream off, 1 s wait, result request (27)"),
+    RobotVariant("transfer-10", replace(_CANONICAL, transfer=0x10),
+                 "every frame carries transfer type 10 (box->robot)", "F3"),
+    RobotVariant("index-1", replace(_CANONICAL, first_index=1), "block indexes start at 01", "B3"),
+    RobotVariant("cycle-on-first", replace(_CANONICAL, session="cycle-on-first"),
+                 "CycleOn before the stream connection is on", "S1"),
+    RobotVariant("nan-pose", replace(_CANONICAL, nan_pose=True),
+                 "one pose in the middle of the trajectory has x = NaN", "B4", "NON-STRICT"),
+    RobotVariant("slow-stream", replace(_CANONICAL, rate_factor=0.7),
+                 "streams 30 % below the declared rate (35 Hz for 50 Hz)", "T2"),
+    RobotVariant("stream-open", replace(_CANONICAL, leave_stream_open=True),
+                 "never closes the stream connection (holds it until the box closes it, at most 30 s)", "S5"),
+    RobotVariant("little-floats", replace(_CANONICAL, float_order="<"),
+                 "pose and tolerance floats little-endian", "F4"),
+]
+ROBOTS: dict[str, RobotVariant] = {v.name: v for v in _LIST}
+
+
+def _target(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"--target must be HOST:PORT, not {text!r}")
+    return host.strip("[]"), int(port)
+
+
+def run_robot(name: str, target: tuple[str, int], **overrides: Any) -> Outcome:
+    """Play one session of robot ``name`` (every wait bounded)."""
+    return Robot(replace(ROBOTS[name].choices, **overrides), target).run()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m tests.impls.robot", description=__doc__.split("\n\n")[0])
+    parser.add_argument("variant", nargs="?", help="which robot (see --list)")
+    parser.add_argument("--target", default="127.0.0.1:9004", help="the box, HOST:PORT (default 127.0.0.1:9004)")
+    parser.add_argument("--duration", type=float, default=2.0, help="primer trajectory seconds (default 2)")
+    parser.add_argument("--rate", type=float, default=50.0, help="declared stream rate in Hz (default 50)")
+    parser.add_argument("--time-out", type=int, default=5000, metavar="MS", help="time_out in ms (default 5000)")
+    parser.add_argument("--vision-time-out", type=int, default=5000, metavar="MS", help="for 27 (default 5000)")
+    parser.add_argument("--list", action="store_true", help="list the variants and exit")
+    args = parser.parse_args(argv)
+    if args.list:
+        for v in ROBOTS.values():
+            kind = "conforming" if v.conforming else f"broken [{v.clause}]"
+            print(f"{v.name:<16} {kind:<14} {v.description}")
+        return 0
+    if args.variant not in ROBOTS:
+        print(f"error: unknown robot {args.variant!r}; try --list", file=sys.stderr)
+        return 2
+    try:
+        target = _target(args.target)
+        if not 0 < args.duration <= 600 or not 0 < args.rate <= 1000 or not 0 < args.time_out <= 600_000:
+            raise ValueError("--duration, --rate and --time-out must be positive and sane")
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    choices = replace(ROBOTS[args.variant].choices, duration=args.duration, rate_hz=args.rate,
+                      time_out=args.time_out / 1000, vision_time_out=args.vision_time_out / 1000)
+    robot = Robot(choices, target)
+    result: list[Outcome] = []
+    thread = threading.Thread(target=lambda: result.append(robot.run()), daemon=True)
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(sig, lambda *_: robot.stop())
+    thread.start()
+    while thread.is_alive():
+        thread.join(0.2)
+    outcome = result[0] if result else Outcome(1, "the robot crashed")
+    line = (f"{args.variant}: {outcome.reason}; poses sent {outcome.poses_sent}, answered {outcome.poses_answered}, "
+            f"commands {outcome.commands}")
+    print(line, file=sys.stderr if outcome.exit_code else sys.stdout)
+    return outcome.exit_code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

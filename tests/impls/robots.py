@@ -1,0 +1,293 @@
+"""A threaded robot (client role) on plain sockets, like the KAREL programs would drive it.
+
+``Robot(choices, ("127.0.0.1", port)).run()`` plays one session and returns an
+:class:`Outcome`; every wait is bounded (``time_out``, ``vision_time_out``, the
+trajectory) and ``stop()`` aborts from another thread. The command connection is
+lock-step (send, then wait for the answer up to ``time_out``); the stream connection
+sends poses on a fixed clock from its own thread while another thread reads the
+answers, as they come or late, in bursts.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import socket
+import threading
+import time
+from dataclasses import dataclass
+
+from . import wire
+from .wire import Answer, encode_request, split_answers
+
+HOME = (800.0, 0.0, 500.0, 180.0, 0.0, 0.0)
+SPIN = 0.0015  # seconds before each pose's due time the stream thread stops sleeping and spins
+
+
+@dataclass(frozen=True)
+class RobotChoices:
+    session: str = "canonical"  # canonical | karel | extension | cycle-on-first
+    rate_hz: float = 50.0  # the declared stream rate
+    rate_factor: float = 1.0  # the rate actually sent is rate_hz * rate_factor
+    duration: float = 2.0  # primer trajectory, seconds
+    time_out: float = 5.0
+    vision_time_out: float = 5.0
+    transfer: int = wire.ROBOT_TO_BOX
+    first_index: int = 0
+    float_order: str = ">"
+    nan_pose: bool = False  # one pose in the middle of the trajectory carries NaN
+    read_late: bool = False  # read the stream's answers in bursts every 0.5 s (pipelined, S6)
+    leave_stream_open: bool = False  # never close the stream connection
+    program_index: int = 7
+
+
+@dataclass
+class Outcome:
+    exit_code: int = 0
+    reason: str = "clean session"
+    poses_sent: int = 0
+    poses_answered: int = 0
+    commands: int = 0
+    problems: int = 0
+
+
+class SessionStop(Exception):
+    def __init__(self, code: int, reason: str) -> None:
+        super().__init__(reason)
+        self.code = code
+        self.reason = reason
+
+
+class Robot:
+    def __init__(self, choices: RobotChoices, target: tuple[str, int]) -> None:
+        self.c = choices
+        self.target = target
+        self.outcome = Outcome()
+        self.stopping = threading.Event()
+        self.cmd: socket.socket | None = None
+        self.stream: socket.socket | None = None
+        self.cmd_buf = bytearray()
+        self.stream_done = threading.Event()  # stop sending poses
+        self.stream_threads: list[threading.Thread] = []
+        self.cycle_t0: float | None = None
+        self.lock = threading.Lock()
+
+    # -- the session -------------------------------------------------------------------------
+    def run(self) -> Outcome:
+        c = self.c
+        try:
+            self.cmd = self._connect()
+            if c.session == "karel":
+                self._command(wire.NONE)
+                self._command(wire.TOLERANCE, [0.5, 1.25, 2.0])
+            if c.session == "extension":
+                ans = self._command(wire.PROG_IDX, [c.program_index])
+                if ans.value == 409:
+                    raise SessionStop(3, "ProgIdx answered 409: box not ready")
+            if c.session == "cycle-on-first":
+                self._cycle_on()
+                self._stream_on()
+            else:
+                self._stream_on()
+                if c.session == "karel":
+                    self._command(wire.POSE, [self._pose(time.perf_counter())])  # ISIGHT(3,35): the TP pose
+                    self._command(wire.REG_POSE, [HOME])  # ISIGHT(3,36,PR_ID)
+                self._cycle_on()
+            self._wait(c.duration)
+            self._command(wire.CYCLE_OFF)
+            self.cycle_t0 = None
+            self._stream_off()
+            if c.session == "extension":
+                self._wait(1.0)
+                self._vision_result()
+            self._close(self.cmd)
+            if c.leave_stream_open:
+                self._hold_stream()
+        except SessionStop as stop:
+            self.outcome.exit_code, self.outcome.reason = stop.code, stop.reason
+        except OSError as exc:
+            self.outcome.exit_code, self.outcome.reason = 5, f"connection failed: {exc.strerror or exc}"
+        finally:
+            self.stream_done.set()
+            for thread in self.stream_threads:
+                thread.join(c.time_out + 1)
+            self._close(self.cmd)
+            self._close(self.stream)
+        if self.outcome.exit_code == 0 and self.outcome.problems:
+            self.outcome.exit_code, self.outcome.reason = 1, f"{self.outcome.problems} answer(s) not 0000"
+        return self.outcome
+
+    def stop(self) -> None:
+        self.stopping.set()
+
+    def _wait(self, seconds: float) -> None:
+        if self.stopping.wait(seconds):
+            raise SessionStop(1, "stopped")
+
+    def _connect(self) -> socket.socket:
+        sock = socket.create_connection(self.target, timeout=self.c.time_out)
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        return sock
+
+    @staticmethod
+    def _close(sock: socket.socket | None) -> None:
+        """Close now: shutdown first, or a reader blocked in recv() would hold the FIN back."""
+        if sock is not None:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_RDWR)
+            with contextlib.suppress(OSError):
+                sock.close()
+
+    def _encode(self, action: int, blocks: list) -> bytes:  # type: ignore[type-arg]
+        c = self.c
+        return encode_request(action, blocks, transfer=c.transfer, first_index=c.first_index, float_order=c.float_order)
+
+    # -- the command connection: lock-step ------------------------------------------------------
+    def _command(self, action: int, blocks: list | None = None, bound: float | None = None) -> Answer:  # type: ignore[type-arg]
+        assert self.cmd is not None
+        self.cmd.sendall(self._encode(action, blocks or []))
+        self.outcome.commands += 1
+        bound = self.c.time_out if bound is None else bound
+        deadline = time.monotonic() + bound
+        while True:
+            try:
+                answers = split_answers(self.cmd_buf)
+            except ValueError as exc:
+                raise SessionStop(1, f"garbage on the command connection: {exc}") from None
+            if answers:
+                ans = answers[0]
+                if ans.action != action:
+                    raise SessionStop(1, f"action {action:02X} answered with action {ans.action:02X}")
+                if ans.error != wire.OK:
+                    self.outcome.problems += 1
+                return ans
+            left = deadline - time.monotonic()
+            if left <= 0 or self.stopping.is_set():
+                raise SessionStop(4, f"no answer to action {action:02X} within {bound:g} s")
+            self.cmd.settimeout(min(left, 0.2))
+            try:
+                data = self.cmd.recv(4096)
+            except TimeoutError:
+                continue
+            if not data:
+                raise SessionStop(5, f"the box closed the command connection (waiting for action {action:02X})")
+            self.cmd_buf += data
+
+    def _cycle_on(self) -> None:
+        ans = self._command(wire.CYCLE_ON)
+        if ans.error == wire.NOT_READY:
+            raise SessionStop(3, "CycleOn answered 0001: box not ready")
+        self.cycle_t0 = time.perf_counter()
+
+    def _vision_result(self) -> None:
+        for _ in range(5):
+            ans = self._command(wire.RESULT, bound=self.c.vision_time_out)
+            if ans.value != 202:
+                return
+            self._wait(0.5)
+
+    # -- the stream connection --------------------------------------------------------------------
+    def _pose(self, now: float) -> tuple[float, ...]:
+        if self.cycle_t0 is None:
+            return HOME
+        t = now - self.cycle_t0
+        return (800.0 + 100.0 * math.sin(t), 50.0 * t, 500.0 - 20.0 * t, 180.0, 0.0, 10.0 * math.sin(t))
+
+    def _stream_on(self) -> None:
+        self.stream = self._connect()
+        for target in (self._send_poses, self._read_answers):
+            thread = threading.Thread(target=target, name=f"robot-{target.__name__}", daemon=True)
+            thread.start()
+            self.stream_threads.append(thread)
+        if not self.c.read_late:  # Send_Pos_On returns once the first pose is answered
+            deadline = time.monotonic() + self.c.time_out
+            while self.outcome.poses_answered == 0 and time.monotonic() < deadline and not self.stopping.is_set():
+                time.sleep(0.01)
+        else:
+            self._wait(0.3)
+
+    def _send_poses(self) -> None:
+        stream, c = self.stream, self.c
+        assert stream is not None
+        period = 1.0 / (c.rate_hz * c.rate_factor)
+        due = time.perf_counter()
+        nan_at = int(c.rate_hz * c.rate_factor * c.duration / 2) if c.nan_pose else -1
+        sent = 0
+        while not self.stream_done.is_set() and not self.stopping.is_set():
+            now = time.perf_counter()
+            if now < due - SPIN:
+                time.sleep(due - now - SPIN)
+                continue
+            while now < due:  # the last SPIN seconds spin: a controller's clock does not oversleep
+                now = time.perf_counter()
+            pose = self._pose(now)
+            if self.cycle_t0 is not None and nan_at >= 0:
+                nan_at -= 1
+                if nan_at == 0:
+                    pose = (math.nan, *pose[1:])
+            try:
+                stream.sendall(self._encode(wire.POSE, [pose]))
+            except OSError:
+                return
+            sent += 1
+            with self.lock:
+                self.outcome.poses_sent = sent
+            due += period
+            if due < now:  # more than a period late (a loaded machine): skip ahead rather than burst
+                due = now + period
+
+    def _read_answers(self) -> None:
+        stream = self.stream
+        assert stream is not None
+        buf = bytearray()
+        stream.settimeout(0.2)
+        while not self.stopping.is_set():
+            if self.c.read_late and self.stopping.wait(0.5):
+                return
+            try:
+                data = stream.recv(65536)
+            except TimeoutError:
+                if self.stream_done.is_set() and self.outcome.poses_answered >= self.outcome.poses_sent:
+                    return
+                continue
+            except OSError:
+                return
+            if not data:
+                return
+            buf += data
+            try:
+                answers = split_answers(buf)
+            except ValueError:
+                self.outcome.problems += 1
+                return
+            for ans in answers:
+                self.outcome.poses_answered += 1
+                if ans.action != wire.POSE or ans.error != wire.OK:
+                    self.outcome.problems += 1
+
+    def _stream_off(self) -> None:
+        """Send_Pos_Off: stop the poses, wait (up to time_out) for their answers, close."""
+        self.stream_done.set()
+        self.stream_threads[0].join(self.c.time_out)
+        deadline = time.monotonic() + self.c.time_out
+        while self.outcome.poses_answered < self.outcome.poses_sent and time.monotonic() < deadline:
+            if self.stopping.wait(0.02):
+                break
+        if not self.c.leave_stream_open:
+            self._close(self.stream)
+
+    def _hold_stream(self) -> None:
+        """The planted S5 defect: keep the stream open until the box closes it (at most 30 s)."""
+        stream = self.stream
+        assert stream is not None
+        deadline = time.monotonic() + 30
+        self.stream_threads[1].join(30)  # the reader ends once every pose is answered
+        stream.settimeout(0.2)
+        while time.monotonic() < deadline and not self.stopping.is_set():
+            try:
+                if not stream.recv(4096):
+                    return
+            except TimeoutError:
+                continue
+            except OSError:
+                return
