@@ -157,6 +157,11 @@ def test_nan_and_tcp_crc_are_shoulds_and_udp_r7() -> None:
     assert verdict(NAN_POSE, [ans(Action.POSE, 0x1001)]) == (Verdict.PASS, [])
     crc = encode(request(Action.NONE), P, Transport.UDP)
     assert verdict(crc, [ans(Action.NONE, 0x0001)]) == (Verdict.NON_STRICT, ["F6"])
+    # accepted with a CRC: a CycleOff may still get 0002 (no cycle on: a box may reject it, B-strict-cycle)
+    crc_off = encode(request(Action.CYCLE_OFF), P, Transport.UDP)
+    assert verdict(crc_off, [ans(Action.CYCLE_OFF, 0x0002)]) == (Verdict.PASS, [])
+    crc_pose = encode(request(Action.POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)])), P, Transport.UDP)
+    assert verdict(crc_pose, [ans(Action.POSE, 0x1001)]) == (Verdict.NON_STRICT, ["F6"])  # a pose: only 0000
     bad_crc = encode_udp(request(Action.NONE))[:-1] + b"\x00"
     assert verdict(bad_crc, [ans(Action.NONE, 0x0001)], transport=Transport.UDP) == (Verdict.NON_STRICT, ["R7"])
     assert verdict(bad_crc, [ans(Action.NONE, 0)], transport=Transport.UDP)[0] is Verdict.FAIL
