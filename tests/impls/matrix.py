@@ -228,8 +228,8 @@ def run_robot(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, 
     suite = Proc(suite_command() + ["certify-robot", "--listen", "127.0.0.1:0", "--no-udp", "--quiet",
                                     "--wait", "60", "--max-session", str(min(args.limit, 300)),
                                     "--report-dir", str(work / "report"), "--pcap-dir", str(work / "pcaps"),
-                                    *exp.suite_args, *_suite_flags(args, seed, seeded)], work, "suite")
-    line = suite.first_line(30)
+                                    *exp.suite_args, *_suite_flags(args, seed, False)], work, "suite")
+    line = suite.first_line(30)  # certify-robot has no fuzz cases and so no --seed: a seed is a plain repeat
     if line is None or not line.startswith("listening tcp "):
         row.notes.append(f"certify-robot did not start: {suite.last_line() or line!r}")
         suite.kill("did not start")
