@@ -178,3 +178,15 @@ def test_extension_answers_carry_the_right_values() -> None:
     assert verdict(bad_27, [ans(Action.VISION_RESULT, 0, value_blocks([1]))])[0] is Verdict.FAIL
     tol = encode(request(Action.TOLERANCE, tolerance_blocks([0.5])))
     assert verdict(tol, [ans(Action.TOLERANCE)])[0] is Verdict.PASS
+
+
+def test_a_non_request_may_be_refused_with_its_own_unknown_action_and_a_non_zero_error() -> None:
+    """A5: "answer with a non-zero error": echoing the unknown action with FFFF is such an answer."""
+    unknown = encode_raw(Header(action=0x03))
+    refusal = malformed(encode_raw(Header(transfer_type=0x10, action=0x03, error_code=0xFFFF)))
+    assert verdict(unknown, [refusal]) == (Verdict.PASS, [])
+    zero = malformed(encode_raw(Header(transfer_type=0x10, action=0x03, error_code=0)))
+    assert verdict(unknown, [zero])[0] is Verdict.FAIL  # R1: never 0000 to a non-request
+    # the same refusal to a well-formed request pairs with nothing: the request is unanswered
+    v, clauses = verdict(POSE, [refusal])
+    assert v is Verdict.FAIL and "A1" in clauses

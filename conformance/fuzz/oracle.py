@@ -33,6 +33,7 @@ from ..protocol import (
     StreamDecoder,
     TransferType,
     Transport,
+    UnknownActionError,
     decode_datagram,
 )
 from ..protocol.answers import (
@@ -166,8 +167,11 @@ def seen_of(outcome: Answer | Malformed, profile: Profile) -> Seen:
         order = ">" if profile.float_byte_order == "big" else "<"
         value = struct.unpack_from(order + "i", raw, HEADER_LEN + 1)[0]
     # an answer whose only fault is its content (A4: NONE answered with an error; E3: 0 or 404) is
-    # judged by its code and value, not as a malformed frame
-    problem = "" if isinstance(err, AnswerError) else err.clause
+    # judged by its code and value, not as a malformed frame; so is an answer with an unknown action
+    # and a non-zero error: A5 lets a box answer a non-request "with a non-zero error", echoing its
+    # action (it pairs with no well-formed request: one that gets it is still unanswered, A1)
+    refusal = isinstance(err, UnknownActionError) and h.error_code != 0
+    problem = "" if isinstance(err, AnswerError) or refusal else err.clause
     return Seen(h.action, h.error_code, value, problem, outcome.describe())
 
 
