@@ -14,6 +14,7 @@ from conformance.certify.records import BY_SUITE, CertifyConfig, InjectionEvent,
 from conformance.protocol import DEFAULT_PROFILE, Action, ErrorCode, encode, pose_blocks, request
 from conformance.report import render_html
 from conformance.report.svg import histogram_svg
+from conformance.suite.rootcause import find_root_causes
 from conformance.suite.verdicts import SuiteInfo, Verdict
 from tests.test_certify_session import POSE, Fake, canonical, frame
 
@@ -102,6 +103,32 @@ def test_left_open_fails_s5_with_the_reason():
     got = by_id(judge(run_of(fake)))["RB-S5-01"]
     assert got.verdict is Verdict.FAIL
     assert "LEFT OPEN" in got.message and "--linger" in got.message
+
+
+def test_a_stream_left_open_is_one_root_cause_s5_first_for_the_s1_and_s5_cases():
+    fake = Fake()
+    cmd, stream = fake.conn(0.0), fake.conn(0.01)
+    for k in range(40):
+        fake.send(stream, round(0.02 + 0.02 * k, 6), POSE)
+    fake.send(cmd, 0.2, frame(Action.CYCLE_ON))
+    fake.send(cmd, 0.8, frame(Action.CYCLE_OFF))
+    fake.close(cmd, 2.0)
+    fake.close(stream, 7.0, BY_SUITE, "closed by the suite: left open 5 s (--linger) after the command connection closed")
+    cases = judge(run_of(fake, jitter_tolerance=0.5))
+    got = by_id(cases)
+    assert got["RB-S1-01"].verdict is Verdict.FAIL and "stream close missing" in got["RB-S1-01"].message
+    assert got["RB-S5-01"].verdict is Verdict.FAIL
+    assert got["RB-S1-01"].signature == got["RB-S5-01"].signature == "left-open:stream"
+    causes = find_root_causes(cases)
+    assert len(causes) == 1 and causes[0].clauses[0] == "S5" and set(causes[0].cases) == {"RB-S1-01", "RB-S5-01"}
+    assert "stream connection open" in causes[0].title
+
+
+def test_an_s1_failure_with_its_own_defect_is_not_blamed_on_a_left_open_connection():
+    fake, cmd, stream = canonical(cycle_on=0.85, cycle_off=0.2)  # CycleOff before CycleOn: an S1 defect of its own
+    got = by_id(judge(run_of(fake, jitter_tolerance=0.5)))
+    assert got["RB-S1-01"].verdict is Verdict.FAIL and got["RB-S1-01"].signature == ""
+    assert got["RB-S5-01"].verdict is Verdict.PASS
 
 
 def test_sessions_get_a_parameter_and_missing_ones_are_inconclusive():

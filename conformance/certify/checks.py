@@ -34,7 +34,7 @@ from .catalogue import (
     catalogue,
 )
 from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, RunRecord, SessionRecord
-from .session import SessionView, action_name, awaited, build_view, judge_order
+from .session import LEFT_OPEN, SessionView, action_name, awaited, build_view, judge_order
 from .timing import judge_jitter, judge_rate, stream_stats
 from .traffic import FrameRecord, byte_order_evidence, frame_wire, session_wire
 
@@ -173,7 +173,10 @@ def order_case(ctx: Ctx) -> CaseResult:
     common = {"wire": ctx.wire, "details": {"steps": {k: view.ms(v) for k, v in order.steps.items()},
                                             "session_end": ctx.session.end_reason}}
     if order.failed:
-        return ctx.result(spec, Verdict.FAIL, "; ".join(lines), observed, **common)
+        # a close missing only because the robot left the connection open is the S5 defect seen from S1
+        left_open = not order.violations and all(LEFT_OPEN in line for line in order.missing)
+        return ctx.result(spec, Verdict.FAIL, "; ".join(lines), observed, **common,
+                          signature=left_open_signature(ctx) if left_open else "")
     if order.not_judged:
         cut = view.cut
         return ctx.result(spec, Verdict.INCONCLUSIVE,
@@ -223,6 +226,12 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
     return out
 
 
+def left_open_signature(ctx: Ctx) -> str:
+    """``left-open:stream`` (or ``command``, ``command+stream``): the robot's connections the suite had to close."""
+    kinds = sorted({c.role for c in ctx.session.tcp if c.closed_by == BY_SUITE})
+    return "left-open:" + "+".join(kinds) if kinds else ""
+
+
 def close_case(ctx: Ctx) -> CaseResult:
     lines, bad = [], []
     view = ctx.view
@@ -242,7 +251,7 @@ def close_case(ctx: Ctx) -> CaseResult:
                           "\n".join(lines), wire=ctx.wire)
     if bad:
         return ctx.result(CLOSE_SPEC, Verdict.FAIL, f"{len(bad)} connection(s) left open: {bad[0]}", "\n".join(lines),
-                          wire=ctx.wire)
+                          wire=ctx.wire, signature=left_open_signature(ctx))
     return ctx.result(CLOSE_SPEC, Verdict.PASS, f"all {len(lines)} connection(s) closed", "\n".join(lines))
 
 

@@ -140,7 +140,8 @@ def main_certify(args: argparse.Namespace) -> int:
     if outcome.suite is None:
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
         return outcome.exit_code
-    print_final_table(outcome.suite, outcome.cases, Console(), reports=outcome.reports)
+    print_final_table(outcome.suite, outcome.cases, Console(), reports=outcome.reports,
+                      root_causes=outcome.root_causes)
     if outcome.exit_code:
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
     return outcome.exit_code

@@ -20,7 +20,8 @@ from .. import __version__
 from ..evidence.pcap import write_transcript
 from ..harness.transcript import ConnectionInfo, Transcript, WireEvent
 from ..report import write_reports
-from ..suite.verdicts import CaseResult, SuiteInfo
+from ..suite.rootcause import find_root_causes
+from ..suite.verdicts import CaseResult, RootCause, SuiteInfo
 from .checks import judge
 from .listener import CertifyListener
 from .records import CertifyConfig, RunRecord, SessionRecord
@@ -40,6 +41,7 @@ class CertifyOutcome:
     cases: list[CaseResult] = field(default_factory=list)
     suite: SuiteInfo | None = None
     reports: dict[str, Path] = field(default_factory=dict)
+    root_causes: list[RootCause] = field(default_factory=list)
 
 
 def robot_label(run: RunRecord) -> str:
@@ -111,10 +113,11 @@ async def certify(
         return CertifyOutcome(EXIT_USAGE, run.end_note or "no robot connected", run)
     await asyncio.to_thread(write_pcaps, run)
     cases = judge(run)
+    causes = find_root_causes(cases)  # one defect that fails several cases (a stream left open: S5 and S1)
     suite = suite_info(run, started)
-    outcome = CertifyOutcome(EXIT_OK, run.end_note, run, cases, suite)
+    outcome = CertifyOutcome(EXIT_OK, run.end_note, run, cases, suite, root_causes=causes)
     if config.report_dir is not None:
-        await asyncio.to_thread(write_reports, config.report_dir, suite, cases)
+        await asyncio.to_thread(write_reports, config.report_dir, suite, cases, causes)
         outcome.reports = {"HTML report": config.report_dir / "report.html",
                            "JSON summary": config.report_dir / "summary.json",
                            "JUnit": config.report_dir / "junit.xml"}

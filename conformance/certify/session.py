@@ -231,12 +231,16 @@ def judge_order(view: SessionView, extension: bool) -> OrderResult:
     return result
 
 
+#: how a close the robot never made reads in S1's missing steps (the suite closed it after --linger)
+LEFT_OPEN = "the robot left it open"
+
+
 def _missing(view: SessionView, name: str, later: list[str]) -> str:
     why = ""
     if name in ("stream close", "command disconnect"):
         conn = view.cmd if name == "command disconnect" else (view.streams[0] if view.streams else None)
         if conn is not None and conn.closed_by == BY_SUITE:
-            why = f": the robot left it open ({conn.close_note})"
+            why = f": {LEFT_OPEN} ({conn.close_note})"
         elif conn is None:
             why = ": there is no such connection"
     elif name in ("stream connect", "first pose") and not view.streams:

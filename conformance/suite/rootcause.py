@@ -130,6 +130,9 @@ def _from_signature(signature: str, members: list[CaseResult]) -> RootCause:
         action, _, code = rest.partition(":")
         return RootCause("", clauses, f"The box answers {action} with error 0x{code.upper()} where the cases expect "
                          "another code", evidence, level=level, kind="wrong-code")
+    if kind == "left-open":  # certify-robot: a connection the robot never closed (S5), so S1's last steps miss
+        return RootCause("", ("S5", "S1"), f"The robot leaves its {rest.replace('+', ' and ')} connection open when its "
+                         "session ends", evidence, level=Level.MUST, kind="left-open")
     if kind == "fuzz":
         return RootCause("", clauses, f"Fuzzing finds the same defect ({rest})", evidence, level=level, kind="fuzz")
     return RootCause("", clauses, first.message.split(";")[0][:200], evidence, level=level, kind=kind)
