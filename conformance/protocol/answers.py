@@ -138,7 +138,7 @@ def rule_for_frame(frame: Frame, profile: Profile, transport: Transport = Transp
         return Expectation(Rule.ANY, "", action, f"{desc}: non-zero error field in a request (PROTOCOL.md is silent)")
     if transport is Transport.TCP and frame.check:
         return Expectation(Rule.ANSWER_SHOULD, "F6", action, f"{desc} with a CRC in its TCP check field",
-                           ok_errors=allowed_codes(action, cycle))
+                           ok_errors=allowed_codes(action, cycle), values=allowed_values(frame))
     if not profile.strict and non_finite(frame):
         return Expectation(Rule.ANY, "B4", action, f"{desc} with NaN/infinity (lenient profile)")
     return Expectation(Rule.ANSWER, "", action, desc, ok_errors=allowed_codes(action, cycle),
@@ -233,15 +233,14 @@ def judge_answer(exp: Expectation, seen: Seen) -> list[Finding]:
             codes = " or ".join(f"{c:04X}" for c in sorted(exp.ok_errors))
             out.append(Finding("MUST", "A1", f"A1/A3: a well-formed request ({exp.message}) is answered {codes}", what,
                                _key(exp, "code")))
-        elif exp.values is not None and seen.value not in exp.values:
-            clause = "E2" if exp.action == 0x26 else "E3"
-            allowed = ", ".join(str(v) for v in sorted(exp.values))
-            out.append(Finding("MUST", clause, f"{clause}: the answer to {exp.message} carries {allowed}", what,
-                               _key(exp, "value")))
+        else:
+            out.extend(_values(exp, seen, what))
     elif rule is Rule.ANSWER_SHOULD:  # accepted: any answer the request itself may get (a CycleOff's 0002 too)
         if exp.ok_errors is not None and err not in exp.ok_errors:
             out.append(Finding("SHOULD", exp.clause, f"F6: a TCP receiver SHOULD accept a correct CRC ({exp.message})",
                                what, _key(exp, "code")))
+        else:  # accepted, so E2/E3 judge the block as for any 26/27
+            out.extend(_values(exp, seen, what))
     elif rule in (Rule.REJECT, Rule.NOT_REQUEST, Rule.DROP):
         if err == 0 and not zero_allowed_for_malformed(exp.action, seen.value):
             req = {Rule.REJECT: "A3/R1: a request that is a parse error MUST NOT be answered 0000",
@@ -262,6 +261,16 @@ def judge_answer(exp: Expectation, seen: Seen) -> list[Finding]:
             out.append(Finding("SHOULD", "A3", f"A3: a B4 parse error SHOULD be answered {exp.named_error:04X}", what,
                                _key(exp, "code")))
     return out
+
+
+def _values(exp: Expectation, seen: Seen, what: str) -> list[Finding]:
+    """E2/E3: the block of an accepted 26/27 answer holds a value the request may get."""
+    if exp.values is None or seen.value in exp.values:
+        return []
+    clause = "E2" if exp.action == 0x26 else "E3"
+    allowed = ", ".join(str(v) for v in sorted(exp.values))
+    return [Finding("MUST", clause, f"{clause}: the answer to {exp.message} carries {allowed}", what,
+                    _key(exp, "value"))]
 
 
 def unanswered(exp: Expectation, after_garbage: bool, how: str) -> list[Finding]:
