@@ -139,5 +139,5 @@ def info_of(item: pytest.Item) -> CaseRecord | None:
     pid = param.id
     target = str(param.params.get("isight_target", ""))
     if target and pid.endswith(target):  # several boxes: the box is not part of the case's ID
-        pid = pid[: -len(target)].rstrip("-")
+        pid = pid[: -len(target)].removesuffix("-")  # only the dash pytest put before the box's key
     return info.with_param(pid) if pid else info
