@@ -279,6 +279,8 @@ JUDGED = [
     ("crc-off-0002", E_CRC_OFF, seen(0x02, 2), []),  # F6: an answer the request itself may get
     ("crc-pose-1001", E_CRC_POSE, seen(0x23, 0x1001), [("SHOULD", "F6", "F6/answer-should/23/code")]),
     ("crc-idx-other", E_CRC_IDX, seen(0x26, 0, 8), [("MUST", "E2", "F6/answer-should/26/value")]),
+    # refusing the CRC the E3 way ("400 not understood" in the block) is the F6 SHOULD, not an E2 value
+    ("crc-idx-not-understood", E_CRC_IDX, seen(0x26, 0, 400), [("SHOULD", "F6", "F6/answer-should/26/code")]),
     ("b3-1001", E_B3, seen(0x23, 0x1001), []),  # A3
     ("b3-0000", E_B3, seen(0x23, 0), [("MUST", "B3", "B3/reject/23/0000")]),  # A3/R1
     ("b3-1002", E_B3, seen(0x23, 0x1002), [("SHOULD", "A3", "B3/reject/23/code")]),  # A3's SHOULD

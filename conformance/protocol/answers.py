@@ -236,7 +236,8 @@ def judge_answer(exp: Expectation, seen: Seen) -> list[Finding]:
         else:
             out.extend(_values(exp, seen, what))
     elif rule is Rule.ANSWER_SHOULD:  # accepted: any answer the request itself may get (a CycleOff's 0002 too)
-        if exp.ok_errors is not None and err not in exp.ok_errors:
+        rejected = zero_allowed_for_malformed(exp.action, seen.value)  # E3: a 26/27 refused with "400 not understood"
+        if rejected or (exp.ok_errors is not None and err not in exp.ok_errors):
             out.append(Finding("SHOULD", exp.clause, f"F6: a TCP receiver SHOULD accept a correct CRC ({exp.message})",
                                what, _key(exp, "code")))
         else:  # accepted, so E2/E3 judge the block as for any 26/27
