@@ -253,3 +253,9 @@ def test_broken_carries_the_record_words_level_and_evidence() -> None:
         "S6: pose 7 is answered", "an answer", "silence", SENT, b"\xfe", "lost:7", ("S6",))
     assert v.message == "S6: pose 7 is answered: expected an answer; observed silence"
     assert broken(Requirement("T1: late"), Level.MAY, "e", "o").verdict is Verdict.INFORMATIONAL
+
+
+def test_a_requirement_without_any_acceptable_outcome_cannot_judge() -> None:
+    """A case that judges by a requirement naming no outcome could never fail: the suite refuses it (ERROR)."""
+    with pytest.raises(ValueError, match="names no outcome to judge by"):
+        judge(Silence(1.0), Requirement("A1: something"), Level.MUST)

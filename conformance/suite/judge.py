@@ -287,6 +287,9 @@ def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapp
     (else the level's broken verdict: FAIL for a MUST), then what a conforming box SHOULD
     do (else NON-STRICT). Returns the words to record when the outcome is an acceptable one
     worth recording (the requirement's ``informational``), else None."""
+    if all(x is None for x in (requirement.accept, requirement.should, requirement.inconclusive,
+                               requirement.informational)):  # judged by nothing: it could never fail
+        raise ValueError(f"requirement {requirement.text[:80]!r} names no outcome to judge by: the case is misdeclared")
     values = dict(values or {})
     unjudgeable = resolve(requirement.inconclusive, values)
     if unjudgeable is not None and unjudgeable.matches(outcome):
