@@ -3,8 +3,9 @@
 A box with one systematic defect (every answer malformed the same way, CycleOn never
 answered in time, one connection at a time, connections never freed, dead after some
 input) fails or leaves unjudged many cases. :func:`find_root_causes` names each such
-defect once, with the clause it breaks, the evidence and the cases it explains, most
-explanatory first, and marks every explained case with its root cause's id.
+defect once, with the clause it breaks, the evidence and the cases it explains, the one
+to fix first first (a broken MUST before a broken SHOULD, then the most explanatory), and
+marks every explained case with its root cause's id.
 
 Sources, in this order:
 
@@ -39,7 +40,7 @@ class SessionFacts:
 
 
 def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionFacts()) -> list[RootCause]:
-    """The root causes, most explanatory first; explained cases get ``root_cause`` set."""
+    """The root causes, MUST before SHOULD, then most explanatory first; explained cases get ``root_cause`` set."""
     found: list[tuple[RootCause, list[CaseResult]]] = []
     taken: set[int] = set()
 
@@ -76,7 +77,7 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
     for signature, members in groups.items():
         if len(members) >= MIN_GROUP and not signature.startswith(("unreachable:", "case:")):
             claim(_from_signature(signature, members), members)
-    found.sort(key=lambda item: -len(item[1]))
+    found.sort(key=lambda item: (item[0].level is not Level.MUST, -len(item[1])))
     causes = []
     for n, (cause, members) in enumerate(found, 1):
         cause.id = f"RC{n}"
@@ -115,8 +116,9 @@ def _from_signature(signature: str, members: list[CaseResult]) -> RootCause:
     if kind == "swapped":
         return RootCause("", ("F4", "A3"), "The box writes error codes with their bytes swapped (little-endian): "
                          "1001 goes out as 01 10", evidence, level=Level.MUST, kind="byte-order")
-    if kind == "silence":
-        return RootCause("", ("T1", *[c for c in clauses if c != "T1"][:1]),
+    if kind == "silence":  # a MUST: time_out (T1) is what it breaks; a SHOULD (R6: hangs after garbage) is not T1
+        named = ("T1", *[c for c in clauses if c != "T1"][:1]) if level is Level.MUST else clauses
+        return RootCause("", named,
                          f"The box does not answer {rest} within time_out", evidence, level=level,
                          kind="unanswered")
     if kind == "skipped":
