@@ -283,6 +283,14 @@ def test_a_box_serving_one_connection_at_a_time_is_blamed_on_s4(tmp_path: Path) 
     assert [(c.kind, c.clauses, c.cases) for c in causes] == [("unanswered", ("T1", "S4"), ["S4-01", "S4-02", "R5-01"])]
 
 
+def test_a_second_connection_refused_is_explained_by_s4_too() -> None:
+    """An embedded stack that refuses the second connection: the case ends INCONCLUSIVE at its connect."""
+    cases = [*one_at_a_time_run(),
+             raised("S4-03", "S4 T1", Inconclusive("box unreachable: connection refused", signature="unreachable:connect"))]
+    [rc] = find_root_causes(cases, SessionFacts(one_at_a_time=ONE_AT_A_TIME))
+    assert rc.clauses == ("S4",) and "S4-03" in rc.cases and cases[-1].root_cause == rc.id
+
+
 LEAK = ("a fresh connection was reset, yet it answers on a connection it accepted earlier: it accepts no new "
         "connections after the suite opened 64 and closed 62")
 

@@ -22,7 +22,14 @@ from conformance.protocol.errors import ProtocolError
 from conformance.protocol.frames import Frame
 from conformance.suite import session as session_mod
 from conformance.suite.judge import CaseVerdict, Inconclusive
-from conformance.suite.session import LATE_CASES, RECHECK_S, S5_TEXT, SessionState, responsive
+from conformance.suite.session import (
+    LATE_CASES,
+    RECHECK_S,
+    S5_TEXT,
+    UNREACHABLE_AT_CONNECT,
+    SessionState,
+    responsive,
+)
 from conformance.suite.settings import SuiteSettings
 from conformance.suite.verdicts import Verdict
 
@@ -300,6 +307,97 @@ def test_a_box_that_stops_accepting_but_answers_the_witness_breaks_s5(boxed: Mak
     assert (death.case_id, death.kind) == ("C-1", "not-accepting")
     assert "yet it answers on a connection it accepted earlier" in death.detail
     assert state._witness is not None and box.accepted == 3
+
+
+def test_a_case_that_could_not_connect_looks_for_the_death_and_is_explained_by_it(boxed: Make) -> None:
+    """A box that stops accepting during an ordinary case: the case's failed connect starts the diagnosis."""
+    box, state = boxed("leak", capacity=3)
+    ready(state)
+    refused = Inconclusive("box unreachable: connect timed out", signature=UNREACHABLE_AT_CONNECT)
+    assert state.after_case("C-1", Transcript("C-1"), malformed_input=False, last_sent=b"", error=refused) is refused
+    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", "not-accepting")]
+    assert state.health.dead_since_case == "C-1"
+    with pytest.raises(Inconclusive) as later:  # the later cases are refused at once, blamed on C-1
+        state.before_case("C-2", Transcript("C-2"))
+    assert later.value.signature == "unreachable:C-1"
+
+
+def test_an_ordinary_inconclusive_case_does_not_probe(boxed: Make) -> None:
+    box, state = boxed()
+    ready(state)
+    before = box.accepted
+    not_ready = Inconclusive("S2: CycleOn answered 0001")
+    transcript = Transcript("C-1")
+    transcript.timeouts = 1
+    assert state.after_case("C-1", transcript, malformed_input=True, last_sent=b"", error=not_ready) is not_ready
+    assert box.accepted == before and state.deaths == []
+
+
+class SingleBox:
+    """An embedded stack with room for one connection: while one is open, new ones are refused (RST)."""
+
+    def __init__(self) -> None:
+        self.listener = self._listen(0)
+        self.port = self.listener.getsockname()[1]
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    @staticmethod
+    def _listen(port: int) -> socket.socket:
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(("127.0.0.1", port))
+        sock.listen(1)
+        sock.settimeout(POLL)
+        return sock
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                conn, _ = self.listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            self.listener.close()  # nothing listens while this connection is open: connects are refused
+            conn.settimeout(POLL)
+            decoder = StreamDecoder(PROFILE, TransferType.ROBOT_TO_BOX)
+            with conn:
+                while not self._stop.is_set():
+                    try:
+                        data = conn.recv(4096)
+                    except TimeoutError:
+                        continue
+                    except OSError:
+                        break
+                    if not data:
+                        break
+                    decoder.receive_data(data)
+                    frames = [e for e in decoder.events() if isinstance(e, Frame)]
+                    with contextlib.suppress(OSError):
+                        conn.sendall(b"".join(encode(answer(f.action), PROFILE) for f in frames))
+            if not self._stop.is_set():
+                self.listener = self._listen(self.port)
+
+    def close(self) -> None:
+        self._stop.set()
+        self.thread.join(5)
+        self.listener.close()
+
+
+def test_a_second_connection_refused_while_the_first_is_open_is_s4() -> None:
+    box = SingleBox()
+    state = SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=PROFILE))
+    try:
+        ready(state)
+        assert state.concurrent is False and state.deaths == [] and state.baseline_ok()
+        assert "a second connection was refused" in state.concurrency_note
+        assert "once the first closed, a new connection was answered" in state.concurrency_note
+    finally:
+        state.stop()
+        box.close()
+    assert not box.thread.is_alive()
 
 
 @pytest.mark.parametrize("malformed", [True, False])

@@ -25,7 +25,7 @@ from ..protocol.explain import explain
 from ..protocol.framings import End, Explanation
 from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
 from .record import CaseRecord
-from .session import SessionState
+from .session import UNREACHABLE_AT_CONNECT, SessionState
 
 PROBE_POSE_VALUES = (100.25, -200.5, 300.75, 0.0, 90.0, -180.0)
 PROBE_NONE = request(Action.NONE)
@@ -74,7 +74,7 @@ class CaseContext:
         try:
             return conn.connect()
         except Unreachable as exc:
-            raise Inconclusive(f"box unreachable: {exc}") from None
+            raise Inconclusive(f"box unreachable: {exc}", signature=UNREACHABLE_AT_CONNECT) from None
 
     def try_connect(self, label: str = "command", time_out_s: float | None = None) -> TcpConnection | None:
         """Like :meth:`connect`, but None when the box cannot be reached (for R/S cases that judge it)."""

@@ -57,7 +57,8 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
                         "judged", facts.unresponsive, kind="unresponsive"), members)
     if facts.one_at_a_time:
         members = [c for c in cases if c.verdict in _NOT_PASS and c.signature != "unreachable:session start"
-                   and (int(c.details.get("max_open_connections", 0)) >= 2 or "S4" in c.judged)]
+                   and (int(c.details.get("max_open_connections", 0)) >= 2 or "S4" in c.judged
+                        or c.signature == "unreachable:connect")]  # its second connection was refused
         claim(RootCause("", ("S4",), "The box serves one connection at a time: a second connection is not answered "
                         "while the first is open", facts.one_at_a_time, kind="one-connection"), members)
     for case_id, kind, detail, opened, closed in facts.deaths:

@@ -41,6 +41,8 @@ RECHECK_S = 10.0
 LATE_CASES = 2
 PROBE_NONE = request(Action.NONE)
 R2_TEXT = "R2: whatever bytes one connection sends, the box keeps accepting and answering new connections"
+#: the signature of a case that could not connect (context.connect): the session then looks for a death
+UNREACHABLE_AT_CONNECT = "unreachable:connect"
 S5_TEXT = "S5: after the robot closes a connection the box frees it (it keeps accepting new connections)"
 
 
@@ -180,9 +182,14 @@ class SessionState:
             if not isinstance(first.request(PROBE_NONE, "preflight: NONE on the first connection"), Answer):
                 first.close()
                 return
-            second.connect()
         except Unreachable:
             first.close()
+            return
+        try:
+            second.connect()
+        except Unreachable as exc:  # e.g. an embedded stack with room for one connection
+            first.close("preflight: the first connection closes; is a new one accepted now?")
+            self._one_at_a_time_refused(transcript, str(exc))
             return
         outcome = second.request(PROBE_NONE, "preflight: NONE on a second connection while the first is open (S4)")
         if responsive(outcome):
@@ -199,6 +206,20 @@ class SessionState:
             f"while a first connection was open, a second connection's NONE request {outcome.describe()}; "
             + (f"once the first closed, it was answered ({later.describe()})" if responsive(later)
                else f"after the first closed it {later.describe()}"))
+
+    def _one_at_a_time_refused(self, transcript: Transcript, refusal: str) -> None:
+        """S4: the second connection was refused while the first was open; one after it closes?"""
+        third = TcpConnection(transcript, self.target(), self.profile, "preflight: a new connection, first closed")
+        try:
+            third.connect()
+        except Unreachable:
+            return  # refused alike with nothing open: not a concurrency fact (the cases will tell)
+        outcome = third.request(PROBE_NONE, "preflight: NONE on a new connection once the first closed")
+        third.close()
+        if responsive(outcome):
+            self.concurrent = False
+            self.concurrency_note = (f"while a first connection was open, a second connection was refused ({refusal}); "
+                                     f"once the first closed, a new connection was answered ({outcome.describe()})")
 
     def _refuse_if_unreachable(self, transcript: Transcript) -> None:
         health = self.health
@@ -238,7 +259,8 @@ class SessionState:
         returns the error the case ends with (the case's own, or an R2/S5 verdict)."""
         if isinstance(error, CaseVerdict) and error.signature.startswith("silence:") and error.verdict is Verdict.FAIL:
             self.late.setdefault(error.signature.split(":", 1)[1], []).append(case_id)
-        if (not (malformed_input or transcript.timeouts) or isinstance(error, Inconclusive)
+        refused = isinstance(error, Inconclusive) and error.signature == UNREACHABLE_AT_CONNECT
+        if (not (malformed_input or transcript.timeouts or refused) or (isinstance(error, Inconclusive) and not refused)
                 or self.health.dead_since_case is not None):  # already known unreachable: nothing to learn
             self._count(transcript)
             return error
@@ -249,7 +271,7 @@ class SessionState:
         kind, detail = self._diagnose(alive, transcript)
         self.deaths.append(Death(case_id, kind, detail, self.opened, self.closed))
         self._mark_dead(case_id, f"a fresh connection {alive.describe()}")
-        if not (malformed_input and self.baseline_ok()):
+        if not (malformed_input and self.baseline_ok()) or refused:  # the death explains this case; no verdict of its own
             return error
         if kind == "not-accepting":
             verdict = CaseVerdict(

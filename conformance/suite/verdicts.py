@@ -150,7 +150,7 @@ class RootCause:
     """One defect that explains several non-PASS verdicts (reported once, first).
 
     ``cases`` are the ids of the cases it explains; each of those carries
-    ``root_cause = id``. Root causes are ordered most explanatory first.
+    ``root_cause = id``. Root causes are ordered MUST before SHOULD, then by the cases they explain.
     """
 
     id: str  # "RC1", "RC2", ... in report order
