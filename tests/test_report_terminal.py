@@ -154,7 +154,7 @@ def test_final_table_root_causes_lead_and_group_rows():
     lines = _lines_at_80(suite=sample_suite(), cases=cases, root_causes=rcs)
     _check_80(lines)
     out = "\n".join(lines)
-    assert lines[0] == "Root causes (1), the one to fix first first:"
+    assert lines[0] == "Root causes (1), in the order to fix them:"
     assert lines[1].startswith("  RC1 [F2, A2] every answer carries version 01 00 instead of 00 01 (14 cases)")
     assert clause_text("F2").text[:30] in lines[2]
     group = out.index("RC1: every answer carries version 01 00 instead of 00 01 (14)")

@@ -108,7 +108,7 @@ def cases_of(doc: dict[str, Any]) -> list[CaseResult]:
 
 
 def root_causes_of(doc: dict[str, Any]) -> list[RootCause]:
-    """The root causes of a summary, in the order written (the one to fix first first)."""
+    """The root causes of a summary, in the order written (the order to fix them)."""
     out = []
     for r in doc.get("root_causes", []):
         if not isinstance(r, dict) or "id" not in r:

@@ -179,7 +179,7 @@ def _case_table(rows: Sequence[CaseResult], title: str | None = None) -> Table:
 
 def _root_cause_lines(root_causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> list[Text]:
     present = {c.id for c in cases}
-    lines = [Text(f"Root causes ({len(root_causes)}), the one to fix first first:", style="bold")]
+    lines = [Text(f"Root causes ({len(root_causes)}), in the order to fix them:", style="bold")]
     for rc in root_causes:
         line = Text("  ")
         line.append(rc.id, style="bold red" if rc.level.value == "MUST" else "bold yellow")
