@@ -71,9 +71,9 @@ def test_bounded_hex_cuts_a_flood_and_says_how_much_there_was() -> None:
     text = bounded_hex(flood)
     quoted, _, rest = text.partition(" … ")
     assert quoted == (b"\xab" * QUOTED_BYTES).hex(" ")
-    assert rest == f"({len(flood)} bytes in all; the pcap has them)"
+    assert rest == f"({len(flood)} bytes in all)"
     assert len(text) < 3 * QUOTED_BYTES + 60
-    assert bounded_hex(b"\x00" * (QUOTED_BYTES + 1)).endswith(f"({QUOTED_BYTES + 1} bytes in all; the pcap has them)")
+    assert bounded_hex(b"\x00" * (QUOTED_BYTES + 1)).endswith(f"({QUOTED_BYTES + 1} bytes in all)")
 
 
 def test_safe_name_keeps_a_case_id_readable_and_path_free() -> None:
@@ -243,7 +243,7 @@ def test_a_flood_is_quoted_bounded() -> None:
     exc = fail(Level.MUST, "R5: resources are bounded", "answers", "a flood", received=flood, signature="closed:NONE")
     result = result_of(POSE_CASE, None, exc, 0.1)
     assert result.received_hex == bounded_hex(flood)
-    assert result.received_hex.endswith(f"({len(flood)} bytes in all; the pcap has them)")
+    assert result.received_hex.endswith(f"({len(flood)} bytes in all)")
 
 
 # -- result_of: what the case's context adds ---------------------------------------------------------

@@ -109,7 +109,7 @@ def test_a_long_chunk_shows_its_first_bytes_in_hex_and_says_so() -> None:
     t.add(1, Kind.SEND, bytes(MAX_HEX_BYTES))  # exactly the bound: shown whole
     long, exact = wire_lines(t, PROFILE)
     assert long.hex == (NONE_REQUEST * 100)[:MAX_HEX_BYTES].hex(" ") and len(long.hex.split()) == MAX_HEX_BYTES
-    assert long.summary.endswith(f"[1400 bytes: the first {MAX_HEX_BYTES} shown, the pcap has them all]")
+    assert long.summary.endswith(f"[1400 bytes: the first {MAX_HEX_BYTES} shown]")
     assert len(exact.hex.split()) == MAX_HEX_BYTES and "shown" not in exact.summary
 
 
@@ -152,14 +152,14 @@ def test_a_long_log_keeps_its_head_and_tail_and_counts_what_is_left_out() -> Non
     assert numbers(lines[MAX_LINES + 1:]) == list(range(count - TAIL_LINES, count))
     cut = lines[MAX_LINES]
     assert (cut.direction, cut.kind, cut.hex) == ("·", "note", "")
-    assert cut.summary == "… 600 more events (the pcap has them all)"
+    assert cut.summary == "… 600 more events (not shown; see the pcap)"
 
 
 def test_the_head_and_tail_sizes_are_parameters() -> None:
     lines = wire_lines(notes(10), PROFILE, limit=3, tail=2)
-    assert numbers(lines) == [0, 1, 2, 8, 9] and lines[3].summary == "… 5 more events (the pcap has them all)"
+    assert numbers(lines) == [0, 1, 2, 8, 9] and lines[3].summary == "… 5 more events (not shown; see the pcap)"
     only_count = wire_lines(notes(10), PROFILE, limit=0, tail=0)
-    assert [w.summary for w in only_count] == ["… 10 more events (the pcap has them all)"]
+    assert [w.summary for w in only_count] == ["… 10 more events (not shown; see the pcap)"]
 
 
 def test_the_tail_is_decoded_in_step_with_what_was_left_out() -> None:
@@ -192,11 +192,11 @@ def without_cut(lines: list[WireLine]) -> list[WireLine]:
 def test_a_flood_gives_a_log_of_bounded_size_that_says_how_much_was_left_out() -> None:
     small, large = wire_lines(flood(450), PROFILE), wire_lines(flood(1_500), PROFILE)  # 1.5 MB: all recorded
     assert len(small) == len(large) == MAX_LINES + 1 + TAIL_LINES
-    assert small[MAX_LINES].summary == f"… {450 - MAX_LINES - TAIL_LINES} more events (the pcap has them all)"
-    assert large[MAX_LINES].summary == f"… {1_500 - MAX_LINES - TAIL_LINES} more events (the pcap has them all)"
+    assert small[MAX_LINES].summary == f"… {450 - MAX_LINES - TAIL_LINES} more events (not shown; see the pcap)"
+    assert large[MAX_LINES].summary == f"… {1_500 - MAX_LINES - TAIL_LINES} more events (not shown; see the pcap)"
     assert size(without_cut(large)) == size(without_cut(small))  # more input, not one character more of log
     for line in without_cut(large):
         assert len(line.hex) <= 3 * MAX_HEX_BYTES
         assert line.summary.count("[F2]") + line.summary.count("NONE") == MAX_EVENTS  # 111 events: 8 named
         assert f"… and {2 * 55 + 1 - MAX_EVENTS} more [" in line.summary  # ... the rest counted
-    assert large[1].summary.endswith(f"[1000 bytes: the first {MAX_HEX_BYTES} shown, the pcap has them all]")
+    assert large[1].summary.endswith(f"[1000 bytes: the first {MAX_HEX_BYTES} shown]")

@@ -40,7 +40,7 @@ def attach_evidence(transcript: Transcript, settings: SuiteSettings, case_id: st
     return path
 
 
-#: A verdict quotes at most this many bytes (the pcap has them all).
+#: A verdict quotes at most this many bytes (the pcap, when one is written, has up to the receive budget).
 QUOTED_BYTES = 4096
 
 
@@ -48,7 +48,7 @@ def bounded_hex(data: bytes) -> str:
     """The hex a report quotes: all of ``data`` up to :data:`QUOTED_BYTES`, then how many there were."""
     if len(data) <= QUOTED_BYTES:
         return data.hex(" ")
-    return data[:QUOTED_BYTES].hex(" ") + f" … ({len(data)} bytes in all; the pcap has them)"
+    return data[:QUOTED_BYTES].hex(" ") + f" … ({len(data)} bytes in all)"
 
 
 def safe_name(case_id: str) -> str:

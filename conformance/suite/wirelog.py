@@ -57,7 +57,7 @@ def wire_lines(transcript: Transcript, profile: Profile, limit: int = MAX_LINES,
             last.append(line)
     left_out = total - len(head) - len(last)
     if left_out:
-        head.append(WireLine(0.0, 0, "·", "note", "", f"… {left_out} more events (the pcap has them all)"))
+        head.append(WireLine(0.0, 0, "·", "note", "", f"… {left_out} more events (not shown; see the pcap)"))
     return head + list(last)
 
 
@@ -80,7 +80,7 @@ def _line(event: WireEvent, transcript: Transcript, profile: Profile, decoders: 
         if event.note:
             summary = f"{event.note}: {summary}" if summary else event.note
         if len(event.data) > MAX_HEX_BYTES:
-            summary += f" [{len(event.data)} bytes: the first {MAX_HEX_BYTES} shown, the pcap has them all]"
+            summary += f" [{len(event.data)} bytes: the first {MAX_HEX_BYTES} shown]"
         return WireLine(t_ms, event.conn, _ARROW[event.kind], event.kind, _hex(event.data), summary)
     label = f" ({info.label}, {info.transport} {info.local} → {info.remote})" if info and event.kind == Kind.CONNECT else ""
     return WireLine(t_ms, event.conn, "·", event.kind, "", (event.note or "") + label)
