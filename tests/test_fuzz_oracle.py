@@ -190,3 +190,13 @@ def test_a_non_request_may_be_refused_with_its_own_unknown_action_and_a_non_zero
     # the same refusal to a well-formed request pairs with nothing: the request is unanswered
     v, clauses = verdict(POSE, [refusal])
     assert v is Verdict.FAIL and "A1" in clauses
+
+
+def test_a_refused_26_or_27_needs_no_block_but_a_well_formed_one_still_gets_its_result() -> None:
+    """A5: a non-request (version 00 00) answered 27 + FFFF without the ResultCode block is a refusal."""
+    bad_version = encode_raw(Header(version=0x0000, action=Action.VISION_RESULT))
+    refusal = malformed(encode_raw(Header(transfer_type=0x10, action=Action.VISION_RESULT, error_code=0xFFFF)))
+    assert verdict(bad_version, [refusal]) == (Verdict.PASS, [])
+    result_request = encode(request(Action.VISION_RESULT))
+    v, clauses = verdict(result_request, [refusal])  # E3: a result request is answered with a ResultCode
+    assert v is Verdict.FAIL and "E3" in clauses

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..protocol import (
+    EXTENSION_ACTIONS,
     HEADER_LEN,
     AnswerError,
     Frame,
@@ -167,10 +168,12 @@ def seen_of(outcome: Answer | Malformed, profile: Profile) -> Seen:
         order = ">" if profile.float_byte_order == "big" else "<"
         value = struct.unpack_from(order + "i", raw, HEADER_LEN + 1)[0]
     # an answer whose only fault is its content (A4: NONE answered with an error; E3: 0 or 404) is
-    # judged by its code and value, not as a malformed frame; so is an answer with an unknown action
-    # and a non-zero error: A5 lets a box answer a non-request "with a non-zero error", echoing its
-    # action (it pairs with no well-formed request: one that gets it is still unanswered, A1)
-    refusal = isinstance(err, UnknownActionError) and h.error_code != 0
+    # judged by its code and value, not as a malformed frame. So is a refusal: A5 lets a box answer a
+    # non-request "with a non-zero error", and such an answer may echo an unknown action, or a 26/27
+    # without the block only an accepted one carries (a well-formed 26/27 still needs its block: E2/E3
+    # judge the value; an unknown action pairs with no request, which then goes unanswered: A1)
+    refusal = h.error_code != 0 and (isinstance(err, UnknownActionError) or (
+        err.clause in ("E2", "E3") and h.action in EXTENSION_ACTIONS and h.block_count == 0))
     problem = "" if isinstance(err, AnswerError) or refusal else err.clause
     return Seen(h.action, h.error_code, value, problem, outcome.describe())
 
