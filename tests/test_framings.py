@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from conformance.protocol import Action, Header, Profile, answer, encode, encode_raw, pose_blocks, request
 from conformance.protocol.answers import Cycle, Expectation, Finding, Rule
-from conformance.protocol.framings import BAD, PENDING, VALID, End, Event, Explanation, Reader
+from conformance.protocol.framings import BAD, PENDING, VALID, End, Event, Explanation, Reader, embedded_actions
 
 P = Profile()
 NONE = encode(request(Action.NONE))
@@ -241,3 +241,11 @@ def test_an_explanation_files_findings_by_level_and_answers_by_event() -> None:
     assert ex.answers_within(0, 19) == [0]  # the unanswered event at 0 contributes nothing
     assert ex.answers_within(5, 33) == [0, 1] and ex.answers_within(6, 19) == []  # by where events begin
     assert ex.event_at(19) is events[2] and ex.event_at(20) is None
+
+
+def test_embedded_actions_are_the_action_bytes_at_every_start_word() -> None:
+    none = encode(request(Action.NONE))
+    assert embedded_actions(none) == {0x00}
+    assert embedded_actions(b"\xfe" + none) == {0x00, 0x01}  # FE FE FE 00 01 01 00: at offset 0 the action byte is 01
+    assert embedded_actions(b"garbage" + encode(request(Action.CYCLE_ON)) + b"\xfe\xfe\x00") == {0x01}  # cut header
+    assert embedded_actions(b"no start word at all") == frozenset()

@@ -107,3 +107,29 @@ def test_a_probe_answered_with_an_error_ends_the_wait_at_once() -> None:
         ex.close()
     assert result.probe is Action.POSE and isinstance(result.end, Answer) and result.end.frame.error_code == 0x1001
     assert [f.key for f in result.judgement.failures] == ["probe/code"]  # judged, not waited out as a hang
+
+
+SPLICED_NONE = b"\xfe" + encode(request(Action.NONE))  # FE FE FE 00 01 ...: a NONE one byte in (R6 resync)
+
+
+def test_the_probe_never_has_the_action_of_a_frame_embedded_in_the_bytes() -> None:
+    ex = executor(1)  # never connects: probe_for only reads the bytes
+    assert ex.probe_for(S.case("t", "F2", SPLICED_NONE, "t")) is not Action.NONE
+    both = SPLICED_NONE + b"\xfe" + POSE
+    assert ex.probe_for(S.case("t", "F2", both, "t")) not in (Action.NONE, Action.POSE)
+
+
+def test_a_box_answering_the_embedded_frame_leaves_nothing_for_the_next_case() -> None:
+    """A fine-resync box answers the NONE inside FE FE FE ...; with a NONE probe the probe's own answer came
+    late, read as an extra answer in the next case (a false A1 "exactly one answer" on a reused connection)."""
+    from tests.impls.box import start_box
+
+    with start_box("resync-fine") as box:
+        ex = executor(box.port)
+        first = ex.run(S.case("t", "F2", SPLICED_NONE, "t"))
+        second = ex.run(S.case("t", "B3", BAD_INDEX, "t"))
+        ex.close()
+    assert first.verdict is Verdict.PASS and first.probe is not Action.NONE
+    assert [o.frame.action for o in first.outcomes] == [Action.NONE]  # the embedded frame's answer
+    assert second.verdict is Verdict.PASS and second.conn == first.conn  # reused, nothing left over
+    assert [o.frame.error_code for o in second.outcomes] == [0x1001]

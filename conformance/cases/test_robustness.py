@@ -240,5 +240,4 @@ def test_resynchronise(isight: CaseContext, kind: str) -> None:
     bad = RESYNC_GARBAGE[kind]
     isight.send_malformed(bad, f"garbage ({kind}) then a valid request on the same connection")
     assert isight.last_probe is not None  # send_malformed always records what became of the probe
-    action = Action.POSE if len(bad) > 5 and bad[5] == Action.NONE else Action.NONE
-    isight.judge(isight.last_probe, action=action)
+    isight.judge(isight.last_probe, action=isight.last_probe_action)

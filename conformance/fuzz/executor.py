@@ -32,6 +32,7 @@ from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpCon
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
 from ..protocol import Action, Frame, Profile, Transport, codec_for, request, tolerance_blocks
+from ..protocol.framings import embedded_actions
 from ..suite.context import probe_pose
 from ..suite.verdicts import Verdict
 from .oracle import Finding, Judgement, judge
@@ -39,6 +40,8 @@ from .strategies import FuzzCase
 
 #: At most this many answers to one case are read (a box flooding answers ends the case).
 MAX_ANSWERS = 64
+#: Probes, in order of preference: each is answered 0000 in any cycle state.
+PROBE_ACTIONS = (Action.NONE, Action.POSE, Action.TOLERANCE, Action.REGISTER_POSE)
 
 
 class FuzzConnection(TcpConnection):
@@ -148,6 +151,7 @@ class Executor:
                 Action.NONE: codec.encode(request(Action.NONE), t),
                 Action.POSE: codec.encode(probe_pose(profile), t),
                 Action.TOLERANCE: codec.encode(request(Action.TOLERANCE, tolerance_blocks([0.5], first)), t),
+                Action.REGISTER_POSE: codec.encode(request(Action.REGISTER_POSE, probe_pose(profile).blocks), t),
             }
             for t in (Transport.TCP, Transport.UDP)
         }
@@ -190,8 +194,10 @@ class Executor:
 
     # -- running -------------------------------------------------------------------------
     def probe_for(self, case: FuzzCase) -> Action:
-        used = case.actions
-        return next((a for a in (Action.NONE, Action.POSE, Action.TOLERANCE) if a not in used), Action.NONE)
+        """An action no frame in the case's bytes has under any legal framing (else the first answer with
+        it could be an embedded frame's, the probe's own answer arriving later, in the next case)."""
+        used = case.actions | embedded_actions(case.wire)
+        return next((a for a in PROBE_ACTIONS if a not in used), Action.NONE)
 
     def run(self, case: FuzzCase, note: str = "") -> Result:
         """Send one case, judge it, and check liveness when it is due or something went wrong."""

@@ -39,6 +39,17 @@ _START = b"\xfe\xfe"
 _SKIP = HEADER_LEN
 
 
+def embedded_actions(data: bytes) -> frozenset[int]:
+    """The action byte of every header some legal framing may read in ``data``: one at each start
+    word (R6 lets a receiver resume at any FE FE). A probe whose action is none of these cannot be
+    mistaken for an answer to a frame embedded in the bytes before it."""
+    found, at = set(), data.find(b"\xfe\xfe")
+    while 0 <= at and at + 5 < len(data):
+        found.add(data[at + 5])
+        at = data.find(b"\xfe\xfe", at + 1)
+    return frozenset(found)
+
+
 class End(str, enum.Enum):
     """How the exchange ended after the last answer."""
 

@@ -19,10 +19,10 @@ from typing import Any
 from ..harness.client import MAX_DRAIN, Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
-from ..protocol import Action, Frame, Profile, encode, pose_blocks, request
+from ..protocol import Action, Frame, Profile, encode, pose_blocks, request, tolerance_blocks
 from ..protocol.answers import Seen
 from ..protocol.explain import explain
-from ..protocol.framings import End, Explanation
+from ..protocol.framings import End, Explanation, embedded_actions
 from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
@@ -34,6 +34,17 @@ PROBE_NONE = request(Action.NONE)
 def probe_pose(profile: Profile) -> Frame:
     """A valid pose request in this profile (its first index) used as a probe."""
     return request(Action.POSE, pose_blocks([PROBE_POSE_VALUES], profile.first_index))
+
+
+def probe_for(bad: bytes, profile: Profile) -> Frame:
+    """A valid request whose action no frame in ``bad`` has under any legal framing (R6: a
+    receiver may resume at any start word), so the first answer with it is the probe's."""
+    used = embedded_actions(bad)
+    if Action.NONE not in used:
+        return PROBE_NONE
+    if Action.POSE not in used:
+        return probe_pose(profile)
+    return request(Action.TOLERANCE, tolerance_blocks([0.5], profile.first_index))
 
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
@@ -58,6 +69,7 @@ class CaseContext:
         self.latencies_ms: list[float] = []
         self.last_sent: bytes = b""
         self.last_probe: Outcome | None = None
+        self.last_probe_action: Action = Action.NONE  # the action of the last probe (probe_for chose it)
         #: how the last malformed input was framed and judged (every legal framing considered)
         self.last_explanation: Explanation | None = None
         self.details: dict[str, Any] = {}
@@ -128,7 +140,8 @@ class CaseContext:
         self.last_sent = bad
         if conn is None:
             conn = self.connect("malformed")
-        probe = probe_pose(self.profile) if len(bad) > 5 and bad[5] == Action.NONE else PROBE_NONE
+        probe = probe_for(bad, self.profile)
+        self.last_probe_action = probe.action
         probe_bytes = encode(probe, self.profile)
         start = time.monotonic()
         if not conn.send(bad, note):
