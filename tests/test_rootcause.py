@@ -428,3 +428,16 @@ def test_evidence_quotes_a_bounded_slice_of_what_the_box_did() -> None:
     head, received = rc.evidence.split("; received ")
     assert head == f"S3-01: {long}"[:300]
     assert received == bytes(range(256)).hex(" ")[:120]  # (with nothing received: what was sent, see late CycleOn)
+
+
+def test_on_a_tie_the_cases_defect_comes_before_what_fuzzing_found() -> None:
+    """drops-coalesced: two fuzz failures (T1) and two R4 silences: the R4 one names the defect."""
+    late = Silence(2.0)
+    cases = [
+        raised("FUZZ-01", "R1 A1", fail(Level.MUST, "fuzz", "no failure", "fuzz failure", signature="fuzz:T1")),
+        raised("FUZZ-02", "S4 A1", fail(Level.MUST, "fuzz", "no failure", "fuzz failure", signature="fuzz:T1")),
+        judged("R4-01", "R4 A1", late, ok(POSE, "R4: request 2 of 10 in one segment is answered")),
+        judged("SEQ-R4", "R4 A1", late, ok(POSE, "R4: several frames in one segment are each answered")),
+    ]
+    causes = find_root_causes(cases)
+    assert [c.kind for c in causes] == ["unanswered", "fuzz"] and "R4" in causes[0].clauses

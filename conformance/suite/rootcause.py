@@ -78,7 +78,9 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
     for signature, members in groups.items():
         if len(members) >= MIN_GROUP and not signature.startswith(("unreachable:", "case:")):
             claim(_from_signature(signature, members), members)
-    found.sort(key=lambda item: (item[0].level is not Level.MUST, -len(item[1])))
+    # a broken MUST first, then the most cases; on a tie, a defect the catalogue's cases name before what
+    # fuzzing found (a fuzz group names only the oracle's clause, e.g. T1 for a request left unanswered)
+    found.sort(key=lambda item: (item[0].level is not Level.MUST, -len(item[1]), item[0].kind == "fuzz"))
     causes = []
     for n, (cause, members) in enumerate(found, 1):
         cause.id = f"RC{n}"
