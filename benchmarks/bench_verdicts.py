@@ -1,0 +1,95 @@
+"""Verdict truth at speed: wall time, peak memory and first root cause for the issue-9 endpoints.
+
+Run on demand: ``python benchmarks/bench_verdicts.py [--only NAME ...] [--out DIR]``.
+
+Each endpoint is one full ``isight-conformance run`` in a child process, watched for wall
+time and peak resident memory (VmHWM) by :class:`tests.impls.matrix.Proc`:
+
+- ``reference``: no ``--target``, so the bundled reference box (the embedded default);
+- the independent boxes of ``tests/impls`` that once made the suite hang, blow up or
+  blame the wrong clause: ``dead``, ``swapped-version``, ``late-cycle-on``,
+  ``flood-random``, ``flood-headers``, ``one-at-a-time``, ``leaky`` (each started by
+  ``python -m tests.impls.box NAME``, exactly as the matrix does).
+
+It prints one line per endpoint: exit code, wall time, peak RSS, the judgement against
+``tests/impls/expectations.py`` and the first root cause the run reported. The load
+average before and after is printed too: the figures measure the machine as much as the
+suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from tests.impls.expectations import EXPECTATIONS  # noqa: E402
+from tests.impls.matrix import Proc, run_box, suite_command  # noqa: E402
+
+ENDPOINTS = ["reference", "dead", "swapped-version", "late-cycle-on", "flood-random", "flood-headers",
+             "one-at-a-time", "leaky"]
+
+
+def run_reference(out: Path, limit: float) -> dict[str, object]:
+    work = out / "reference"
+    work.mkdir(parents=True, exist_ok=True)
+    suite = Proc(suite_command() + ["run", "--quiet", "--report-dir", str(work / "report"),
+                                    "--pcap-dir", str(work / "pcaps")], work, "suite")
+    rc = suite.wait(limit)
+    wall = time.monotonic() - suite.t0
+    try:
+        doc = json.loads((work / "report" / "summary.json").read_text())
+        totals = {k: v for k, v in doc.get("totals", {}).items() if v}
+        bad = sum(totals.get(k, 0) for k in ("FAIL", "ERROR", "NON-STRICT"))
+        judgement = "ok" if rc == 0 and not bad else f"NOT CLEAN ({totals})"
+        first = (doc.get("root_causes") or [{}])[0]
+    except (OSError, ValueError) as exc:
+        judgement, first = f"no summary.json ({type(exc).__name__})", {}
+    return {"name": "reference", "exit": rc if rc is not None else suite.killed, "wall_s": wall,
+            "peak_rss_mb": suite.peak_kb / 1024, "judgement": judgement, "root_cause": _rc_text(first)}
+
+
+def _rc_text(rc: dict[str, object]) -> str:
+    if not rc:
+        return "-"
+    clauses = ",".join(rc.get("clauses", []))  # type: ignore[arg-type]
+    return f"{rc.get('id')} [{clauses}] {rc.get('level', '')}: {str(rc.get('title', ''))[:60]}"
+
+
+def run_impl(name: str, out: Path, limit: float) -> dict[str, object]:
+    args = argparse.Namespace(time_out=0, limit=limit, mem_limit=4096)
+    row = run_box(EXPECTATIONS[name], args, out, 0, False)
+    return {"name": name, "exit": row.exit, "wall_s": row.wall_s, "peak_rss_mb": row.peak_rss_mb,
+            "judgement": row.judgement, "root_cause": (row.root_causes or ["-"])[0][:90]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--only", nargs="+", choices=ENDPOINTS, metavar="NAME", help="only these endpoints")
+    parser.add_argument("--limit", type=float, default=900, metavar="S", help="hard bound per run (s)")
+    parser.add_argument("--out", type=Path, help="keep the reports here (default: a temporary directory)")
+    args = parser.parse_args(argv)
+    names = args.only or ENDPOINTS
+    print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}  cores: {os.cpu_count()}")
+    print(f"{'endpoint':<16} {'exit':>4} {'wall s':>7} {'peak MB':>8}  {'judgement':<24} first root cause")
+    with tempfile.TemporaryDirectory(prefix="bench-verdicts-") as tmp:
+        out = args.out or Path(tmp)
+        out.mkdir(parents=True, exist_ok=True)
+        ok = True
+        for name in names:
+            r = run_reference(out, args.limit) if name == "reference" else run_impl(name, out, args.limit)
+            ok = ok and r["judgement"] == "ok"
+            print(f"{r['name']:<16} {r['exit']!s:>4} {r['wall_s']:>7.1f} {r['peak_rss_mb']:>8.1f}  "
+                  f"{r['judgement']!s:<24} {r['root_cause']}", flush=True)
+    print(f"load average after:  {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
