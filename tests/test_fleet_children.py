@@ -122,11 +122,14 @@ def test_the_real_child_command_names_the_box_directories() -> None:
 GRANDPARENT = ("import pathlib, subprocess, sys, time\n"
                "d = pathlib.Path(sys.argv[1])\n"
                "g = subprocess.Popen(['sleep', '60'])\n"
-               "(d / 'pids').write_text(f'{g.pid}')\n"
+               "(d / 'pids.tmp').write_text(f'{g.pid}')\n"
+               "(d / 'pids.tmp').replace(d / 'pids')  # whole or absent: the test reads it once it exists\n"
                "time.sleep(60)\n")
 STUBBORN = ("import pathlib, signal, sys, time\n"
             "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
-            "(pathlib.Path(sys.argv[1]) / 'pids').write_text('x')\n"
+            "d = pathlib.Path(sys.argv[1])\n"
+            "(d / 'pids.tmp').write_text('x')\n"
+            "(d / 'pids.tmp').replace(d / 'pids')\n"
             "time.sleep(60)\n")
 
 

@@ -117,6 +117,13 @@ def test_final_table_all_pass_and_paths_list():
     assert "FAIL 0" in out  # zeros are shown in the totals
 
 
+def test_a_long_report_path_stays_on_one_line_at_80_columns():
+    path = "/tmp/pytest-of-someone/pytest-307/popen-gw1/test_a_clean_capture_exits_0_w0/r/report.html"
+    lines = _lines_at_80(suite=sample_suite(), cases=sample_cases(), reports={"HTML report": path})
+    assert f"HTML report: {path}" in lines  # whole, so it can be copied from the terminal
+    _check_80([line for line in lines if path not in line])
+
+
 def test_final_table_colours_on_a_terminal():
     console = _console(force_terminal=True, color_system="standard")
     print_final_table(sample_suite(), sample_cases(), console)

@@ -245,11 +245,11 @@ def print_final_table(suite: SuiteInfo, cases: list[CaseResult], console: Consol
         ids[-1] = ids[-1].rstrip(",") + (f", … and {more} more" if more > 0 else "")
         parts.append(packed([f"Not run ({len(suite.not_run)}):", *ids], console.width, "yellow"))
     parts.append(Text(f"Target: {suite.target}", style="dim"))
-    if reports:
+    console.print(Group(*parts), soft_wrap=False)
+    if reports:  # a path stays on one line at any width, so it can be copied whole
         items = reports.items() if isinstance(reports, Mapping) else ((None, p) for p in reports)
         for label, path in items:
             out = Text()
             out.append("Report: " if label is None else f"{label}: ", style="bold")
             out.append(os.fspath(path))
-            parts.append(out)
-    console.print(Group(*parts), soft_wrap=False)
+            console.print(out, soft_wrap=True)
