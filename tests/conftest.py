@@ -1,4 +1,4 @@
-"""Shared test configuration: hypothesis profiles.
+"""Shared test configuration: hypothesis profiles, and the slow end-to-end runs first.
 
 ``dev`` (default) keeps hypothesis's example database in .hypothesis/; ``ci`` (set
 HYPOTHESIS_PROFILE=ci, as .ci/run does) runs derandomised with no deadline so a CI
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 settings.register_profile("dev", deadline=None)
@@ -16,3 +17,16 @@ settings.register_profile(
     "ci", deadline=None, derandomize=True, print_blob=True, suppress_health_check=[HealthCheck.too_slow]
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The end-to-end runs against tests/impls first, the longest first (their ``impls(seconds=...)`` hint).
+
+    Under pytest-xdist with small scheduling chunks (the README's ``-n 4 --maxschedchunk 2``) every worker
+    then starts on one of them and the short tests fill in around them, instead of a worker being left with
+    a two-minute run at the end. The sort is stable and the same on every worker, as xdist requires."""
+    def weight(item: pytest.Item) -> float:
+        mark = item.get_closest_marker("impls")
+        return -float(mark.kwargs.get("seconds", 1)) if mark else 0.0
+
+    items.sort(key=weight)

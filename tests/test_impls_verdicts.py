@@ -30,6 +30,14 @@ pytestmark = pytest.mark.impls
 BOXES = [e for e in EXPECTATIONS.values() if e.role == "box"]
 ROBOTS = [e for e in EXPECTATIONS.values() if e.role == "robot"]
 SECOND_SEED = 7  # the fuzz cases' default seed is the first
+#: about how long each run takes on a 2-core machine (s): tests/conftest.py starts the longest first. A box that
+#: stays silent after garbage, or drops coalesced requests, costs a time_out in each of ~60 malformed-input cases
+SECONDS = {"no-resync": 125, "drops-coalesced": 120, "one-at-a-time": 55, "byte-by-byte": 37}
+
+
+def params(exps: list[Expectation], default: float, known: dict[str, float] | None = None) -> list[object]:
+    known = SECONDS if known is None else known
+    return [pytest.param(e, id=e.name, marks=pytest.mark.impls(seconds=known.get(e.name, default))) for e in exps]
 
 
 def run(exp: Expectation, tmp_path: Path, *, time_out: int = 0, seed: int = 0, limit: float = 240) -> Row:
@@ -44,14 +52,14 @@ def explain(row: Row) -> str:
             f"first: {' | '.join(row.first) or '-'}; root causes: {causes}; notes: {'; '.join(row.notes) or '-'}")
 
 
-@pytest.mark.parametrize("exp", [e for e in BOXES if e.conforming], ids=lambda e: e.name)
+@pytest.mark.parametrize("exp", params([e for e in BOXES if e.conforming], 25))
 def test_a_conforming_box_comes_out_clean(exp: Expectation, tmp_path: Path) -> None:
     row = run(exp, tmp_path)
     assert row.judgement == "ok", explain(row)
     assert row.exit == 0 and not row.notes, explain(row)
 
 
-@pytest.mark.parametrize("exp", [e for e in BOXES if e.conforming], ids=lambda e: e.name)
+@pytest.mark.parametrize("exp", params([e for e in BOXES if e.conforming], 5, {}))
 def test_a_conforming_box_survives_the_fuzz_cases_under_another_seed(exp: Expectation, tmp_path: Path) -> None:
     fuzz_only = dataclasses.replace(exp, suite_args=(*exp.suite_args, "--cases", "FUZZ-*"))
     row = run(fuzz_only, tmp_path, seed=SECOND_SEED)
@@ -59,7 +67,7 @@ def test_a_conforming_box_survives_the_fuzz_cases_under_another_seed(exp: Expect
     assert row.totals.get("PASS", 0) >= 1, explain(row)  # the fuzz cases did run
 
 
-@pytest.mark.parametrize("exp", [e for e in BOXES if not e.conforming], ids=lambda e: e.name)
+@pytest.mark.parametrize("exp", params([e for e in BOXES if not e.conforming], 20))
 def test_a_broken_box_is_blamed_on_its_defect(exp: Expectation, tmp_path: Path) -> None:
     row = run(exp, tmp_path, time_out=2000)
     assert row.judgement == "ok", explain(row)
@@ -71,7 +79,7 @@ def test_a_broken_box_is_blamed_on_its_defect(exp: Expectation, tmp_path: Path) 
 LOOSE_JITTER = ("--jitter-tolerance", "400")
 
 
-@pytest.mark.parametrize("exp", ROBOTS, ids=lambda e: e.name)
+@pytest.mark.parametrize("exp", params(ROBOTS, 4))
 def test_a_robot_is_judged_by_certify_robot(exp: Expectation, tmp_path: Path) -> None:
     row = run(dataclasses.replace(exp, suite_args=(*exp.suite_args, *LOOSE_JITTER)), tmp_path)
     # a robot's defect fails one case: without a shared root cause the first failing case must name it ("ok?")

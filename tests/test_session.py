@@ -336,7 +336,8 @@ def test_an_ordinary_inconclusive_case_does_not_probe(boxed: Make) -> None:
 class SingleBox:
     """An embedded stack with room for one connection: while one is open, new ones are refused (RST)."""
 
-    def __init__(self) -> None:
+    def __init__(self, relisten_after: float = 0.0) -> None:
+        self.relisten_after = relisten_after  # how long it takes to free its slot once a connection closed
         self.listener = self._listen(0)
         self.port = self.listener.getsockname()[1]
         self._stop = threading.Event()
@@ -377,7 +378,7 @@ class SingleBox:
                     frames = [e for e in decoder.events() if isinstance(e, Frame)]
                     with contextlib.suppress(OSError):
                         conn.sendall(b"".join(encode(answer(f.action), PROFILE) for f in frames))
-            if not self._stop.is_set():
+            if not self._stop.wait(self.relisten_after):
                 self.listener = self._listen(self.port)
 
     def close(self) -> None:
@@ -386,8 +387,9 @@ class SingleBox:
         self.listener.close()
 
 
-def test_a_second_connection_refused_while_the_first_is_open_is_s4() -> None:
-    box = SingleBox()
+@pytest.mark.parametrize("relisten_after", [0.0, 0.3], ids=["frees-at-once", "frees-its-slot-later"])
+def test_a_second_connection_refused_while_the_first_is_open_is_s4(relisten_after: float) -> None:
+    box = SingleBox(relisten_after)  # 0.3 s: still within the time_out (0.5 s) the preflight retries for
     state = SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=PROFILE))
     try:
         ready(state)

@@ -40,6 +40,8 @@ RECHECK_S = 10.0
 #: INCONCLUSIVE at once (explained by that root cause) instead of each waiting time_out again.
 LATE_CASES = 2
 PROBE_NONE = request(Action.NONE)
+#: the S4 preflight's pause between connection attempts while a one-at-a-time box frees its slot
+REFUSED_RETRY_S = 0.05
 R2_TEXT = "R2: whatever bytes one connection sends, the box keeps accepting and answering new connections"
 #: the signature of a case that could not connect (context.connect): the session then looks for a death
 UNREACHABLE_AT_CONNECT = "unreachable:connect"
@@ -175,16 +177,13 @@ class SessionState:
 
     def _preflight(self, transcript: Transcript) -> None:
         """S4: a second connection while the first is open; the first stays open as the witness."""
-        first = TcpConnection(transcript, self.target(), self.profile, "preflight: first connection")
-        second = TcpConnection(transcript, self.target(), self.profile, "preflight: second connection, first open")
-        try:
-            first.connect()
-            if not isinstance(first.request(PROBE_NONE, "preflight: NONE on the first connection"), Answer):
-                first.close()
-                return
-        except Unreachable:
+        first = self._connect_once_freed(transcript, "preflight: first connection")  # the baseline's just closed
+        if first is None:
+            return
+        if not isinstance(first.request(PROBE_NONE, "preflight: NONE on the first connection"), Answer):
             first.close()
             return
+        second = TcpConnection(transcript, self.target(), self.profile, "preflight: second connection, first open")
         try:
             second.connect()
         except Unreachable as exc:  # e.g. an embedded stack with room for one connection
@@ -207,12 +206,25 @@ class SessionState:
             + (f"once the first closed, it was answered ({later.describe()})" if responsive(later)
                else f"after the first closed it {later.describe()}"))
 
+    def _connect_once_freed(self, transcript: Transcript, why: str) -> TcpConnection | None:
+        """A connection made right after one closed: a box with room for one connection frees its slot once it
+        has seen the close, so a refusal is retried for up to time_out (None: refused all along)."""
+        deadline = time.monotonic() + self.profile.time_out_ms / 1000
+        while True:
+            conn = TcpConnection(transcript, self.target(), self.profile, why)
+            try:
+                conn.connect()
+                return conn
+            except Unreachable:
+                conn.close()
+                if time.monotonic() >= deadline:
+                    return None
+                time.sleep(REFUSED_RETRY_S)
+
     def _one_at_a_time_refused(self, transcript: Transcript, refusal: str) -> None:
         """S4: the second connection was refused while the first was open; one after it closes?"""
-        third = TcpConnection(transcript, self.target(), self.profile, "preflight: a new connection, first closed")
-        try:
-            third.connect()
-        except Unreachable:
+        third = self._connect_once_freed(transcript, "preflight: a new connection, first closed")
+        if third is None:
             return  # refused alike with nothing open: not a concurrency fact (the cases will tell)
         outcome = third.request(PROBE_NONE, "preflight: NONE on a new connection once the first closed")
         third.close()
