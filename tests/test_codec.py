@@ -30,6 +30,7 @@ from conformance.protocol import (
     UnknownActionError,
     ValueBlock,
     VersionError,
+    action_name,
     answer,
     codec_for,
     decode_datagram,
@@ -306,3 +307,9 @@ def test_fast_built_objects_are_ordinary_frozen_instances() -> None:
             parsed.error_code = 1  # type: ignore[misc]
         with pytest.raises(dataclasses.FrozenInstanceError):
             parsed.blocks[0].index = 9  # type: ignore[misc]
+
+
+def test_action_name_names_known_actions_hex_for_others_and_says_what_none_means():
+    assert action_name(0x23) == "POSE" and action_name(Action.VISION_RESULT) == "VISION_RESULT"
+    assert action_name(0x7F) == "0x7F"
+    assert action_name(None) == "bytes that are not a request" and action_name(None, "-") == "-"

@@ -27,7 +27,7 @@ from typing import Any
 
 from ..certify.records import Exchange
 from ..certify.traffic import FrameRecord
-from ..protocol import Action, Frame, ProtocolError
+from ..protocol import Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
 from ..suite.verdicts import Verdict
@@ -58,15 +58,6 @@ KEEP_REQUESTS = 2000  # non-pose requests kept per connection for the session ju
 LATENCY_BATCH = 4096
 MAX_OUTSTANDING = 65536  # requests waiting for their answers; past it the box is far behind: pairing stops
 SKIPPED_KEEP = 64
-
-
-def action_name(action: int | None) -> str:
-    if action is None:
-        return "bytes that are not a request"
-    try:
-        return Action(action).name
-    except ValueError:
-        return f"0x{action:02X}"
 
 
 def _header_action(err: ProtocolError) -> int | None:

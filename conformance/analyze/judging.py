@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..certify.traffic import FrameRecord, byte_order_evidence
-from ..protocol import Action, Frame, Transport
+from ..protocol import Action, Frame, Transport, action_name
 from ..protocol.answers import (
     Cycle,
     Expectation,
@@ -121,7 +121,7 @@ def judge_pair(j: ConnJudge, exp: Expectation | None, r_action: int | None, r_ev
     if not filed:
         _judged(j, exp, r_action, code, value, cycle, frames, r_raw, raw)
     if code or (r_action == PROG_IDX and value == 409):
-        j.refused(t, f"the box answered {_name(r_action)} with 0x{code:04X}" if code else
+        j.refused(t, f"the box answered {action_name(r_action)} with 0x{code:04X}" if code else
                   "the box answered ProgIdx with 409 (E2)")
     ctx.cycles.answered(j.box, j, r_action, code)
 
@@ -148,7 +148,7 @@ def _judged(j: ConnJudge, exp: Expectation, action: int | None, code: int, value
     elif action == PROG_IDX and (value == 409 or code == 409):
         note = "ProgIdx answered 409 (resource conflict): the rest of the session is not judged"
     elif action in (CYCLE_ON, CYCLE_OFF) and code not in (0, 1, 2):
-        note = (f"{_name(action)} answered 0x{code:04X}: the capture does not show the box's cycle state "
+        note = (f"{action_name(action)} answered 0x{code:04X}: the capture does not show the box's cycle state "
                 f"({cycle.value}), in which PROTOCOL.md lets it answer so (S3, a MAY)")
     if note:
         f.add(case, BOX, Verdict.INFORMATIONAL, f"{label}: {note}", frames, robot=r_raw, box=raw)
@@ -222,12 +222,3 @@ def count_frames(j: ConnJudge) -> None:
     f.check("E2", ROBOT, rc.get(PROG_IDX, 0))
     f.check("E3", ROBOT, rc.get(VISION_RESULT, 0))
     f.check("E1", BOX, bc.get(PROG_IDX, 0) + bc.get(VISION_RESULT, 0))
-
-
-def _name(action: int | None) -> str:
-    if action is None:
-        return "bytes that are not a request"
-    try:
-        return Action(action).name
-    except ValueError:
-        return f"0x{action:02X}"

@@ -15,7 +15,7 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from ..protocol import Action
+from ..protocol import Action, action_name
 from ..suite.record import CaseRecord
 from ..suite.verdicts import CaseResult, Verdict, WireLine
 from .catalogue import (
@@ -34,7 +34,7 @@ from .catalogue import (
     catalogue,
 )
 from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, RunRecord, SessionRecord
-from .session import LEFT_OPEN, SessionView, action_name, awaited, build_view, judge_order
+from .session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
 from .timing import judge_jitter, judge_rate, stream_stats
 from .traffic import FrameRecord, byte_order_evidence, frame_wire, session_wire
 

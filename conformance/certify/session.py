@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..protocol import Action, ErrorCode, Profile, ResultCode
+from ..protocol import Action, ErrorCode, Profile, ResultCode, action_name
 from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, ConnRecord, Exchange, SessionRecord
 from .traffic import FrameRecord, decode_conn
 
@@ -42,13 +42,6 @@ FREE_ACTIONS = frozenset({Action.NONE, Action.POSE, Action.REGISTER_POSE, Action
 E4_RESULT_WAIT_S = 1.0
 #: A request sent this close to the bound after the previous one counts as "waited time_out".
 WAIT_SLACK = 0.98
-
-
-def action_name(action: int) -> str:
-    try:
-        return Action(action).name
-    except ValueError:
-        return f"0x{action:02X}"
 
 
 @dataclass(frozen=True)
@@ -113,7 +106,7 @@ def find_cut(view: SessionView) -> Cut | None:
     for conn in view.session.conns:
         for ex in conn.exchanges:
             where = f"on connection {conn.number} ({conn.role})"
-            what = action_name(ex.action) if ex.action is not None else "bytes that are not a request"
+            what = action_name(ex.action)
             if ex.answer is None and ex.reaction in ("silent", "close"):
                 cuts.append(Cut(ex.t_request, f"the box did not answer {what} {where} (A5)"))
             elif ex.error_code not in (None, ErrorCode.OK):

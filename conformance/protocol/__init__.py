@@ -31,6 +31,7 @@ from .constants import (
     ResultCode,
     TransferType,
     Transport,
+    action_name,
 )
 from .errors import (
     AnswerError,
@@ -64,7 +65,7 @@ from .stream import CLOSED, NEED_DATA, Event, StreamDecoder
 __all__ = [
     "ACTION_ERROR", "AnswerError", "ANSWER_SHAPE", "BLOCK_LEN", "CLOSED", "DEFAULT_PORT", "DEFAULT_PROFILE",
     "EXTENSION_ACTIONS", "HEADER_LEN", "MAX_FRAME_LEN", "NEED_DATA", "REQUEST_SHAPE",
-    "Action", "Block", "BlockIndexError", "BlockType", "CheckError", "Codec", "DirectionError",
+    "Action", "action_name", "Block", "BlockIndexError", "BlockType", "CheckError", "Codec", "DirectionError",
     "ErrorCode", "Event", "FloatError", "Frame", "Header", "LengthError", "PoseBlock", "Profile",
     "ProtocolError", "ResultCode", "ShapeError", "StartWordError", "StreamDecoder", "TcpCheckPolicy",
     "ToleranceBlock", "Transport", "TransferType", "UnknownActionError", "ValueBlock", "VersionError",

@@ -43,6 +43,16 @@ class Action(enum.IntEnum):
     VISION_RESULT = 0x27
 
 
+def action_name(action: int | None, none: str = "bytes that are not a request") -> str:
+    """An action byte as the reports write it: its name, ``0x..`` when it names no action, ``none`` for None."""
+    if action is None:
+        return none
+    try:
+        return Action(action).name
+    except ValueError:
+        return f"0x{action:02X}"
+
+
 class BlockType(enum.IntEnum):
     """Block type field (header offset 6). 0x03 comes from the extension (E1)."""
 
