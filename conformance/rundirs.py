@@ -51,6 +51,16 @@ def unique_run_dirs(name: str, *parents: Path | str) -> tuple[Path, ...]:
     raise OSError(f"no free run directory named {name}[-N] under {', '.join(map(str, bases))}")
 
 
+def drop_if_empty(*paths: Path | None) -> None:
+    """Remove run directories a command made and left empty (it stopped before writing anything: no robot
+    came, it could not listen, a setting was refused), so a failed start leaves nothing behind. Only an
+    empty directory goes (``rmdir``); pass only directories the command made itself."""
+    for path in paths:
+        if path is not None:
+            with contextlib.suppress(OSError):
+                path.rmdir()
+
+
 def default_run_dirs(report_dir: Path | str | None, pcap_dir: Path | str | None, pcaps: bool = True,
                      prefix: str = "") -> tuple[Path, Path | None]:
     """(report dir, pcap dir or None when ``pcaps`` is False): the given ones as they are,

@@ -185,6 +185,11 @@ def main_run(args: argparse.Namespace) -> int:
     if args.list:
         return list_cases(settings, args.list_format)
 
+    if settings.target is not None:  # before any directory is made: an unreachable target leaves nothing behind
+        problem = check_reachable(settings.target, settings.time_out_s)
+        if problem:
+            print(f"isight-conformance run: {problem}", file=sys.stderr)
+            return EXIT_USAGE
     try:
         report_dir, pcap_dir = default_run_dirs(settings.report_dir, settings.pcap_dir, settings.capture != "off")
     except OSError as exc:
@@ -198,11 +203,6 @@ def main_run(args: argparse.Namespace) -> int:
         embedded = start_bundled(settings.profile)
         settings = replace(settings, target=embedded.target, udp_target=settings.udp_target or embedded.udp_target,
                            target_label=settings.target_label or embedded.label)
-    else:
-        problem = check_reachable(settings.target, settings.time_out_s)
-        if problem:
-            print(f"isight-conformance run: {problem}", file=sys.stderr)
-            return EXIT_USAGE
     try:
         return _run(settings, expected, quiet=args.quiet, baseline=baseline, baseline_label=args.baseline)
     finally:

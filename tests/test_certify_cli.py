@@ -62,11 +62,12 @@ def test_a_failing_robot_is_exit_1(tmp_path):
     assert "DOES NOT CONFORM" in out
 
 
-def test_no_robot_within_wait_is_exit_2_quickly():
+def test_no_robot_within_wait_is_exit_2_quickly(tmp_path):
     t = time.monotonic()
     proc = subprocess.run([sys.executable, "-m", "conformance", "certify-robot", "--listen", "127.0.0.1:0", "--wait", "1"],
-                          capture_output=True, text=True, timeout=30)
+                          capture_output=True, text=True, timeout=30, cwd=tmp_path)
     assert proc.returncode == 2
+    assert [p.name for p in tmp_path.glob("*/*")] == []  # nothing judged, nothing written: no empty run directories
     assert LISTENING.match(proc.stdout.splitlines()[0])
     assert "no robot connected within --wait 1 s" in proc.stderr
     assert "Traceback" not in proc.stderr
@@ -81,10 +82,12 @@ def test_no_robot_within_wait_is_exit_2_quickly():
     ["--rate-tolerance", "150"],
     ["--pose-rate", "0"],
 ])
-def test_usage_errors_are_exit_2(argv, capsys):
+def test_usage_errors_are_exit_2(argv, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     assert main(["certify-robot", *argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith("isight-conformance certify-robot:") and "Traceback" not in err
+    assert list(tmp_path.rglob("*")) == []  # refused before any report or pcap directory was made
 
 
 def test_unknown_injection_is_an_argparse_error(capsys):
@@ -94,15 +97,17 @@ def test_unknown_injection_is_an_argparse_error(capsys):
     assert "invalid choice" in capsys.readouterr().err
 
 
-def test_cannot_listen_is_exit_2(capsys):
+def test_cannot_listen_is_exit_2(capsys, tmp_path, monkeypatch):
     import socket
 
+    monkeypatch.chdir(tmp_path)
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
         assert main(["certify-robot", "--listen", f"127.0.0.1:{port}", "--wait", "1"]) == 2
     assert "cannot listen" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.glob("*/*")] == []  # the run directories it made are gone again
 
 
 def test_help_lists_the_flags():

@@ -18,7 +18,9 @@ from tests.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, zero_to_bad_
 pytestmark = pytest.mark.timeout(120)
 
 
-def test_an_unreachable_target_and_bad_files_are_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_an_unreachable_target_and_bad_files_are_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
     assert main(["fuzz", "--target", "127.0.0.1:1", "--max-examples", "5", "--report-dir", str(tmp_path)]) == 2
     assert "unreachable" in capsys.readouterr().err
     assert main(["replay", str(tmp_path / "missing.json"), "--target", "127.0.0.1:1"]) == 2
@@ -26,6 +28,8 @@ def test_an_unreachable_target_and_bad_files_are_usage_errors(tmp_path: Path, ca
         main(["fuzz", "--max-examples", "5", "--duration", "1"])
     assert exc.value.code == 2
     assert main(["fuzz", "--max-examples", "5", "--categories", "nonsense", "--report-dir", str(tmp_path)]) == 2
+    assert "unknown fuzz categories nonsense" in capsys.readouterr().err  # a usage error, not an internal one
+    assert not (tmp_path / "pcaps").exists() and not (tmp_path / "reports").exists()  # refused before any was made
 
 
 def test_fuzzing_the_bundled_box_prints_the_seed_and_writes_a_summary(tmp_path: Path, capsys: pytest.CaptureFixture[str],

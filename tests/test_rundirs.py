@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from conformance import rundirs
-from conformance.rundirs import default_run_dirs, unique_run_dirs
+from conformance.rundirs import default_run_dirs, drop_if_empty, unique_run_dirs
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -96,3 +96,11 @@ def test_two_runs_in_the_same_second_write_separate_reports(tmp_path: Path, monk
     assert sorted(os.listdir(tmp_path / "pcaps")) == ["20240601-101500", "20240601-101500-2"]
     for name in ("20240601-101500", "20240601-101500-2"):
         assert (tmp_path / "reports" / name / "summary.json").is_file()
+
+
+def test_drop_if_empty_removes_only_empty_run_directories(tmp_path: Path) -> None:
+    empty, written = unique_run_dirs("S", tmp_path / "reports", tmp_path / "pcaps")
+    (written / "case.pcapng").write_bytes(b"evidence")
+    drop_if_empty(empty, written, None, tmp_path / "never-made")
+    assert not empty.exists()
+    assert (written / "case.pcapng").read_bytes() == b"evidence"  # evidence is never lost

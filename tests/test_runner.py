@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import socket
 import subprocess
 import sys
 import time
@@ -67,6 +68,16 @@ def test_usage_errors_exit_2_without_traceback(tmp_path: Path) -> None:
         proc, _ = run(tmp_path, *args)
         assert proc.returncode == 2, args
         assert "Traceback" not in proc.stderr
+
+
+def test_an_unreachable_target_exits_2_and_leaves_no_run_directories(tmp_path: Path) -> None:
+    with socket.socket() as sock:  # a port nothing listens on (bound, never listening: connections refused)
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+        proc = subprocess.run([sys.executable, "-m", "conformance", "run", "--quiet", "--target", f"127.0.0.1:{port}"],
+                              capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert proc.returncode == 2 and "unreachable" in proc.stderr, proc.stderr
+    assert not (tmp_path / "reports").exists() and not (tmp_path / "pcaps").exists()
 
 
 def test_box_that_accepts_and_never_answers_ends_with_clear_verdicts(tmp_path: Path) -> None:

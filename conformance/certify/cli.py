@@ -12,13 +12,14 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import dataclasses
 import shlex
 import signal
 import sys
 from pathlib import Path
 
 from ..options import add_profile_options, profile_from_options
-from ..rundirs import default_run_dirs
+from ..rundirs import default_run_dirs, drop_if_empty
 from .records import INJECTIONS, CertifyConfig
 from .runner import EXIT_USAGE, CertifyOutcome, ListenError, certify
 
@@ -82,16 +83,22 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def config_from_args(args: argparse.Namespace) -> CertifyConfig:
+    """The run's settings, all checked before the report and pcap directories are made."""
     host, port = parse_listen(args.listen)
-    report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir)
-    return CertifyConfig(
+    config = CertifyConfig(
         host=host, port=port, udp=not args.no_udp, profile=profile_from_options(args), sessions=args.sessions,
         wait_s=args.wait, linger_s=args.linger, max_session_s=args.max_session, extension=args.extension,
         inject=tuple(dict.fromkeys(args.inject)), rate_tolerance=args.rate_tolerance / 100.0,
         jitter_tolerance=args.jitter_tolerance / 100.0,
-        report_dir=report_dir, pcap_dir=pcap_dir,
         command=" ".join(shlex.quote(a) for a in sys.argv),
     )
+    report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir)
+    return dataclasses.replace(config, report_dir=report_dir, pcap_dir=pcap_dir)
+
+
+def _made_dirs(args: argparse.Namespace, config: CertifyConfig) -> list[Path | None]:
+    """The run directories this run made itself (not the ones given with --report-dir / --pcap-dir)."""
+    return [d for d, given in ((config.report_dir, args.report_dir), (config.pcap_dir, args.pcap_dir)) if given is None]
 
 
 async def _main(config: CertifyConfig, quiet: bool) -> CertifyOutcome:
@@ -132,12 +139,14 @@ def main_certify(args: argparse.Namespace) -> int:
     try:
         outcome: CertifyOutcome = run_loop(_main(config, args.quiet))
     except ListenError as exc:
+        drop_if_empty(*_made_dirs(args, config))
         print(f"isight-conformance certify-robot: cannot listen on {args.listen}: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
     except OSError as exc:  # writing the reports or pcaps
         print(f"isight-conformance certify-robot: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
-    if outcome.suite is None:
+    if outcome.suite is None:  # no session to judge (no robot came): nothing was written
+        drop_if_empty(*_made_dirs(args, config))
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
         return outcome.exit_code
     print_final_table(outcome.suite, outcome.cases, Console(), reports=outcome.reports,

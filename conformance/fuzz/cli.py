@@ -22,6 +22,7 @@ from ..protocol import DEFAULT_PORT, Profile
 from ..rundirs import default_run_dirs
 from ..suite.extension import detect_extension
 from .database import DEFAULT_DATABASE, resolve_database
+from .strategies import Strategies
 
 __all__ = ["DEFAULT_DATABASE", "add_fuzz_arguments", "add_replay_arguments", "main_fuzz", "main_replay",
            "resolve_database"]
@@ -144,13 +145,17 @@ def _fuzz(args: argparse.Namespace) -> int:
 
     profile = profile_from_options(args)
     database, db_label = resolve_database(args.database, args.database_shared)
-    try:
-        report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir, prefix="fuzz-")
-    except OSError as exc:
-        raise ValueError(f"cannot create the report directory: {exc}") from None
     categories = tuple(c.strip() for c in (args.categories or "").split(",") if c.strip())
+    known = Strategies(profile, udp=True).categories()  # checked before a box is started or a directory made
+    unknown = [c for c in categories if c not in known]
+    if unknown:
+        raise ValueError(f"unknown fuzz categories {', '.join(unknown)}; choose from {', '.join(known)}")
     quiet = args.quiet
     with _box(args, profile, "fuzz") as (target, udp, box):
+        try:  # once the target is known to answer: an unreachable one leaves no directories behind
+            report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir, prefix="fuzz-")
+        except OSError as exc:
+            raise ValueError(f"cannot create the report directory: {exc}") from None
         extension, how = _extension(args.extension, target, profile, Transcript(case_id="FUZZ-extension"))
         config = CampaignConfig(
             target=target, profile=profile, udp_target=udp, stream_target=_parse_target(args.stream_target),
