@@ -37,6 +37,33 @@ PROFILE = Profile(time_out_ms=500)  # every silence in these tests costs at most
 POLL = 0.05
 
 
+class Requests:
+    """The requests of each read on ``conn`` (a list per read), until the robot closes (``eof`` then
+    True), the connection fails, or ``stop`` is set. ``conn`` has a short timeout (POLL)."""
+
+    def __init__(self, conn: socket.socket, stop: threading.Event) -> None:
+        self.conn, self.stop, self.eof = conn, stop, False
+        self.decoder = StreamDecoder(PROFILE, TransferType.ROBOT_TO_BOX)
+
+    def __iter__(self) -> Iterator[list[Frame]]:
+        while not self.stop.is_set():
+            try:
+                data = self.conn.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            if not data:
+                self.eof = True
+                return
+            self.decoder.receive_data(data)
+            yield [e for e in self.decoder.events() if isinstance(e, Frame)]
+
+
+def answers_to(frames: list[Frame]) -> bytes:
+    return b"".join(encode(answer(f.action), PROFILE) for f in frames)
+
+
 class Box:
     """A loopback box. ``mode``: "answer" (every connection served at once, each request answered 0000),
     "one" (one connection at a time: the next waits in the listen queue), "silent" (accepts, never answers),
@@ -90,26 +117,17 @@ class Box:
                 self._spawn(self._serve, conn)
 
     def _serve(self, conn: socket.socket) -> None:
-        decoder = StreamDecoder(PROFILE, TransferType.ROBOT_TO_BOX)
-        while not self._stop.is_set():
-            try:
-                data = conn.recv(4096)
-            except TimeoutError:
-                continue
-            except OSError:
-                break
-            if not data:
-                with self._lock:
-                    self.eofs += 1
-                break
-            decoder.receive_data(data)
-            frames = [e for e in decoder.events() if isinstance(e, Frame)]
+        reads = Requests(conn, self._stop)
+        for frames in reads:
             if self.mode == "silent" or self.mute.is_set():
                 continue
             try:
-                conn.sendall(b"".join(encode(answer(f.action), PROFILE) for f in frames))
+                conn.sendall(answers_to(frames))
             except OSError:
                 break
+        if reads.eof:
+            with self._lock:
+                self.eofs += 1
         if self.mode != "leak":  # a leaking box never closes its side
             with contextlib.suppress(OSError):
                 conn.close()
@@ -363,21 +381,10 @@ class SingleBox:
                 return
             self.listener.close()  # nothing listens while this connection is open: connects are refused
             conn.settimeout(POLL)
-            decoder = StreamDecoder(PROFILE, TransferType.ROBOT_TO_BOX)
             with conn:
-                while not self._stop.is_set():
-                    try:
-                        data = conn.recv(4096)
-                    except TimeoutError:
-                        continue
-                    except OSError:
-                        break
-                    if not data:
-                        break
-                    decoder.receive_data(data)
-                    frames = [e for e in decoder.events() if isinstance(e, Frame)]
+                for frames in Requests(conn, self._stop):
                     with contextlib.suppress(OSError):
-                        conn.sendall(b"".join(encode(answer(f.action), PROFILE) for f in frames))
+                        conn.sendall(answers_to(frames))
             if not self._stop.wait(self.relisten_after):
                 self.listener = self._listen(self.port)
 

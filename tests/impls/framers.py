@@ -81,19 +81,14 @@ class Framer:
         raise NotImplementedError
 
 
-class ResyncFine(Framer):
-    """(b) Trust only a header that is a well-shaped request; else resume one byte on.
-
-    A header is taken when start word, version, transfer type, a known action and its
-    block shape (B5) are all right: its length is then bounded by 255 pose blocks.
-    Anything else is rejected and the scan for FE FE resumes at the header's second
-    byte, so a valid frame that begins inside a rejected header is still found.
-    """
+class Scanner(Framer):
+    """A framer that takes an acceptable header's frame whole and, on any other header,
+    drops ``skip_on_reject`` bytes and scans for the next start word."""
 
     skip_on_reject = 1
 
     def acceptable(self, h: Header) -> bool:
-        return h.is_request_start() and h.transfer == ROBOT_TO_BOX and known(h.action, self.extension) and h.shape_ok()
+        raise NotImplementedError
 
     def events(self) -> Iterator[Event]:
         while not self.closed:
@@ -112,32 +107,32 @@ class ResyncFine(Framer):
             yield frame
 
 
+class ResyncFine(Scanner):
+    """(b) Trust only a header that is a well-shaped request; else resume one byte on.
+
+    A header is taken when start word, version, transfer type, a known action and its
+    block shape (B5) are all right: its length is then bounded by 255 pose blocks.
+    Anything else is rejected and the scan for FE FE resumes at the header's second
+    byte, so a valid frame that begins inside a rejected header is still found.
+    """
+
+    def acceptable(self, h: Header) -> bool:
+        return h.is_request_start() and h.transfer == ROBOT_TO_BOX and known(h.action, self.extension) and h.shape_ok()
+
+
 class SkipHeader(ResyncFine):
     """Like :class:`ResyncFine`, but a rejected header's 12 bytes are skipped whole."""
 
     skip_on_reject = HEADER_LEN
 
 
-class TrustHeader(Framer):
+class TrustHeader(Scanner):
     """(a) Trust a header whose start word and version are right and whose announced
     length is plausible (at most 255 pose blocks); skip it as one frame. Implausible
     headers are rejected and the scan resumes one byte on."""
 
-    def events(self) -> Iterator[Event]:
-        while not self.closed:
-            yield from self._to_start()
-            if len(self.buf) < HEADER_LEN:
-                return
-            h = Header.parse(self.buf)
-            if not h.is_request_start() or h.body > MAX_BODY:
-                yield Rejected(h)
-                del self.buf[:1]
-                yield Garbage(1)
-                continue
-            frame = self._take(h)
-            if frame is None:
-                return
-            yield frame
+    def acceptable(self, h: Header) -> bool:
+        return h.is_request_start() and h.body <= MAX_BODY
 
 
 class CloseOnGarbage(Framer):
