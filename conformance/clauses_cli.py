@@ -14,6 +14,7 @@ import sys
 import textwrap
 from collections.abc import Sequence
 
+from .i18n import _
 from .protocol.clauses import REGISTRY_VERSION, Clause, all_clauses, families
 
 EXIT_OK, EXIT_USAGE = 0, 2
@@ -23,15 +24,15 @@ WIDTH = 88
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser(
         "clauses",
-        help="print the clauses of docs/PROTOCOL.md: level, title, text, flags and source",
-        description="Print clauses of the protocol statement (docs/PROTOCOL.md) from the suite's clause registry: "
+        help=_("print the clauses of docs/PROTOCOL.md: level, title, text, flags and source"),
+        description=_("Print clauses of the protocol statement (docs/PROTOCOL.md) from the suite's clause registry: "
         "each one's level (MUST broken is FAIL, SHOULD broken NON-STRICT, MAY INFORMATIONAL), title, text, the "
         "flags that change how it is read, and where the source document speaks to it. With no ID, every clause. "
-        "Exit status: 0, or 2 for an unknown ID.",
+        "Exit status: 0, or 2 for an unknown ID."),
     )
-    p.add_argument("ids", nargs="*", metavar="ID", help="clause IDs (F1 ... E5) or family letters (F, B, A, S, T, R, E)")
-    p.add_argument("--format", choices=("text", "json"), default="text", help="plain text (default) or JSON")
-    p.add_argument("--brief", action="store_true", help="text: one line per clause (ID, level, title)")
+    p.add_argument("ids", nargs="*", metavar="ID", help=_("clause IDs (F1 ... E5) or family letters (F, B, A, S, T, R, E)"))
+    p.add_argument("--format", choices=("text", "json"), default="text", help=_("plain text (default) or JSON"))
+    p.add_argument("--brief", action="store_true", help=_("text: one line per clause (ID, level, title)"))
     p.set_defaults(func=main_clauses)
 
 
