@@ -7,8 +7,11 @@ The runs are shaped like real ones (``tests/reportruns.py``); the figures for a 
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
+from conformance import i18n
 from conformance.report.html import write_html
 
 from .reportruns import chromium, conforming_run, pdf_pages, print_to_pdf, systematic_defect, without_root_causes
@@ -22,12 +25,21 @@ pytestmark = [
 CONFORMING_PAGES, BROKEN_PAGES = 15, 40
 
 
-def _pages(tmp_path, name, cases, root_causes=()) -> int:
+#: fonts with the CJK ideographs (fonts-noto-cjk on Debian, and the other common ones)
+CJK_FONT = re.compile(rb"/FontName\s*/[A-Z]{6}\+[^\s/]*(?:CJK|SourceHan|WenQuanYi|DroidSansFallback|UKai|UMing)")
+
+
+def _pages(tmp_path, name, cases, root_causes=(), lang="en") -> int:
     html = tmp_path / f"{name}.html"
-    write_html(html, sample_suite(), cases, root_causes=root_causes)
+    with i18n.language(lang):
+        write_html(html, sample_suite(), cases, root_causes=root_causes)
     pages = print_to_pdf(html, tmp_path / f"{name}.pdf")
-    print(f"\n{name}: {pages} A4 pages")
+    print(f"\n{name} ({lang}): {pages} A4 pages")
     return pages
+
+
+def _cjk_glyphs_embedded(pdf) -> bool:
+    return CJK_FONT.search(pdf.read_bytes()) is not None
 
 
 def test_a_conforming_box_prints_to_at_most_15_pages(tmp_path):
@@ -43,6 +55,22 @@ def test_a_systematic_defect_prints_to_at_most_40_pages(tmp_path):
     assert _pages(tmp_path, "systematic", cases, rcs) <= BROKEN_PAGES
     # a suite that names no root cause: the repeated findings still print once each
     assert _pages(tmp_path, "systematic-no-root-cause", without_root_causes(cases)) <= BROKEN_PAGES
+
+
+def test_the_chinese_report_prints_with_cjk_glyphs_within_the_english_budgets(tmp_path):
+    """--lang zh-CN: the same runs, in Chinese, within the same page budgets; the PDF embeds a CJK font
+    (on Debian, fonts-noto-cjk: .ci/run installs it), so the ideographs are glyphs, not empty boxes."""
+    cases = conforming_run()
+    pages = _pages(tmp_path, "conforming-zh", cases, lang="zh-CN")
+    assert 2 <= pages <= CONFORMING_PAGES
+    html = (tmp_path / "conforming-zh.html").read_text(encoding="utf-8")
+    assert '<html lang="zh-CN">' in html and "验收" in html and "签字" in html
+    if not _cjk_glyphs_embedded(tmp_path / "conforming-zh.pdf"):
+        pytest.fail("no CJK font embedded in the printed Chinese report: install fonts-noto-cjk")
+    broken, rcs = systematic_defect(cases)
+    assert _pages(tmp_path, "systematic-zh", broken, rcs, lang="zh-CN") <= BROKEN_PAGES
+    assert _cjk_glyphs_embedded(tmp_path / "systematic-zh.pdf")
+    assert _pages(tmp_path, "systematic-no-root-cause-zh", without_root_causes(broken), lang="zh-CN") <= BROKEN_PAGES
 
 
 def test_pdf_page_counter():

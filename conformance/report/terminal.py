@@ -23,7 +23,7 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
-from ..i18n import N_, _, ngettext
+from ..i18n import LEVEL_NAMES, N_, _, ngettext
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, RootCause, SuiteInfo, Verdict
 from .clausetext import clause_text, judged_texts
 from .summary import format_duration, one_line, overall_line, overall_state, rank, totals
@@ -72,13 +72,18 @@ def case_line(result: CaseResult) -> Text:
     return line
 
 
+def level_words(level: str) -> str:
+    """``MUST/SHOULD`` in the active language, short (``应/宜``): the clause line is cut to the terminal's width."""
+    return "/".join(_(LEVEL_NAMES[w]) if w in LEVEL_NAMES else w for w in level.split("/"))
+
+
 def clause_lines(result: CaseResult, width: int = 240, indent: str = "              ") -> Text:
     """The text of the clause(s) a non-PASS verdict judged, one dim line each, cut to ``width``."""
     out = Text(style="dim")
     for i, t in enumerate(judged_texts(result)):
         if i:
             out.append("\n")
-        out.append(indent + one_line(f"{t.id}{f' ({t.level})' if t.level else ''}: {t.text}",
+        out.append(indent + one_line(f"{t.id}{f' ({level_words(t.level)})' if t.level else ''}: {t.text}",
                                      max(width - len(indent), 30)))
     return out
 
