@@ -41,7 +41,7 @@ def catalogue(lang: str) -> _gettext.NullTranslations:
         if lang == DEFAULT:
             _catalogues[lang] = _gettext.NullTranslations()
         else:
-            mo = resources.files(__name__).joinpath("locale", LOCALE_DIRS[lang], "LC_MESSAGES", f"{DOMAIN}.mo")
+            mo = resources.files(__name__) / "locale" / LOCALE_DIRS[lang] / "LC_MESSAGES" / f"{DOMAIN}.mo"
             with mo.open("rb") as fh:
                 _catalogues[lang] = _gettext.GNUTranslations(fh)
     return _catalogues[lang]

@@ -154,8 +154,8 @@ def i18n_environment(env: jinja2.Environment) -> None:
     ``vname`` shows a verdict with its word beside it, ``lname`` a requirement level."""
     env.policies["ext.i18n.trimmed"] = True
     env.install_gettext_callables(i18n.gettext, i18n.ngettext, newstyle=True)  # type: ignore[attr-defined]
-    env.filters["vname"] = lambda v: i18n.beside(getattr(v, "value", v))
-    env.filters["lname"] = lambda lv: i18n.level_name(getattr(lv, "value", lv))
+    env.filters["vname"] = lambda v: i18n.beside(str(getattr(v, "value", v)))
+    env.filters["lname"] = lambda lv: i18n.level_name(str(getattr(lv, "value", lv)))
 
 
 def page_counter() -> Markup:
