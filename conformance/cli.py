@@ -25,7 +25,7 @@ from .report import diff_cli
 
 #: subcommand -> (help, the issue that delivers it)
 PLANNED: dict[str, tuple[str, str]] = {}
-#: the commands whose output people read take --lang (i18n.add_lang_option)
+#: the commands whose output people read take --lang (i18n.add_lang_option; a new command: add its name here)
 LANG_COMMANDS = ("run", "certify-robot", "analyze", "fuzz", "diff", "clauses")
 
 
@@ -88,8 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
     wireshark_cli.add_parser(sub)
     diff_cli.add_parser(sub)
     analyze_cli.add_parser(sub)
-    for name in LANG_COMMANDS:
-        i18n.add_lang_option(sub.choices[name])
+    for name in LANG_COMMANDS:  # a command that added --lang itself keeps it
+        if not any(action.dest == "lang" for action in sub.choices[name]._actions):
+            i18n.add_lang_option(sub.choices[name])
     return parser
 
 
