@@ -184,3 +184,18 @@ def test_the_fleet_page_in_chinese_keeps_the_statuses_machines_read(tmp_path: Pa
     assert '<html lang="zh-CN">' in html and "iSight 一致性测试：批量测试" in html
     assert '<span class="badge ok">符合</span>' in html and 'data-status="conforms"' in html
     assert "未运行：批量测试在该 AI Box 开始前被中止" in html
+
+
+def test_diff_in_chinese(tmp_path: Path, capsys):
+    from dataclasses import replace
+
+    from conformance.suite.verdicts import Verdict
+
+    cases = sample_cases()
+    write_summary(tmp_path / "old.json", sample_suite(), cases)
+    worse = [replace(c, verdict=Verdict.FAIL) if c.verdict is Verdict.PASS else c for c in cases]
+    write_summary(tmp_path / "new.json", sample_suite(), worse)
+    assert main(["diff", "--lang", "zh-CN", str(tmp_path / "old.json"), str(tmp_path / "new.json")]) == 1
+    out = capsys.readouterr().out
+    assert "OLD 结果：不符合：" in out and "变差 (2):" in out and "PASS → FAIL" in out
+    assert out.rstrip().splitlines()[-1].startswith("变差：2 个变差，0 个变好")

@@ -82,10 +82,10 @@ def apply_baseline(baseline: dict[str, Any] | None, report_dir: Path, cases: Seq
     try:
         new = load_summary(report_dir)
     except SummaryError as exc:
-        console.print(Text(f"No comparison with the baseline: {exc}", style="yellow"))
+        console.print(Text(_("No comparison with the baseline: {reason}").format(reason=exc), style="yellow"))
         return None
     diff = compare(baseline, new, baseline_label, os.fspath(summary_path(report_dir)))
-    console.print(Text(f"Compared with the baseline {baseline_label}:", style="bold"))
+    console.print(Text(_("Compared with the baseline {label}:").format(label=baseline_label), style="bold"))
     console.print(Text(render_text(diff)), soft_wrap=True)
     from .html import write_html
 
