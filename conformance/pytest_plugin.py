@@ -74,8 +74,10 @@ LANG_BEFORE = pytest.StashKey[str]()
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "isight_case(info): an iSight conformance case (set by @case)")
-    config.stash[LANG_BEFORE] = i18n.current()  # the reports' language for this session; restored at its end
-    i18n.activate(config.getoption("isight_lang", None))
+    lang = config.getoption("isight_lang", None)
+    if lang or wants_suite(config):  # the project's own tests keep English whatever the locale says
+        config.stash[LANG_BEFORE] = i18n.current()  # the reports' language for this session; restored at its end
+        i18n.activate(lang)
     try:
         settings = SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
     except ValueError as exc:
