@@ -15,7 +15,9 @@ missing, changing nothing.
 from __future__ import annotations
 
 import argparse
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from babel.messages.frontend import CommandLineInterface
@@ -33,9 +35,18 @@ def pybabel(*args: str) -> None:
 
 
 def extract(output: Path = POT) -> None:
-    """The template of every translatable string (stable: sorted, no line numbers)."""
-    pybabel("extract", "-F", str(ROOT / "babel.cfg"), "--no-location", "--sort-output", "--omit-header",
-            "--project", PROJECT, "-o", str(output), str(ROOT))
+    """The template of every translatable string (stable: sorted, no line numbers). An unchanged template
+    is left as it was, so that running the update twice changes no file (not even a date)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        fresh = Path(tmp) / output.name
+        pybabel("extract", "-F", str(ROOT / "babel.cfg"), "--no-location", "--sort-output", "--omit-header",
+                "--project", PROJECT, "-o", str(fresh), str(ROOT))
+        if not output.exists() or _body(fresh) != _body(output):
+            shutil.copyfile(fresh, output)
+
+
+def _body(pot: Path) -> list[str]:
+    return [line for line in pot.read_text(encoding="utf-8").splitlines() if not line.startswith('"POT-Creation-Date')]
 
 
 def update() -> None:
