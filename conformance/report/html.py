@@ -161,7 +161,8 @@ def i18n_environment(env: jinja2.Environment) -> None:
 def page_counter() -> Markup:
     """The printed page footer's CSS ``content`` value: "Page N of M" in the active language."""
     words = _("Page {page} of {pages}").replace('"', "'")
-    return Markup('"' + words.replace("{page}", '" counter(page) "').replace("{pages}", '" counter(pages) "') + '"')
+    css = '"' + words.replace("{page}", '" counter(page) "').replace("{pages}", '" counter(pages) "') + '"'
+    return Markup(css.removeprefix('"" ').removesuffix(' ""'))
 
 
 def clause_on_paper(case_ids: Sequence[str], verdict_of: dict[str, Verdict]) -> dict[str, Any]:
