@@ -10,13 +10,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import re
 import sys
 import textwrap
-import unicodedata
 from collections.abc import Sequence
 
-from .i18n import _, current
+from .i18n import _, current, wrap_cells
 from .protocol.clauses import REGISTRY_VERSION, Clause, all_clauses, families
 
 EXIT_OK, EXIT_USAGE = 0, 2
@@ -54,31 +52,6 @@ def select(ids: Sequence[str]) -> list[Clause]:
         else:
             raise KeyError(raw)
     return list(out.values())
-
-
-_TOKEN = re.compile(r"[\u2e80-\u9fff\uff00-\uffef\u3000-\u303f]|[^\s\u2e80-\u9fff\uff00-\uffef\u3000-\u303f]+|\s+")
-
-
-def _cells(text: str) -> int:
-    return sum(2 if unicodedata.east_asian_width(ch) in "WF" else 1 for ch in text)
-
-
-def wrap_cells(text: str, width: int) -> list[str]:
-    """``text`` in lines of at most ``width`` terminal columns (a Chinese character takes two), broken
-    between words or between Chinese characters, never inside a word (a word longer than a line stays whole)."""
-    lines, line, space = [], "", False
-    for token in _TOKEN.findall(" ".join(text.split())):
-        if token.isspace():
-            space = bool(line)
-            continue
-        piece = (" " if space else "") + token
-        if line and _cells(line + piece) > width:
-            lines.append(line)
-            line = token
-        else:
-            line += piece
-        space = False
-    return [*lines, line] if line else lines
 
 
 def format_text(clauses: Sequence[Clause], brief: bool = False) -> str:

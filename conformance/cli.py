@@ -88,6 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
     wireshark_cli.add_parser(sub)
     diff_cli.add_parser(sub)
     analyze_cli.add_parser(sub)
+    for command in [parser, *sub.choices.values()]:
+        command.formatter_class = i18n.HelpFormatter  # help wrapped by terminal columns (Chinese: two each)
     for name in LANG_COMMANDS:  # a command that added --lang itself keeps it
         if not any(action.dest == "lang" for action in sub.choices[name]._actions):
             i18n.add_lang_option(sub.choices[name])

@@ -75,10 +75,13 @@ def test_every_reader_facing_command_takes_lang(monkeypatch):
 
 def test_help_is_translated_and_a_bad_language_is_a_usage_error(capsys, monkeypatch):
     monkeypatch.setenv("LC_ALL", "C")
+    monkeypatch.setenv("COLUMNS", "80")
     with pytest.raises(SystemExit) as done:
         main(["run", "--lang", "zh-CN", "--help"])
     assert done.value.code == 0
-    assert "对 AI Box 运行一致性测试" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "对 AI Box 运行一致性测试" in out and "报告和终端输出的语言" in out
+    assert max(cell_len(line) for line in out.splitlines()) <= 80  # wrapped by columns, not characters
     assert i18n.current() == "en"  # main() leaves the process's language as it found it
     with pytest.raises(SystemExit) as done:
         main(["clauses", "--lang", "tlh"])

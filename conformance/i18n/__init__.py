@@ -18,9 +18,12 @@ and translated where they are shown.
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import gettext as _gettext
 import os
+import re
+import unicodedata
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from importlib import resources
 from typing import Any
@@ -162,3 +165,41 @@ def lang_in_argv(argv: Sequence[str]) -> str | None:
         if arg.startswith("--lang="):
             return arg.split("=", 1)[1]
     return None
+
+
+# -- text that fits a terminal whose Chinese characters take two columns -------------------------------
+_TOKEN = re.compile(r"[\u2e80-\u9fff\uff00-\uffef\u3000-\u303f]|[^\s\u2e80-\u9fff\uff00-\uffef\u3000-\u303f]+|\s+")
+
+
+def cells(text: str) -> int:
+    """Terminal columns of ``text``: a wide (Chinese) character takes two."""
+    return sum(2 if unicodedata.east_asian_width(ch) in "WF" else 1 for ch in text)
+
+
+def wrap_cells(text: str, width: int) -> list[str]:
+    """``text`` in lines of at most ``width`` terminal columns, broken between words or between Chinese
+    characters, never inside a word (a word longer than a line stays whole)."""
+    lines: list[str] = []
+    line, space = "", False
+    for token in _TOKEN.findall(" ".join(text.split())):
+        if token.isspace():
+            space = bool(line)
+            continue
+        piece = (" " if space else "") + token
+        if line and cells(line + piece) > width:
+            lines.append(line)
+            line = token
+        else:
+            line += piece
+        space = False
+    return [*lines, line] if line else lines
+
+
+class HelpFormatter(argparse.HelpFormatter):
+    """argparse's help, wrapped by terminal columns (argparse counts a Chinese character as one)."""
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return wrap_cells(text, width)
+
+    def _fill_text(self, text: str, width: int, indent: str) -> str:
+        return "\n".join(indent + line for line in wrap_cells(text, width - len(indent)))
