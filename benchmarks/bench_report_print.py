@@ -14,6 +14,7 @@ Steps (all on loopback; each bounded in time):
 
     python benchmarks/bench_report_print.py
     python benchmarks/bench_report_print.py --summary reports/20260509-073525
+    python benchmarks/bench_report_print.py --lang zh-CN     # the Chinese report (needs a CJK font)
 
 Prints one line per document: pages, PDF size, HTML size, seconds to print.
 """
@@ -30,6 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from conformance import i18n  # noqa: E402
 from conformance.report.html import write_html  # noqa: E402
 from conformance.report.load import cases_of, load_summary, root_causes_of, suite_of  # noqa: E402
 from conformance.suite.verdicts import CaseResult, RootCause, SuiteInfo  # noqa: E402
@@ -44,11 +46,11 @@ from tests.reportruns import (  # noqa: E402
 LIMITS = {"conforming": 15, "broken": 40}
 
 
-def real_run(workdir: Path) -> Path:
+def real_run(workdir: Path, lang: str) -> Path:
     """Reports of ``isight-conformance run`` against the bundled reference box."""
     report_dir = workdir / "reports"
     cmd = [sys.executable, "-m", "conformance", "run", "--quiet", "--report-dir", str(report_dir),
-           "--pcap-dir", str(workdir / "pcaps")]
+           "--pcap-dir", str(workdir / "pcaps"), "--lang", lang]
     start = time.monotonic()
     done = subprocess.run(cmd, cwd=workdir, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, timeout=900)
     if done.returncode not in (0, 1) or not (report_dir / "summary.json").is_file():
@@ -77,13 +79,19 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--summary", metavar="DIR", help="an earlier run's report directory (skip the run)")
     parser.add_argument("--fails", type=int, default=150, help="FAIL cases of the systematic defect (default 150)")
+    parser.add_argument("--lang", choices=i18n.LANGS, default="en", help="the report's language (default en)")
     args = parser.parse_args()
+    with i18n.language(args.lang):
+        return measure_all(args)
+
+
+def measure_all(args: argparse.Namespace) -> int:
     if chromium() is None:
         print("no chromium binary: nothing to measure", file=sys.stderr)
         return 2
     with tempfile.TemporaryDirectory(prefix="bench-report-print-") as tmp:
         work = Path(tmp)
-        report_dir = Path(args.summary) if args.summary else real_run(work)
+        report_dir = Path(args.summary) if args.summary else real_run(work, args.lang)
         doc = load_summary(report_dir)
         suite, cases = suite_of(doc), cases_of(doc)
         over = 0

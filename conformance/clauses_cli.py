@@ -14,6 +14,7 @@ import sys
 import textwrap
 from collections.abc import Sequence
 
+from .i18n import _, current, wrap_cells
 from .protocol.clauses import REGISTRY_VERSION, Clause, all_clauses, families
 
 EXIT_OK, EXIT_USAGE = 0, 2
@@ -23,15 +24,15 @@ WIDTH = 88
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser(
         "clauses",
-        help="print the clauses of docs/PROTOCOL.md: level, title, text, flags and source",
-        description="Print clauses of the protocol statement (docs/PROTOCOL.md) from the suite's clause registry: "
+        help=_("print the clauses of docs/PROTOCOL.md: level, title, text, flags and source"),
+        description=_("Print clauses of the protocol statement (docs/PROTOCOL.md) from the suite's clause registry: "
         "each one's level (MUST broken is FAIL, SHOULD broken NON-STRICT, MAY INFORMATIONAL), title, text, the "
         "flags that change how it is read, and where the source document speaks to it. With no ID, every clause. "
-        "Exit status: 0, or 2 for an unknown ID.",
+        "Exit status: 0, or 2 for an unknown ID."),
     )
-    p.add_argument("ids", nargs="*", metavar="ID", help="clause IDs (F1 ... E5) or family letters (F, B, A, S, T, R, E)")
-    p.add_argument("--format", choices=("text", "json"), default="text", help="plain text (default) or JSON")
-    p.add_argument("--brief", action="store_true", help="text: one line per clause (ID, level, title)")
+    p.add_argument("ids", nargs="*", metavar="ID", help=_("clause IDs (F1 ... E5) or family letters (F, B, A, S, T, R, E)"))
+    p.add_argument("--format", choices=("text", "json"), default="text", help=_("plain text (default) or JSON"))
+    p.add_argument("--brief", action="store_true", help=_("text: one line per clause (ID, level, title)"))
     p.set_defaults(func=main_clauses)
 
 
@@ -54,13 +55,16 @@ def select(ids: Sequence[str]) -> list[Clause]:
 
 
 def format_text(clauses: Sequence[Clause], brief: bool = False) -> str:
+    """The clauses as text, titles and texts in the active language (``--lang``)."""
+    lang = current()
     if brief:
-        return "\n".join(f"{c.id:<3} {'/'.join(c.levels):<11} {c.title}" for c in clauses)
+        return "\n".join(f"{c.id:<3} {'/'.join(c.levels):<11} {c.words(lang)[0]}" for c in clauses)
     blocks = []
     for c in clauses:
-        lines = [f"{c.id}  {', '.join(c.levels)}  {c.title}"]
-        lines += textwrap.wrap(c.text, WIDTH, initial_indent="    ", subsequent_indent="    ", break_on_hyphens=False)
-        lines.append(f"    flags: {' '.join(c.flags) if c.flags else '(none)'}")
+        title, text = c.words(lang)
+        lines = [f"{c.id}  {', '.join(c.levels)}  {title}"]
+        lines += ["    " + line for line in wrap_cells(text, WIDTH - 4)]
+        lines.append("    " + _("flags: {flags}").format(flags=" ".join(c.flags) if c.flags else _("(none)")))
         if c.source:
             lines += textwrap.wrap(c.source, WIDTH, initial_indent="    source: ", subsequent_indent="      ",
                                    break_on_hyphens=False)

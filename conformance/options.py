@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from .i18n import N_, gettext
 from .protocol import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc16_names
 
 
@@ -35,7 +36,8 @@ class Option:
         out: dict[str, Any] = {
             "dest": self.dest,
             "default": None,
-            "help": f"{self.help} (default: {self.shown_default or default})",
+            "help": gettext("{help} (default: {default})").format(help=gettext(self.help),
+                                                                  default=self.shown_default or default),
         }
         if self.type is not str:
             out["type"] = self.type
@@ -56,24 +58,24 @@ def _bool(text: str) -> bool:
 
 
 PROFILE_OPTIONS: tuple[Option, ...] = (
-    Option("--crc", "crc", "[F7] CRC-16 algorithm for UDP (any crcmod predefined 16-bit name)",
+    Option("--crc", "crc", N_("[F7] CRC-16 algorithm for UDP (any crcmod predefined 16-bit name)"),
            choices=crc16_names(), metavar="NAME"),
-    Option("--crc-byte-order", "crc_byte_order", "[F7] byte order of the UDP CRC", choices=("big", "little")),
-    Option("--first-index", "first_index", "[B3] index of the first data block", type=int, choices=(0, 1)),
-    Option("--tcp-check", "tcp_check", "[F6] what a TCP receiver accepts in the check field",
+    Option("--crc-byte-order", "crc_byte_order", N_("[F7] byte order of the UDP CRC"), choices=("big", "little")),
+    Option("--first-index", "first_index", N_("[B3] index of the first data block"), type=int, choices=(0, 1)),
+    Option("--tcp-check", "tcp_check", N_("[F6] what a TCP receiver accepts in the check field"),
            choices=tuple(p.value for p in TcpCheckPolicy)),
-    Option("--byte-order", "byte_order", "[F4] byte order of multi-byte header fields", choices=("big", "little")),
-    Option("--float-byte-order", "float_byte_order", "[B4/E1] byte order of float32/int32 block values",
+    Option("--byte-order", "byte_order", N_("[F4] byte order of multi-byte header fields"), choices=("big", "little")),
+    Option("--float-byte-order", "float_byte_order", N_("[B4/E1] byte order of float32/int32 block values"),
            choices=("big", "little")),
-    Option("--time-out", "time_out_ms", "[T1] time_out in ms: bound on connect and every answer", type=int,
+    Option("--time-out", "time_out_ms", N_("[T1] time_out in ms: bound on connect and every answer"), type=int,
            metavar="MS"),
-    Option("--vision-time-out", "vision_time_out_ms", "[E3] vision_time_out in ms for the result request",
+    Option("--vision-time-out", "vision_time_out_ms", N_("[E3] vision_time_out in ms for the result request"),
            type=int, metavar="MS"),
-    Option("--pose-rate", "pose_rate_hz", "[T2] pose stream rate in Hz", type=float, metavar="HZ"),
-    Option("--progidx-conflict", "progidx_conflict", "[E2] where a ProgIdx 409 travels",
+    Option("--pose-rate", "pose_rate_hz", N_("[T2] pose stream rate in Hz"), type=float, metavar="HZ"),
+    Option("--progidx-conflict", "progidx_conflict", N_("[E2] where a ProgIdx 409 travels"),
            choices=("block", "error-code")),
-    Option("--checking", "strict", "strict also enforces SHOULD rules (B4: no NaN or infinity); lenient accepts them, and "
-           "a first block index of 0 or 1 (B3)",
+    Option("--checking", "strict", N_("strict also enforces SHOULD rules (B4: no NaN or infinity); lenient accepts them, and "
+           "a first block index of 0 or 1 (B3)"),
            type=_bool, metavar="strict|lenient", shown_default="strict"),
 )
 

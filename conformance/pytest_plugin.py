@@ -33,7 +33,7 @@ from pathlib import Path
 
 import pytest
 
-from . import __version__
+from . import __version__, i18n
 from .harness.transcript import Transcript
 from .suite import signals
 from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
@@ -66,10 +66,18 @@ CASE_START = pytest.StashKey[float]()
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("isight", "iSight conformance suite")
     add_suite_options(group.addoption, pytest=True)
+    i18n.add_lang_option(group.addoption, "--isight-lang", dest="isight_lang")
+
+
+LANG_BEFORE = pytest.StashKey[str]()
 
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "isight_case(info): an iSight conformance case (set by @case)")
+    lang = config.getoption("isight_lang", None)
+    if lang or wants_suite(config):  # the project's own tests keep English whatever the locale says
+        config.stash[LANG_BEFORE] = i18n.current()  # the reports' language for this session; restored at its end
+        i18n.activate(lang)
     try:
         settings = SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
     except ValueError as exc:
@@ -94,6 +102,8 @@ def pytest_configure(config: pytest.Config) -> None:
 
 def pytest_unconfigure(config: pytest.Config) -> None:
     signals.restore()
+    if LANG_BEFORE in config.stash:
+        i18n.activate(config.stash[LANG_BEFORE])
     for state in config.stash.get(SESSIONS, {}).values():
         state.stop()
 

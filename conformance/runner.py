@@ -23,7 +23,9 @@ from typing import Any
 
 import pytest
 
+from . import i18n
 from .harness.target import check_reachable
+from .i18n import _
 from .protocol.clauses import all_clauses, clause_ids
 from .protocol.clauses import families as registry_families
 from .report.diff_cli import apply_baseline, load_baseline
@@ -39,21 +41,21 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INCOMPLETE = 0, 1, 2, 3
 def add_run_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("suite")
     add_suite_options(group.add_argument)
-    group.add_argument("--list", action="store_true", help="list the cases (ID, clauses, level, title) and exit")
+    group.add_argument("--list", action="store_true", help=_("list the cases (ID, clauses, level, title) and exit"))
     group.add_argument("--list-format", choices=["text", "markdown", "json"], default="text",
-                       help="with --list: plain text, the Markdown catalogue (docs/CATALOGUE.md), or JSON")
+                       help=_("with --list: plain text, the Markdown catalogue (docs/CATALOGUE.md), or JSON"))
     group.add_argument("--expected-failures", metavar="FILE", default=None,
-                       help="case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
-                            "only when the failing set equals the list")
-    group.add_argument("--quiet", action="store_true", help="no live progress line (for CI logs)")
+                       help=_("case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
+                            "only when the failing set equals the list"))
+    group.add_argument("--quiet", action="store_true", help=_("no live progress line (for CI logs)"))
     group.add_argument("--baseline", metavar="OLD", default=None,
-                       help="an earlier run (summary.json or its report directory): print what changed since it "
-                            "at the end and add the comparison to report.html (see 'diff')")
+                       help=_("an earlier run (summary.json or its report directory): print what changed since it "
+                            "at the end and add the comparison to report.html (see 'diff')"))
     fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
     fleet.add_argument("--targets", metavar="FILE", default=None,
-                       help="test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
-                            "into --report-dir (default reports/fleet-<timestamp>), each box's reports in DIR/<name>/")
-    fleet.add_argument("--jobs", type=int, metavar="N", default=None, help="with --targets: boxes tested at once (default 1)")
+                       help=_("test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
+                            "into --report-dir (default reports/fleet-<timestamp>), each box's reports in DIR/<name>/"))
+    fleet.add_argument("--jobs", type=int, metavar="N", default=None, help=_("with --targets: boxes tested at once (default 1)"))
 
 
 def read_expected_failures(path: Path) -> set[str]:
@@ -103,7 +105,7 @@ def _pytest_args(settings: SuiteSettings, collect_only: bool = False) -> list[st
     # --assert=plain: verdicts carry their own evidence, pytest need not rewrite the cases' asserts
     args = ["-c", os.devnull, "--rootdir", os.getcwd(), "--pyargs", "conformance.cases",
             "-p", "no:cacheprovider", "-p", "no:terminal", "-p", "no:warnings", "--assert=plain",
-            *settings.to_args()]
+            *settings.to_args(), "--isight-lang", i18n.current()]
     if collect_only:
         args.append("--collect-only")
     return args

@@ -19,6 +19,8 @@ from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
 
+from .i18n import _
+
 EXIT_OK, EXIT_USAGE = 0, 2
 PLUGIN_NAME = "isight.lua"
 FOLDER_KEY = "Personal Lua Plugins"
@@ -28,16 +30,16 @@ TSHARK_TIMEOUT_S = 30.0
 def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser(
         "wireshark",
-        help="print, or install into, Wireshark's personal Lua plugins folder the iSight dissector",
-        description="The Wireshark dissector for iSight (isight.lua, see conformance/wireshark/README.md). "
+        help=_("print, or install into, Wireshark's personal Lua plugins folder the iSight dissector"),
+        description=_("The Wireshark dissector for iSight (isight.lua, see conformance/wireshark/README.md). "
         "--path prints the personal Lua plugins folder (asked of tshark when it is on PATH, else Wireshark's "
         "documented default for this OS), --install copies isight.lua there, --print writes it to stdout. "
-        "Exit status: 0, or 2 when the folder cannot be written.",
+        "Exit status: 0, or 2 when the folder cannot be written."),
     )
     what = p.add_mutually_exclusive_group(required=True)
-    what.add_argument("--path", action="store_true", help="print the personal Lua plugins folder")
-    what.add_argument("--install", action="store_true", help="copy isight.lua into that folder (created if needed)")
-    what.add_argument("--print", action="store_true", help="write isight.lua to stdout")
+    what.add_argument("--path", action="store_true", help=_("print the personal Lua plugins folder"))
+    what.add_argument("--install", action="store_true", help=_("copy isight.lua into that folder (created if needed)"))
+    what.add_argument("--print", action="store_true", help=_("write isight.lua to stdout"))
     p.set_defaults(func=main_wireshark)
 
 

@@ -30,3 +30,13 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         return -float(mark.kwargs.get("seconds", 1)) if mark else 0.0
 
     items.sort(key=weight)
+
+
+@pytest.fixture(autouse=True)
+def _english_unless_a_test_chooses(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The commands take their language from the locale (--lang's default); the tests assert English
+    output, so a Chinese locale on the test machine is overridden (tests/test_i18n.py sets its own)."""
+    from conformance.i18n import default_lang
+
+    if default_lang() != "en":
+        monkeypatch.setenv("LC_ALL", "C.UTF-8")

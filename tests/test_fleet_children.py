@@ -115,7 +115,7 @@ def test_the_real_child_command_names_the_box_directories() -> None:
     cmd = run.child_command()
     assert cmd[:4] == [sys.executable, "-m", "conformance", "run"]
     assert cmd[4:] == ["--target=10.0.0.5:9004", "--cases=A*", "--cases=F*", "--report-dir", "out/cell-1",
-                       "--pcap-dir", "out/cell-1/pcaps", "--expected-failures", "out/cell-1/expected_failures.txt",
+                       "--pcap-dir", "out/cell-1/pcaps", "--lang", "en", "--expected-failures", "out/cell-1/expected_failures.txt",
                        "--quiet"]
 
 

@@ -13,6 +13,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from ..i18n import _
 from ..options import add_profile_options, profile_from_options
 from .context import AnalyzeConfig
 from .engine import CaptureError, analyze
@@ -28,36 +29,36 @@ PROGRESS_FROM = 4 << 20
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
     p = sub.add_parser(
         "analyze",
-        help="judge a capture (pcap/pcapng) of real robot <-> box traffic against PROTOCOL.md, both roles",
-        description="Judge a capture of real robot <-> AI Box traffic (tcpdump on a mirror port, Wireshark on the box) "
+        help=_("judge a capture (pcap/pcapng) of real robot <-> box traffic against PROTOCOL.md, both roles"),
+        description=_("Judge a capture of real robot <-> AI Box traffic (tcpdump on a mirror port, Wireshark on the box) "
         "against PROTOCOL.md's clauses, both roles, and write summary.json (suite.role = observed), junit.xml and "
         "report.html. Every finding names the capture's frame numbers. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, "
-        "2 usage error, a file that is not a whole capture, or no iSight traffic in it. See docs/ANALYZE.md.",
+        "2 usage error, a file that is not a whole capture, or no iSight traffic in it. See docs/ANALYZE.md."),
     )
-    p.add_argument("capture", type=Path, metavar="CAPTURE", help="the capture file (pcap or pcapng, may be .gz)")
+    p.add_argument("capture", type=Path, metavar="CAPTURE", help=_("the capture file (pcap or pcapng, may be .gz)"))
     found = p.add_argument_group("finding the iSight traffic")
     found.add_argument("--port", type=int, action="append", default=None, metavar="N",
-                       help="iSight's TCP/UDP port (repeatable; default: 9004): the side on it is the box")
+                       help=_("iSight's TCP/UDP port (repeatable; default: 9004): the side on it is the box"))
     found.add_argument("--no-heuristic", action="store_true",
-                       help="only conversations on --port; by default conversations on other ports that carry "
-                            "iSight frames are found by their content, as the Wireshark dissector does")
+                       help=_("only conversations on --port; by default conversations on other ports that carry "
+                            "iSight frames are found by their content, as the Wireshark dissector does"))
     judge = p.add_argument_group("judgement")
     judge.add_argument("--extension", action=argparse.BooleanOptionalAction, default=None,
-                       help="[E4] judge every session as the revision's (--extension) or as S1 (--no-extension); "
-                            "default: a session with ProgIdx or a result request is E4")
+                       help=_("[E4] judge every session as the revision's (--extension) or as S1 (--no-extension); "
+                            "default: a session with ProgIdx or a result request is E4"))
     judge.add_argument("--rate-tolerance", type=float, default=10.0, metavar="PCT",
-                       help="[T2] robot: mean and per-second stream rate within PCT %% of --pose-rate (default: 10)")
+                       help=_("[T2] robot: mean and per-second stream rate within PCT %% of --pose-rate (default: 10)"))
     judge.add_argument("--jitter-tolerance", type=float, default=50.0, metavar="PCT",
-                       help="[T2] robot: p99 |interval - 1/rate| within PCT %% of the period (default: 50)")
+                       help=_("[T2] robot: p99 |interval - 1/rate| within PCT %% of the period (default: 50)"))
     judge.add_argument("--linger", type=float, default=5.0, metavar="S",
-                       help="[S5] robot: seconds a connection may stay open after the command connection closed "
-                            "(default: 5)")
+                       help=_("[S5] robot: seconds a connection may stay open after the command connection closed "
+                            "(default: 5)"))
     judge.add_argument("--accept-truncated", action="store_true",
-                       help="judge a capture file that is cut short (up to the cut) instead of refusing it")
+                       help=_("judge a capture file that is cut short (up to the cut) instead of refusing it"))
     out = p.add_argument_group("reports")
     out.add_argument("--report-dir", type=Path, default=None, metavar="DIR",
-                     help="summary.json, junit.xml, report.html (default: reports/analyze-<timestamp>)")
-    out.add_argument("--quiet", action="store_true", help="no progress bar")
+                     help=_("summary.json, junit.xml, report.html (default: reports/analyze-<timestamp>)"))
+    out.add_argument("--quiet", action="store_true", help=_("no progress bar"))
     group = p.add_argument_group("profile (--pose-rate is the rate the robot declares; --crc is the UDP CRC)")
     add_profile_options(group.add_argument)
     p.set_defaults(func=main_analyze)

@@ -18,6 +18,7 @@ import signal
 import sys
 from pathlib import Path
 
+from ..i18n import _
 from ..options import add_profile_options, profile_from_options
 from ..rundirs import default_run_dirs, drop_if_empty
 from .records import INJECTIONS, CertifyConfig
@@ -52,32 +53,32 @@ def parse_listen(text: str) -> tuple[str, int]:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     net = p.add_argument_group("listening")
     net.add_argument("--listen", default=DEFAULT_LISTEN, metavar="HOST:PORT",
-                     help="address to listen on, TCP and UDP (default: 127.0.0.1:9004; a real controller needs "
-                          "0.0.0.0:9004; port 0 picks a free one)")
-    net.add_argument("--no-udp", action="store_true", help="listen on TCP only")
+                     help=_("address to listen on, TCP and UDP (default: 127.0.0.1:9004; a real controller needs "
+                          "0.0.0.0:9004; port 0 picks a free one)"))
+    net.add_argument("--no-udp", action="store_true", help=_("listen on TCP only"))
     run = p.add_argument_group("the robot's sessions")
-    run.add_argument("--sessions", type=int, default=1, metavar="N", help="sessions to judge before ending (default: 1)")
+    run.add_argument("--sessions", type=int, default=1, metavar="N", help=_("sessions to judge before ending (default: 1)"))
     run.add_argument("--wait", type=float, default=120.0, metavar="S",
-                     help="seconds to wait for the robot to connect, and the longest silence of a session (default: 120)")
+                     help=_("seconds to wait for the robot to connect, and the longest silence of a session (default: 120)"))
     run.add_argument("--linger", type=float, default=5.0, metavar="S",
-                     help="[S5] seconds a connection may stay open after the command connection closed (default: 5)")
+                     help=_("[S5] seconds a connection may stay open after the command connection closed (default: 5)"))
     run.add_argument("--max-session", type=float, default=600.0, metavar="S",
-                     help="a session is cut off after S seconds (default: 600)")
+                     help=_("a session is cut off after S seconds (default: 600)"))
     run.add_argument("--extension", action="store_true",
-                     help="[E4] expect the revision's session (ProgIdx first, result request after Send_Pos_Off)")
+                     help=_("[E4] expect the revision's session (ProgIdx first, result request after Send_Pos_Off)"))
     run.add_argument("--inject", action="append", default=[], choices=list(INJECTIONS), metavar="WHAT",
                      help="box behaviour to see how the robot copes (INFORMATIONAL; repeatable): "
                           + "; ".join(f"{k}: {v}" for k, v in INJECTIONS.items()).replace("%", "%%"))
     run.add_argument("--rate-tolerance", type=float, default=10.0, metavar="PCT",
-                     help="[T2] mean and per-second stream rate within PCT %% of --pose-rate (default: 10)")
+                     help=_("[T2] mean and per-second stream rate within PCT %% of --pose-rate (default: 10)"))
     run.add_argument("--jitter-tolerance", type=float, default=50.0, metavar="PCT",
-                     help="[T2] p99 |interval - 1/rate| within PCT %% of the period (default: 50)")
+                     help=_("[T2] p99 |interval - 1/rate| within PCT %% of the period (default: 50)"))
     out = p.add_argument_group("reports")
     out.add_argument("--report-dir", type=Path, default=None, metavar="DIR",
-                     help="summary.json, junit.xml, report.html (default: reports/<timestamp>)")
+                     help=_("summary.json, junit.xml, report.html (default: reports/<timestamp>)"))
     out.add_argument("--pcap-dir", type=Path, default=None, metavar="DIR",
-                     help="one pcapng per connection and per session (default: pcaps/<timestamp>)")
-    out.add_argument("--quiet", action="store_true", help="no line per connection event (for CI logs)")
+                     help=_("one pcapng per connection and per session (default: pcaps/<timestamp>)"))
+    out.add_argument("--quiet", action="store_true", help=_("no line per connection event (for CI logs)"))
     group = p.add_argument_group("profile (--pose-rate is the rate the robot declares)")
     add_profile_options(group.add_argument)
 

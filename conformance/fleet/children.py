@@ -20,6 +20,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..i18n import current
 from ..report.summary import atomic_write_bytes
 from .spec import BoxSpec
 
@@ -56,7 +57,7 @@ class BoxRun:
 
     def child_command(self, quiet: bool = True) -> list[str]:
         cmd = [sys.executable, "-m", "conformance", "run", *self.spec.flags(),
-               "--report-dir", str(self.report_dir), "--pcap-dir", str(self.pcap_dir)]
+               "--report-dir", str(self.report_dir), "--pcap-dir", str(self.pcap_dir), "--lang", current()]
         if self.spec.expected_failures is not None:
             cmd += ["--expected-failures", str(self.expected_file)]
         if quiet:

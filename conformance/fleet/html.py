@@ -16,13 +16,20 @@ from urllib.parse import quote
 import jinja2
 from markupsafe import Markup
 
-from ..report.html import display_time
+from .. import i18n
+from ..report.html import display_time, i18n_environment
 from ..report.summary import atomic_write_bytes, clean_text, format_duration, one_line
 from ..suite.verdicts import VERDICT_ORDER
 
 #: the CSS class of each box status (the colours of report.html's overall line)
 STATUS_CLASS = {"conforms": "ok", "expected failures": "ok", "fails": "bad", "error": "bad", "interrupted": "warn",
                 "not run": "muted", "incomplete": "warn", "unjudged": "warn"}
+
+
+#: each box status in words (the status itself stays English in fleet.json)
+STATUS_NAMES = {"conforms": i18n.N_("conforms"), "expected failures": i18n.N_("expected failures"),
+                "fails": i18n.N_("fails"), "error": i18n.N_("error"), "interrupted": i18n.N_("interrupted"),
+                "not run": i18n.N_("not run"), "incomplete": i18n.N_("incomplete"), "unjudged": i18n.N_("unjudged")}
 
 
 def _finalize(value: Any) -> Any:
@@ -42,8 +49,9 @@ def environment() -> jinja2.Environment:
     env = jinja2.Environment(
         loader=jinja2.PackageLoader("conformance.fleet", "templates"),
         autoescape=True, finalize=_finalize, trim_blocks=True, lstrip_blocks=True,
-        undefined=jinja2.StrictUndefined,
+        undefined=jinja2.StrictUndefined, extensions=["jinja2.ext.i18n"],
     )
+    i18n_environment(env)
     env.filters["href"] = _href
     env.filters["one_line"] = one_line
     return env
@@ -59,7 +67,8 @@ def render_fleet_html(doc: dict[str, Any]) -> str:
     state = "ok" if doc["passed"] else ("warn" if not doc["complete"] else "bad")
     return environment().get_template("fleet.html.j2").render(
         doc=doc, boxes=boxes, state=state, duration=format_duration(doc["duration_s"]), started=display_time(doc["started"]),
-        generated=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"),
+        generated=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"), lang=i18n.current(),
+        status_names={k: i18n.gettext(v) for k, v in STATUS_NAMES.items()},
     )
 
 

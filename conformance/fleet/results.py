@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from .. import __version__
+from ..i18n import _, current
 from ..report.summary import atomic_write_bytes, one_line, overall_line, overall_state
 from ..suite.verdicts import CaseResult, Level, SuiteInfo, Verdict
 from .children import BoxRun
@@ -90,7 +91,7 @@ def box_entry(run: BoxRun, fleet_dir: Path) -> dict[str, Any]:
         "message": "", "command": shlex.join(run.command) if run.command else "",
     }
     if run.status == "not run":
-        entry["overall"] = "NOT RUN: the fleet run was stopped before this box started"
+        entry["overall"] = _("NOT RUN: the fleet run was stopped before this box started")
         return entry
     entry["log"] = _rel(run.log, fleet_dir) if run.log.is_file() else None
     doc = read_summary(run.report_dir / "summary.json")
@@ -114,8 +115,9 @@ def box_entry(run: BoxRun, fleet_dir: Path) -> dict[str, Any]:
         if run.pcap_dir.is_dir():
             entry["pcaps"] = _rel(run.pcap_dir, fleet_dir)
     if run.status == "interrupted":  # whatever its summary says, this box's run was cut short
-        entry["overall"] = "INTERRUPTED: the fleet run was stopped " + (
-            f"after {len(doc['cases'])} cases of this box" if doc is not None else "before this box wrote a report")
+        entry["overall"] = (_("INTERRUPTED: the fleet run was stopped after {n} cases of this box").format(
+            n=len(doc["cases"])) if doc is not None else
+            _("INTERRUPTED: the fleet run was stopped before this box wrote a report"))
         entry["overall_state"] = "incomplete"
         return entry
     if doc is not None and run.exit_code == 3:  # the box's run was cut short on its own (a signal to it)
@@ -123,8 +125,10 @@ def box_entry(run: BoxRun, fleet_dir: Path) -> dict[str, Any]:
         return entry
     if doc is None or run.exit_code not in (0, 1):
         entry["status"] = "error"
-        entry["message"] = last_error(run.log) or f"run exited with status {run.exit_code} and wrote no summary"
-        entry["overall"] = entry["overall"] or f"NOT JUDGED: the box's run ended with exit status {run.exit_code}"
+        entry["message"] = last_error(run.log) or _("run exited with status {code} and wrote no summary").format(
+            code=run.exit_code)
+        entry["overall"] = entry["overall"] or _("NOT JUDGED: the box's run ended with exit status {code}").format(
+            code=run.exit_code)
         return entry
     entry["passed"] = run.exit_code == 0
     if run.exit_code == 1:
@@ -147,6 +151,7 @@ def fleet_document(runs: Sequence[BoxRun], fleet_dir: Path, *, fleet_file: Path,
         "format": FORMAT, "version": __version__, "started": started, "duration_s": round(duration_s, 3),
         "fleet_file": str(fleet_file), "report_dir": str(fleet_dir), "jobs": jobs, "command": command,
         "complete": complete, "stopped": stopped, "passed": passed, "exit_code": 0 if passed else 1,
+        "lang": current(),  # the language of the "overall" lines; every other value is machine-read English
         "overall": overall_fleet_line(boxes, complete), "counts": {s: n for s, n in counts.items() if n},
         "boxes": boxes,
     }
@@ -157,10 +162,11 @@ def overall_fleet_line(boxes: Sequence[dict[str, Any]], complete: bool) -> str:
     ok = sum(1 for b in boxes if b["passed"])
     if not complete:
         done = sum(1 for b in boxes if b["status"] not in ("not run", "interrupted"))
-        return f"INCOMPLETE: the run was stopped; {done} of {n} boxes finished, {ok} of them passed"
+        return _("INCOMPLETE: the run was stopped; {done} of {n} boxes finished, {ok} of them passed").format(
+            done=done, n=n, ok=ok)
     if ok == n:
-        return f"FLEET PASSES: all {n} boxes conform (or fail exactly their expected failures)"
-    return f"FLEET FAILS: {n - ok} of {n} boxes do not pass"
+        return _("FLEET PASSES: all {n} boxes conform (or fail exactly their expected failures)").format(n=n)
+    return _("FLEET FAILS: {bad} of {n} boxes do not pass").format(bad=n - ok, n=n)
 
 
 def write_fleet_json(path: Path, doc: dict[str, Any]) -> Path:

@@ -17,6 +17,7 @@ from ..endpoints.bundled import Bundled, start_bundled
 from ..harness.client import TcpConnection
 from ..harness.target import Target, Unreachable, check_reachable
 from ..harness.transcript import Transcript
+from ..i18n import _
 from ..options import add_profile_options, profile_from_options
 from ..protocol import DEFAULT_PORT, Profile
 from ..rundirs import default_run_dirs
@@ -31,55 +32,55 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 
 def _targets(p: argparse.ArgumentParser | Any) -> None:
-    p.add_argument("--target", metavar="HOST:PORT", help="the AI Box over TCP (default: start the bundled reference box)")
-    p.add_argument("--udp-target", metavar="HOST:PORT", help="the box's UDP endpoint (UDP cases only with it; "
-                   "the bundled box's UDP port when no --target is given)")
+    p.add_argument("--target", metavar="HOST:PORT", help=_("the AI Box over TCP (default: start the bundled reference box)"))
+    p.add_argument("--udp-target", metavar="HOST:PORT", help=_("the box's UDP endpoint (UDP cases only with it; "
+                   "the bundled box's UDP port when no --target is given)"))
     p.add_argument("--extension", choices=("auto", "on", "off"), default="auto",
-                   help="extension E (actions 26/27): detect (auto, default), or force on/off")
+                   help=_("extension E (actions 26/27): detect (auto, default), or force on/off"))
 
 
 def add_fuzz_arguments(p: argparse.ArgumentParser) -> None:
     _targets(p)
-    p.add_argument("--stream-target", metavar="HOST:PORT", help="where the session machine's stream connection "
-                   "goes (default: --target)")
+    p.add_argument("--stream-target", metavar="HOST:PORT", help=_("where the session machine's stream connection "
+                   "goes (default: --target)"))
     budget = p.add_mutually_exclusive_group()
-    budget.add_argument("--max-examples", type=int, metavar="N", help="fuzz cases to send (default: 5000)")
-    budget.add_argument("--duration", type=float, metavar="S", help="seconds to fuzz for")
-    p.add_argument("--seed", type=int, metavar="N", help="the campaign's seed (printed at the start; default: random)")
-    p.add_argument("--report-dir", metavar="DIR", help="fuzz-summary.json and one vector file per failure "
-                   "(default: reports/fuzz-<timestamp>)")
-    p.add_argument("--pcap-dir", metavar="DIR", help="one pcapng per failure (default: pcaps/fuzz-<timestamp>)")
+    budget.add_argument("--max-examples", type=int, metavar="N", help=_("fuzz cases to send (default: 5000)"))
+    budget.add_argument("--duration", type=float, metavar="S", help=_("seconds to fuzz for"))
+    p.add_argument("--seed", type=int, metavar="N", help=_("the campaign's seed (printed at the start; default: random)"))
+    p.add_argument("--report-dir", metavar="DIR", help=_("fuzz-summary.json and one vector file per failure "
+                   "(default: reports/fuzz-<timestamp>)"))
+    p.add_argument("--pcap-dir", metavar="DIR", help=_("one pcapng per failure (default: pcaps/fuzz-<timestamp>)"))
     p.add_argument("--capture", choices=("failures", "all", "off"), default="failures",
-                   help="pcaps of the failing examples (default), also every case of the campaign (all: "
-                        "campaign-NNN.pcapng, about 0.8 KB per case), or none")
+                   help=_("pcaps of the failing examples (default), also every case of the campaign (all: "
+                        "campaign-NNN.pcapng, about 0.8 KB per case), or none"))
     p.add_argument("--database", metavar="DIR|none|redis://HOST:PORT/DB",
                    help="hypothesis example database: failures found before are replayed first; a directory, none, "
                    f"or a redis URL shared by several machines (default: {DEFAULT_DATABASE}, or none when the active "
                    "hypothesis profile, e.g. its built-in 'ci' profile, switches the database off)")
     p.add_argument("--database-shared", metavar="URL|DIR",
-                   help="also replay the failures saved in this store (a redis URL or a directory), read-only: "
-                   "nothing is ever written to it (e.g. CI's corpus on a developer's machine)")
+                   help=_("also replay the failures saved in this store (a redis URL or a directory), read-only: "
+                   "nothing is ever written to it (e.g. CI's corpus on a developer's machine)"))
     p.add_argument("--stateful-share", type=float, default=0.2, metavar="F",
-                   help="share of the budget for the session state machine (default: 0.2; 0: frames only)")
-    p.add_argument("--categories", metavar="LIST", help="only these case categories, comma-separated "
-                   "(e.g. B3-index,B4-floats; see docs/FUZZING.md)")
-    p.add_argument("--batch", type=int, default=32, metavar="N", help="most cases per hypothesis example (default: 32)")
+                   help=_("share of the budget for the session state machine (default: 0.2; 0: frames only)"))
+    p.add_argument("--categories", metavar="LIST", help=_("only these case categories, comma-separated "
+                   "(e.g. B3-index,B4-floats; see docs/FUZZING.md)"))
+    p.add_argument("--batch", type=int, default=32, metavar="N", help=_("most cases per hypothesis example (default: 32)"))
     p.add_argument("--liveness-every", type=int, default=64, metavar="K",
-                   help="[R2] liveness check on a fresh connection every K cases, and after every anomaly (default: 64)")
-    p.add_argument("--max-failures", type=int, default=5, metavar="N", help="stop after N distinct failures (default: 5)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+                   help=_("[R2] liveness check on a fresh connection every K cases, and after every anomaly (default: 64)"))
+    p.add_argument("--max-failures", type=int, default=5, metavar="N", help=_("stop after N distinct failures (default: 5)"))
+    p.add_argument("--quiet", action="store_true", help=_("no progress lines"))
     group = p.add_argument_group("profile")
     add_profile_options(group.add_argument)
 
 
 def add_replay_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("files", nargs="+", metavar="FILE", help="isight-vectors-1 files (golden vectors or fuzz failures)")
+    p.add_argument("files", nargs="+", metavar="FILE", help=_("isight-vectors-1 files (golden vectors or fuzz failures)"))
     _targets(p)
-    p.add_argument("--tc", type=int, action="append", metavar="ID", help="only this tcId (repeatable)")
+    p.add_argument("--tc", type=int, action="append", metavar="ID", help=_("only this tcId (repeatable)"))
     p.add_argument("--one-connection", action="store_true",
-                   help="send every vector on one connection, in file order (a fuzz 'context' failure)")
+                   help=_("send every vector on one connection, in file order (a fuzz 'context' failure)"))
     p.add_argument("--settle-ms", type=int, default=0, metavar="MS",
-                   help="after each probe's answer, watch this long for late extra answers (default: 0)")
+                   help=_("after each probe's answer, watch this long for late extra answers (default: 0)"))
     group = p.add_argument_group("profile")
     add_profile_options(group.add_argument)
 

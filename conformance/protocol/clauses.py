@@ -17,6 +17,7 @@ from typing import Any
 
 LEVELS = ("MUST", "SHOULD", "MAY")  # strongest first
 _FIELDS = ("id", "level", "levels", "title", "text", "flags", "source")
+ZH = "zh-CN"  # the optional key of a clause's Chinese title and text: {"title": ..., "text": ...}
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,14 @@ class Clause:
     text: str  # the requirement in full sentences
     flags: tuple[str, ...]  # the profile (and suite) flags that touch it
     source: str  # where the source document speaks to it ("" or a note for a [decision])
+    title_zh: str = ""  # the title in Chinese (the source document's words where it speaks)
+    text_zh: str = ""  # the text in Chinese; where the source document speaks, quoted as written
+
+    def words(self, lang: str = "en") -> tuple[str, str]:
+        """(title, text) in ``lang`` ("en" or "zh-CN"); English where no translation exists."""
+        if lang == ZH and self.title_zh and self.text_zh:
+            return self.title_zh, self.text_zh
+        return self.title, self.text
 
 
 class RegistryError(ValueError):
@@ -35,8 +44,13 @@ class RegistryError(ValueError):
 
 
 def _clause(entry: Any, index: int) -> Clause:
-    if not isinstance(entry, dict) or set(entry) != set(_FIELDS):
-        raise RegistryError(f"clauses.json entry {index}: expected exactly the keys {', '.join(_FIELDS)}")
+    if not isinstance(entry, dict) or set(entry) - {ZH} != set(_FIELDS):
+        raise RegistryError(f"clauses.json entry {index}: expected exactly the keys {', '.join(_FIELDS)} "
+                            f"(and optionally {ZH})")
+    zh = entry.get(ZH, {"title": "", "text": ""})
+    if not isinstance(zh, dict) or set(zh) != {"title", "text"} or \
+            not all(isinstance(v, str) for v in zh.values()):
+        raise RegistryError(f"clauses.json entry {index}: {ZH} must be an object with a string title and text")
     for key in ("id", "level", "title", "text", "source"):
         if not isinstance(entry[key], str):
             raise RegistryError(f"clauses.json entry {index}: {key} must be a string")
@@ -44,7 +58,7 @@ def _clause(entry: Any, index: int) -> Clause:
         if not isinstance(entry[key], list) or not all(isinstance(v, str) for v in entry[key]):
             raise RegistryError(f"clauses.json entry {index}: {key} must be a list of strings")
     clause = Clause(entry["id"], entry["level"], tuple(entry["levels"]), entry["title"], entry["text"],
-                    tuple(entry["flags"]), entry["source"])
+                    tuple(entry["flags"]), entry["source"], zh["title"], zh["text"])
     if not clause.levels or any(lv not in LEVELS for lv in clause.levels):
         raise RegistryError(f"clause {clause.id}: levels must be some of {', '.join(LEVELS)}")
     if list(clause.levels) != sorted(set(clause.levels), key=LEVELS.index):
@@ -62,6 +76,7 @@ def _clause(entry: Any, index: int) -> Clause:
 class Registry:
     version: str
     families: dict[str, str]  # family letter -> heading, in document order
+    families_zh: dict[str, str]  # family letter -> heading in Chinese (may be empty)
     clauses: dict[str, Clause]  # by id, in document order
 
 
@@ -92,7 +107,11 @@ def parse_registry(text: str) -> Registry:
         raise RegistryError(f"clauses.json: clauses must be in document order (families {''.join(order)}, by number)")
     if {c[0] for c in ids} != set(order):
         raise RegistryError("clauses.json: every family has clauses, and every clause a family")
-    return Registry(data["version"], families, out)
+    families_zh = data.get("families_zh", {})
+    if not isinstance(families_zh, dict) or not set(families_zh) <= set(families) or \
+            not all(isinstance(v, str) and v for v in families_zh.values()):
+        raise RegistryError("clauses.json: families_zh maps family letters to headings")
+    return Registry(data["version"], families, families_zh, out)
 
 
 @functools.lru_cache(maxsize=1)
@@ -104,9 +123,13 @@ def _load() -> Registry:
 REGISTRY_VERSION: str = _load().version
 
 
-def families() -> dict[str, str]:
-    """Clause family letter -> heading ("F" -> "Frame"), in document order."""
-    return dict(_load().families)
+def families(lang: str = "en") -> dict[str, str]:
+    """Clause family letter -> heading ("F" -> "Frame"), in document order; in Chinese with ``lang="zh-CN"``
+    (English for a family without a Chinese heading)."""
+    reg = _load()
+    if lang == ZH:
+        return {k: reg.families_zh.get(k, v) for k, v in reg.families.items()}
+    return dict(reg.families)
 
 
 def all_clauses() -> dict[str, Clause]:

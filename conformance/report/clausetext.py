@@ -16,6 +16,7 @@ import functools
 import re
 from dataclasses import dataclass
 
+from ..i18n import _, current
 from ..protocol.clauses import all_clauses
 from ..suite.verdicts import CaseResult
 
@@ -32,13 +33,18 @@ class ClauseText:
     text: str
 
 
-@functools.cache
 def clause_text(clause_id: str) -> ClauseText:
-    """The registry's level, title and text of a clause."""
+    """The registry's level, title and text of a clause, in the active language."""
+    return _clause_text(clause_id, current())
+
+
+@functools.cache
+def _clause_text(clause_id: str, lang: str) -> ClauseText:
     found = all_clauses().get(clause_id)
     if found is None:
-        return ClauseText(clause_id, "", clause_id, f"{clause_id} is not a clause of docs/PROTOCOL.md")
-    return ClauseText(found.id, "/".join(found.levels), found.title, " ".join(found.text.split()))
+        return ClauseText(clause_id, "", clause_id, _("{id} is not a clause of docs/PROTOCOL.md").format(id=clause_id))
+    title, text = found.words(lang)
+    return ClauseText(found.id, "/".join(found.levels), title, " ".join(text.split()))
 
 
 def judged_clauses(case: CaseResult) -> tuple[str, ...]:

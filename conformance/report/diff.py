@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ..i18n import N_, _
 from ..suite.verdicts import Verdict
 from .load import cases_of, suite_of
 from .summary import one_line, overall_line, rank
@@ -137,33 +138,34 @@ def compare(old: dict[str, Any], new: dict[str, Any], old_path: str = "OLD", new
 
 # -- rendering ---------------------------------------------------------------------------------
 SECTIONS = (
-    ("worse", "Got worse"),
-    ("better", "Got better"),
-    ("changed", "Other verdict changes"),
-    ("added", "Cases added"),
-    ("removed", "Cases removed"),
-    ("not_run", "Not run in NEW (it was cut short)"),
+    ("worse", N_("Got worse")),
+    ("better", N_("Got better")),
+    ("changed", N_("Other verdict changes")),
+    ("added", N_("Cases added")),
+    ("removed", N_("Cases removed")),
+    ("not_run", N_("Not run in NEW (it was cut short)")),
 )
 
 
 def _arrow(c: Change) -> str:
-    return f"{c.old or '(new case)'} → {c.new or '(gone)'}"
+    return f"{c.old or _('(new case)')} → {c.new or _('(gone)')}"
 
 
 def summary_line(diff: RunDiff) -> str:
     """``3 worse, 1 better, 2 other changes, 0 added, 0 removed, 270 unchanged``."""
     n = diff.counts()
-    line = (f"{n['worse']} worse, {n['better']} better, {n['changed']} other changes, "
-            f"{n['added']} added, {n['removed']} removed, {n['unchanged']} unchanged")
-    return line + (f", {n['not_run']} not run" if n["not_run"] else "")
+    line = _("{worse} worse, {better} better, {changed} other changes, {added} added, {removed} removed, "
+             "{unchanged} unchanged").format(**n)
+    return line + (_(", {not_run} not run").format(**n) if n["not_run"] else "")
 
 
 def render_text(diff: RunDiff) -> str:
     lines = [f"OLD: {diff.old_label}", f"NEW: {diff.new_label}",
-             f"OLD result: {diff.old_overall}", f"NEW result: {diff.new_overall}"]
+             _("OLD result: {overall}").format(overall=diff.old_overall),
+             _("NEW result: {overall}").format(overall=diff.new_overall)]
     if diff.context:
-        lines.append("Runs differ in: " + "; ".join(diff.context))
-    for causes, title in ((diff.new_root_causes, "New root causes"), (diff.gone_root_causes, "Root causes gone")):
+        lines.append(_("Runs differ in: ") + "; ".join(diff.context))
+    for causes, title in ((diff.new_root_causes, _("New root causes")), (diff.gone_root_causes, _("Root causes gone"))):
         if causes:
             lines.append(f"{title} ({len(causes)}):")
             lines += [f"  {line}" for line in causes]
@@ -171,12 +173,12 @@ def render_text(diff: RunDiff) -> str:
         changes: list[Change] = getattr(diff, name)
         if not changes:
             continue
-        lines.append(f"{title} ({len(changes)}):")
+        lines.append(f"{_(title)} ({len(changes)}):")
         width = max(len(_arrow(c)) for c in changes)
         for c in changes:
             rc = f" ({c.root_cause})" if c.root_cause else ""
             lines.append(f"  {_arrow(c):<{width}}  {c.id}  [{', '.join(c.clauses)}]{rc}  {one_line(c.message, 160)}")
-    lines.append(("WORSE: " if diff.got_worse else "not worse: ") + summary_line(diff))
+    lines.append((_("WORSE: ") if diff.got_worse else _("not worse: ")) + summary_line(diff))
     return "\n".join(lines)
 
 

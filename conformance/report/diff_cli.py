@@ -20,6 +20,7 @@ from typing import Any
 from rich.console import Console
 from rich.text import Text
 
+from ..i18n import _
 from ..suite.verdicts import CaseResult
 from .diff import RunDiff, compare, render, render_text
 from .load import SummaryError, load_summary, root_causes_of, suite_of, summary_path
@@ -30,17 +31,17 @@ EXIT_SAME, EXIT_WORSE, EXIT_USAGE = 0, 1, 2
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
     p = sub.add_parser(
         "diff",
-        help="compare two runs (summary.json files or report directories): what got worse, what got better",
-        description="Compare two runs of the suite, e.g. before and after a firmware upgrade. OLD and NEW are "
+        help=_("compare two runs (summary.json files or report directories): what got worse, what got better"),
+        description=_("Compare two runs of the suite, e.g. before and after a firmware upgrade. OLD and NEW are "
         "summary.json files or the report directories holding them. Lists what got worse (a new FAIL, ERROR or "
         "NON-STRICT), what got better, other verdict changes, cases added or removed, with each case's clauses. "
-        "Exit status: 0 nothing got worse, 1 something did, 2 a path that is missing or not a summary.json.",
+        "Exit status: 0 nothing got worse, 1 something did, 2 a path that is missing or not a summary.json."),
     )
-    p.add_argument("old", metavar="OLD", help="the earlier run: summary.json or its report directory")
-    p.add_argument("new", metavar="NEW", help="the later run: summary.json or its report directory")
+    p.add_argument("old", metavar="OLD", help=_("the earlier run: summary.json or its report directory"))
+    p.add_argument("new", metavar="NEW", help=_("the later run: summary.json or its report directory"))
     p.add_argument("--format", choices=("text", "json", "markdown"), default="text",
-                   help="text (default), json, or markdown (for a CI comment)")
-    p.add_argument("-o", "--output", metavar="FILE", help="write the comparison to FILE as well as to stdout")
+                   help=_("text (default), json, or markdown (for a CI comment)"))
+    p.add_argument("-o", "--output", metavar="FILE", help=_("write the comparison to FILE as well as to stdout"))
     p.set_defaults(func=main_diff)
     return p
 
@@ -81,10 +82,10 @@ def apply_baseline(baseline: dict[str, Any] | None, report_dir: Path, cases: Seq
     try:
         new = load_summary(report_dir)
     except SummaryError as exc:
-        console.print(Text(f"No comparison with the baseline: {exc}", style="yellow"))
+        console.print(Text(_("No comparison with the baseline: {reason}").format(reason=exc), style="yellow"))
         return None
     diff = compare(baseline, new, baseline_label, os.fspath(summary_path(report_dir)))
-    console.print(Text(f"Compared with the baseline {baseline_label}:", style="bold"))
+    console.print(Text(_("Compared with the baseline {label}:").format(label=baseline_label), style="bold"))
     console.print(Text(render_text(diff)), soft_wrap=True)
     from .html import write_html
 

@@ -17,6 +17,7 @@ stays one click away.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 import re
@@ -28,8 +29,12 @@ from typing import Any
 import jinja2
 from markupsafe import Markup
 
+from .. import i18n
+from ..i18n import N_, _
 from ..options import PROFILE_OPTIONS
 from ..protocol import DEFAULT_PROFILE
+from ..protocol.clauses import all_clauses
+from ..protocol.clauses import families as registry_families
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
 from .clausetext import clause_text
 from .diff import SECTIONS, RunDiff, summary_line
@@ -65,22 +70,22 @@ CHIPS_PRINTED = 12  # case chips per clause on paper (those that did not pass)
 
 #: What each verdict means, for the reader who signs.
 VERDICT_MEANING: dict[Verdict, str] = {
-    Verdict.FAIL: "a MUST requirement is broken: the box does not conform",
-    Verdict.ERROR: "the suite itself failed; the case says nothing about the box: rerun it",
-    Verdict.NON_STRICT: "a SHOULD requirement is broken: allowed, but worth raising with the vendor",
-    Verdict.INCONCLUSIVE: "could not be judged (box not ready, unreachable): neither pass nor fail",
-    Verdict.INFORMATIONAL: "behaviour recorded where PROTOCOL.md allows a choice (MAY): never failing",
-    Verdict.SKIP: "not applicable to this run (no UDP target, extension not implemented, deselected)",
-    Verdict.PASS: "the requirement is met",
+    Verdict.FAIL: N_("a MUST requirement is broken: the box does not conform"),
+    Verdict.ERROR: N_("the suite itself failed; the case says nothing about the box: rerun it"),
+    Verdict.NON_STRICT: N_("a SHOULD requirement is broken: allowed, but worth raising with the vendor"),
+    Verdict.INCONCLUSIVE: N_("could not be judged (box not ready, unreachable): neither pass nor fail"),
+    Verdict.INFORMATIONAL: N_("behaviour recorded where PROTOCOL.md allows a choice (MAY): never failing"),
+    Verdict.SKIP: N_("not applicable to this run (no UDP target, extension not implemented, deselected)"),
+    Verdict.PASS: N_("the requirement is met"),
 }
 
 EXTENSION_MEANING = {
-    "detected": "implemented (detected): E cases run",
-    "not implemented": "not implemented (detected): E cases SKIP",
-    "forced on": "forced on by the command line: E cases run",
-    "on": "forced on by the command line: E cases run",
-    "off": "switched off by the command line: E cases SKIP",
-    "auto": "auto-detection requested",
+    "detected": N_("implemented (detected): E cases run"),
+    "not implemented": N_("not implemented (detected): E cases SKIP"),
+    "forced on": N_("forced on by the command line: E cases run"),
+    "on": N_("forced on by the command line: E cases run"),
+    "off": N_("switched off by the command line: E cases SKIP"),
+    "auto": N_("auto-detection requested"),
 }
 
 
@@ -114,10 +119,10 @@ def profile_rows(profile: dict[str, Any]) -> list[dict[str, Any]]:
         rows.append({
             "name": name,
             "flag": opt.flag if opt else "",
-            "help": re.sub(r"^\[[^]]*\]\s*", "", opt.help) if opt else "",
+            "help": re.sub(r"^\[[^]]*\]\s*", "", _(opt.help)) if opt else "",
             "clause": (re.match(r"^\[([^]]*)\]", opt.help) or [None, ""])[1] if opt else "",
             "value": shown(name, value),
-            "default": shown(name, defaults[name]) if known else "(not a PROTOCOL.md setting)",
+            "default": shown(name, defaults[name]) if known else _("(not a PROTOCOL.md setting)"),
             "changed": not known or getattr(value, "value", value) != defaults[name],
         })
     return rows
@@ -137,10 +142,27 @@ def environment() -> jinja2.Environment:
     env = jinja2.Environment(
         loader=jinja2.PackageLoader("conformance.report", "templates"),
         autoescape=True, finalize=_finalize, trim_blocks=True, lstrip_blocks=True,
-        undefined=jinja2.StrictUndefined,
+        undefined=jinja2.StrictUndefined, extensions=["jinja2.ext.i18n"],
     )
+    i18n_environment(env)
     env.filters["vclass"] = css_class
     return env
+
+
+def i18n_environment(env: jinja2.Environment) -> None:
+    """Templates translate through the active language (``{% trans %}``, ``_()``; babel.cfg extracts them):
+    ``vname`` shows a verdict with its word beside it, ``lname`` a requirement level."""
+    env.policies["ext.i18n.trimmed"] = True
+    env.install_gettext_callables(i18n.gettext, i18n.ngettext, newstyle=True)  # type: ignore[attr-defined]
+    env.filters["vname"] = lambda v: i18n.beside(str(getattr(v, "value", v)))
+    env.filters["lname"] = lambda lv: i18n.level_name(str(getattr(lv, "value", lv)))
+
+
+def page_counter() -> Markup:
+    """The printed page footer's CSS ``content`` value: "Page N of M" in the active language."""
+    words = _("Page {page} of {pages}").replace('"', "'")
+    css = '"' + words.replace("{page}", '" counter(page) "').replace("{pages}", '" counter(pages) "') + '"'
+    return Markup(css.removeprefix('"" ').removesuffix(' ""'))
 
 
 def clause_on_paper(case_ids: Sequence[str], verdict_of: dict[str, Verdict]) -> dict[str, Any]:
@@ -151,8 +173,9 @@ def clause_on_paper(case_ids: Sequence[str], verdict_of: dict[str, Verdict]) -> 
     words = ", ".join(f"{n} {v}" for v, n in counts.items() if n)
     more = len(bad) - CHIPS_PRINTED
     return {"chips": set(bad[:CHIPS_PRINTED]),
-            "note": f"{len(case_ids)} case{'s' if len(case_ids) != 1 else ''}: {words}"
-                    + (f" ({more} more not passing are not named here)" if more > 0 else "")}
+            "note": i18n.ngettext("{n} case: {words}", "{n} cases: {words}", len(case_ids)).format(
+                n=len(case_ids), words=words)
+                    + (_(" ({more} more not passing are not named here)").format(more=more) if more > 0 else "")}
 
 
 def root_cause_views(root_causes: Sequence[RootCause], cases: Sequence[CaseResult],
@@ -211,12 +234,14 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
         link.setdefault(v["id"], (v["anchor"], v["cls"]))
     clause_results = by_clause(cases)
     families = []
-    for letter, name in FAMILIES.items():
-        rows = [r for c, r in clause_results.items() if c[:1] == letter]
+    lang, registry = i18n.current(), all_clauses()
+    for letter, name in registry_families(lang).items():
+        rows = [dataclasses.replace(r, title=registry[r.clause].words(lang)[0]) if r.clause in registry else r
+                for c, r in clause_results.items() if c[:1] == letter]
         families.append({"letter": letter, "name": name, "rows": rows})
     extra = [r for c, r in clause_results.items() if c[:1] not in FAMILIES]
     if extra:
-        families.append({"letter": "?", "name": "Other clause IDs named by cases", "rows": extra})
+        families.append({"letter": "?", "name": _("Other clause IDs named by cases"), "rows": extra})
     verdict_of = {c.id: c.verdict for c in cases}
     clause_print = {clause: clause_on_paper(row.cases, verdict_of) for clause, row in clause_results.items()}
     t = totals(cases)
@@ -225,11 +250,12 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
     profile = profile_rows(dict(suite.profile))
     return environment().get_template("report.html.j2").render(
         suite=suite, started=display_time(suite.started), duration=format_duration(suite.duration_s),
-        extension=EXTENSION_MEANING.get(suite.extension, suite.extension),
+        extension=_(EXTENSION_MEANING[suite.extension]) if suite.extension in EXTENSION_MEANING else suite.extension,
+        lang=i18n.current(), page_counter=page_counter(),
         profile=profile, changed=[r for r in profile if r["changed"]],
         overall=overall_line(cases, suite), overall_state=overall_state(cases, suite),
         totals=t, total=len(cases), order=[v.value for v in VERDICT_ORDER],
-        meaning={v.value: m for v, m in VERDICT_MEANING.items()},
+        meaning={v.value: _(m) for v, m in VERDICT_MEANING.items()},
         families=families, untested=untested, unjudged=unjudged, n_clauses=len(CLAUSES), link=link, clause_print=clause_print,
         levels=list(Level), cases=views, wire_head=WIRE_HEAD, wire_tail=WIRE_TAIL,
         wire_print=(WIRE_PRINT_HEAD, WIRE_PRINT_TAIL), n_cards=len(cards),

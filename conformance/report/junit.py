@@ -35,6 +35,8 @@ from collections.abc import Sequence
 from datetime import datetime, timezone
 from typing import Any
 
+from .. import i18n
+from ..i18n import N_, _
 from ..suite.verdicts import CaseResult, RootCause, SuiteInfo, Verdict
 from .clausetext import judged_texts
 from .summary import (
@@ -55,9 +57,9 @@ LIST_LIMIT = 50  # case ids listed in one suite property
 
 #: the first word of a testcase's system-out, and why a passing case carries it
 OUT_NOTE: dict[Verdict, str] = {
-    Verdict.NON_STRICT: "a SHOULD is broken; the case passes in CI",
-    Verdict.INFORMATIONAL: "recorded behaviour (MAY); never failing",
-    Verdict.INCONCLUSIVE: "could not be judged; reported as skipped",
+    Verdict.NON_STRICT: N_("a SHOULD is broken; the case passes in CI"),
+    Verdict.INFORMATIONAL: N_("recorded behaviour (MAY); never failing"),
+    Verdict.INCONCLUSIVE: N_("could not be judged; reported as skipped"),
 }
 
 
@@ -84,13 +86,15 @@ def case_meta(case: CaseResult, root_causes: dict[str, RootCause] | None = None)
     the text of the judged ones), root cause, pcap."""
     head = f"{case.verdict.value}: {one_line(case.message)}" if case.message else case.verdict.value
     if case.verdict in OUT_NOTE:
-        head += f"  ({OUT_NOTE[case.verdict]})"
+        head += f"  ({_(OUT_NOTE[case.verdict])})"
     lines = [head, f"verdict: {case.verdict.value}  level: {case.level.value}  clauses: {', '.join(case.clauses)}"]
     if case.verdict is not Verdict.PASS:
-        lines += [f"clause {t.id}{f' ({t.level})' if t.level else ''}: {t.text}" for t in judged_texts(case) if t.text]
+        lines += [_("clause {id}").format(id=t.id) + f"{f' ({t.level})' if t.level else ''}: {t.text}"
+                  for t in judged_texts(case) if t.text]
     if case.root_cause:
         rc = (root_causes or {}).get(case.root_cause)
-        lines.append(f"root cause: {case.root_cause}" + (f" [{', '.join(rc.clauses)}] {one_line(rc.title)}" if rc else ""))
+        lines.append(_("root cause: {id}").format(id=case.root_cause)
+                     + (f" [{', '.join(rc.clauses)}] {one_line(rc.title)}" if rc else ""))
     if case.pcap:
         lines.append(f"pcap: {case.pcap}")
     return lines
@@ -99,17 +103,18 @@ def case_meta(case: CaseResult, root_causes: dict[str, RootCause] | None = None)
 def case_body(case: CaseResult, root_causes: dict[str, RootCause] | None = None) -> str:
     """The evidence of one case as plain text (failure/error body, system-out)."""
     lines = case_meta(case, root_causes)
-    for label, value in (("requirement", case.requirement), ("expected", case.expected), ("observed", case.observed)):
+    for label, value in ((_("requirement"), case.requirement), (_("expected"), case.expected),
+                         (_("observed"), case.observed)):
         if value:
             lines.append(f"{label}: {value}")
-    for label, value in (("sent", case.sent_hex), ("received", case.received_hex)):
+    for label, value in ((_("sent (hex):"), case.sent_hex), (_("received (hex):"), case.received_hex)):
         if value:
-            lines.append(f"{label} (hex):")
+            lines.append(label)
             lines.extend("  " + row for row in group_hex(value, limit=HEX_LIMIT).splitlines())
     for key, value in sorted(case.details.items(), key=lambda kv: str(kv[0])):
         text = str(value)
         if len(text) > DETAIL_LIMIT:
-            text = text[:DETAIL_LIMIT] + f"… ({len(text)} characters)"
+            text = text[:DETAIL_LIMIT] + _("… ({n} characters)").format(n=len(text))
         lines.append(f"{key}: {text}")
     return "\n".join(lines)
 
@@ -127,13 +132,14 @@ def suite_text(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence[
     """The suite's system-out: overall line, root causes, NON-STRICT cases, cases not run."""
     lines = [overall_line(cases, suite)]
     for rc in root_causes:
-        lines.append(f"root cause {rc.id} [{', '.join(rc.clauses)}] {one_line(rc.title)} ({len(rc.cases)} cases)")
+        lines.append(_("root cause {id} [{clauses}] {title} ({n} cases)").format(
+            id=rc.id, clauses=", ".join(rc.clauses), title=one_line(rc.title), n=len(rc.cases)))
     nonstrict = [c for c in cases if c.verdict is Verdict.NON_STRICT]
     if nonstrict:
-        lines.append(f"{len(nonstrict)} NON-STRICT (a SHOULD is broken; these cases pass in CI):")
+        lines.append(_("{n} NON-STRICT (a SHOULD is broken; these cases pass in CI):").format(n=len(nonstrict)))
         lines += [f"  NON-STRICT {c.id} [{', '.join(c.clauses)}] {one_line(c.message, 200)}" for c in nonstrict]
     if not suite.complete:
-        lines.append(f"not run ({len(suite.not_run)}): {_id_list(suite.not_run)}")
+        lines.append(_("not run ({n}): {ids}").format(n=len(suite.not_run), ids=_id_list(suite.not_run)))
     return "\n".join(lines)
 
 
@@ -152,13 +158,16 @@ def build_junit(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence
               timestamp=junit_timestamp(suite.started))
 
     info = suite_dict(suite)
+    with i18n.language("en"):  # a machine-read property: the same words in every language
+        overall_english = overall_line(cases, suite)
     props = _sub(ts, "properties")
     suite_props: list[tuple[str, Any]] = [
         ("version", suite.version), ("registry_version", info["registry_version"] or "none"),
         ("started", suite.started), ("target", suite.target),
         ("udp_target", suite.udp_target or "none"), ("extension", suite.extension),
         ("expected_failures", suite.expected_failures or "none"), ("command", suite.command),
-        ("complete", str(suite.complete).lower()), ("overall", overall_line(cases, suite)),
+        ("complete", str(suite.complete).lower()), ("lang", i18n.current()),
+        ("overall", overall_english),
     ]
     if not suite.complete:
         suite_props += [("cases_total", max(suite.cases_total, len(cases))), ("not_run", _id_list(suite.not_run))]
@@ -184,7 +193,8 @@ def build_junit(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence
         elif v is Verdict.SKIP:
             _sub(tc, "skipped", message=message)
         elif v is Verdict.INCONCLUSIVE:
-            _sub(tc, "skipped", message=one_line(f"INCONCLUSIVE (could not be judged): {case.message}"))
+            _sub(tc, "skipped", message=one_line(_("INCONCLUSIVE (could not be judged): {message}").format(
+                message=case.message)))
         # the evidence is in the failure/error body; system-out says what the case is about
         _sub(tc, "system-out", "\n".join(case_meta(case, by_id)) if v.failing else body)
     _sub(ts, "system-out", suite_text(suite, cases, root_causes))

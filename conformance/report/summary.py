@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..i18n import _, current
 from ..protocol.clauses import REGISTRY_VERSION, all_clauses, families
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
 
@@ -128,26 +129,29 @@ def overall_line(cases: Iterable[CaseResult], suite: SuiteInfo | None = None) ->
     A run in which no case reached a judgement (nothing ran, or everything was
     SKIP/INCONCLUSIVE) says NOT JUDGED rather than CONFORMS. A run cut short
     (``suite.complete`` is False) says ``INCOMPLETE (k of n cases run)``, never CONFORMS.
+    In the active language (:mod:`conformance.i18n`); the verdict names stay as they are.
     """
     cases = list(cases)
     t = totals(cases)
+    n = {"fail": t["FAIL"], "error": t["ERROR"], "nonstrict": t["NON-STRICT"], "skip": t["SKIP"],
+         "inconclusive": t["INCONCLUSIVE"]}
     if suite is not None and not suite.complete:
-        n = max(suite.cases_total, len(cases))
-        line = f"INCOMPLETE ({len(cases)} of {n} cases run)"
+        line = _("INCOMPLETE ({run} of {total} cases run)").format(run=len(cases),
+                                                                   total=max(suite.cases_total, len(cases)))
         if t["FAIL"] or t["ERROR"]:
-            line += f": DOES NOT CONFORM so far: {t['FAIL']} FAIL, {t['ERROR']} ERROR"
-        return line + f"; {t['NON-STRICT']} NON-STRICT"
+            line += _(": DOES NOT CONFORM so far: {fail} FAIL, {error} ERROR").format(**n)
+        return line + _("; {nonstrict} NON-STRICT").format(**n)
     if t["FAIL"] or t["ERROR"]:
-        line = f"DOES NOT CONFORM: {t['FAIL']} FAIL, {t['ERROR']} ERROR"
+        line = _("DOES NOT CONFORM: {fail} FAIL, {error} ERROR").format(**n)
     elif not _judged(t):
         not_judged = t["SKIP"] + t["INCONCLUSIVE"]
-        return (f"NOT JUDGED: no case reached a verdict ({t['SKIP']} SKIP, {t['INCONCLUSIVE']} INCONCLUSIVE)"
-                if not_judged else "NOT JUDGED: no case ran")
+        return (_("NOT JUDGED: no case reached a verdict ({skip} SKIP, {inconclusive} INCONCLUSIVE)").format(**n)
+                if not_judged else _("NOT JUDGED: no case ran"))
     else:
-        line = "CONFORMS (no FAIL/ERROR)"
-    line += f"; {t['NON-STRICT']} NON-STRICT"
+        line = _("CONFORMS (no FAIL/ERROR)")
+    line += _("; {nonstrict} NON-STRICT").format(**n)
     if t["INCONCLUSIVE"]:
-        line += f"; {t['INCONCLUSIVE']} INCONCLUSIVE (not judged)"
+        line += _("; {inconclusive} INCONCLUSIVE (not judged)").format(**n)
     return line
 
 
@@ -252,10 +256,12 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
 
 def suite_dict(suite: SuiteInfo) -> dict[str, Any]:
     """SuiteInfo as summary.json's "suite" object (its fields, in their order), with the
-    clause registry's version filled in when the run did not set it."""
+    clause registry's version filled in when the run did not set it, and ``lang``: the language the
+    reports were written in (keys and machine values stay English)."""
     out = dataclasses.asdict(suite)
     if not out.get("registry_version"):
         out["registry_version"] = registry_version()
+    out["lang"] = current()
     return out
 
 

@@ -23,6 +23,7 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
+from ..i18n import LEVEL_NAMES, N_, _, ngettext
 from ..suite.verdicts import VERDICT_ORDER, CaseResult, RootCause, SuiteInfo, Verdict
 from .clausetext import clause_text, judged_texts
 from .summary import format_duration, one_line, overall_line, overall_state, rank, totals
@@ -41,6 +42,8 @@ STYLES: dict[Verdict, str] = {
     Verdict.FAIL: "bold red",
     Verdict.ERROR: "bold magenta",
 }
+#: the labels of the reports a run lists at its end (translated where shown)
+REPORT_LABELS = (N_("HTML report"), N_("JSON summary"), N_("JUnit"), N_("pcaps"))
 OVERALL_STYLES = {"conforms": "bold green", "fails": "bold red", "unjudged": "bold yellow", "incomplete": "bold yellow"}
 
 
@@ -69,13 +72,18 @@ def case_line(result: CaseResult) -> Text:
     return line
 
 
+def level_words(level: str) -> str:
+    """``MUST/SHOULD`` in the active language, short (``应/宜``): the clause line is cut to the terminal's width."""
+    return "/".join(_(LEVEL_NAMES[w]) if w in LEVEL_NAMES else w for w in level.split("/"))
+
+
 def clause_lines(result: CaseResult, width: int = 240, indent: str = "              ") -> Text:
     """The text of the clause(s) a non-PASS verdict judged, one dim line each, cut to ``width``."""
     out = Text(style="dim")
     for i, t in enumerate(judged_texts(result)):
         if i:
             out.append("\n")
-        out.append(indent + one_line(f"{t.id}{f' ({t.level})' if t.level else ''}: {t.text}",
+        out.append(indent + one_line(f"{t.id}{f' ({level_words(t.level)})' if t.level else ''}: {t.text}",
                                      max(width - len(indent), 30)))
     return out
 
@@ -166,10 +174,10 @@ def _case_table(rows: Sequence[CaseResult], title: str | None = None) -> Table:
     """One line per case at any width: id, clauses and message cut with an ellipsis."""
     table = Table(title=title, title_justify="left", title_style="bold", box=None, padding=(0, 1),
                   show_header=True, header_style="bold", expand=True)
-    table.add_column("Verdict", no_wrap=True, width=12)
-    table.add_column("Case", no_wrap=True, overflow="ellipsis", max_width=24)
-    table.add_column("Clauses", no_wrap=True, overflow="ellipsis", max_width=11)
-    table.add_column("Message", no_wrap=True, overflow="ellipsis", ratio=1, min_width=28)
+    table.add_column(_("Verdict"), no_wrap=True, width=12)
+    table.add_column(_("Case"), no_wrap=True, overflow="ellipsis", max_width=24)
+    table.add_column(_("Clauses"), no_wrap=True, overflow="ellipsis", max_width=11)
+    table.add_column(_("Message"), no_wrap=True, overflow="ellipsis", ratio=1, min_width=28)
     for c in rows:
         # Text, never str: rich would read "[...]" in a box's message as markup
         table.add_row(Text(c.verdict.value, style=STYLES[c.verdict]), Text(one_line(c.id, 120)),
@@ -179,14 +187,14 @@ def _case_table(rows: Sequence[CaseResult], title: str | None = None) -> Table:
 
 def _root_cause_lines(root_causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> list[Text]:
     present = {c.id for c in cases}
-    lines = [Text(f"Root causes ({len(root_causes)}), in the order to fix them:", style="bold")]
+    lines = [Text(_("Root causes ({n}), in the order to fix them:").format(n=len(root_causes)), style="bold")]
     for rc in root_causes:
         line = Text("  ")
         line.append(rc.id, style="bold red" if rc.level.value == "MUST" else "bold yellow")
         line.append(f" [{', '.join(rc.clauses)}] ", style="dim")
         line.append(one_line(rc.title, 200))
         n = sum(1 for cid in rc.cases if cid in present) or len(rc.cases)
-        line.append(f" ({n} case{'s' if n != 1 else ''})", style="dim")
+        line.append(" " + ngettext("({n} case)", "({n} cases)", n).format(n=n), style="dim")
         line.no_wrap, line.overflow = True, "ellipsis"
         lines.append(line)
         for cid in rc.clauses[:2]:
@@ -211,28 +219,33 @@ def print_final_table(suite: SuiteInfo, cases: list[CaseResult], console: Consol
     if root_causes:
         parts += _root_cause_lines(root_causes, cases)
     if listed:
-        counted = " and ".join(f"{t[v.value]} {v.value}" for v in (Verdict.INFORMATIONAL, Verdict.SKIP) if t[v.value])
-        parts.append(packed([f"{len(listed)} of {len(cases)} cases FAIL, ERROR, NON-STRICT or INCONCLUSIVE"
-                             + (";" if counted else ""), *([f"{counted} counted, not listed"] if counted else [])],
+        counted = _(" and ").join(f"{t[v.value]} {v.value}" for v in (Verdict.INFORMATIONAL, Verdict.SKIP) if t[v.value])
+        parts.append(packed([_("{listed} of {n} cases FAIL, ERROR, NON-STRICT or INCONCLUSIVE").format(
+                                 listed=len(listed), n=len(cases)) + (";" if counted else ""),
+                             *([_("{counted} counted, not listed").format(counted=counted)] if counted else [])],
                             console.width, "bold"))
         for rc in root_causes:
             rows = [c for c in listed if c.root_cause == rc.id]
             if rows:
                 parts.append(_case_table(rows[:ROWS_PER_ROOT_CAUSE], f"{rc.id}: {one_line(rc.title, 160)} ({len(rows)})"))
                 if len(rows) > ROWS_PER_ROOT_CAUSE:
-                    parts.append(Text(f"  … and {len(rows) - ROWS_PER_ROOT_CAUSE} more explained by {rc.id} "
-                                      "(see report.html)", style="dim"))
+                    parts.append(Text("  " + _("… and {more} more explained by {id} (see report.html)").format(
+                        more=len(rows) - ROWS_PER_ROOT_CAUSE, id=rc.id), style="dim"))
         rest = [c for c in listed if c.root_cause not in known]
         if rest:
-            parts.append(_case_table(rest, f"Not explained by a root cause ({len(rest)})" if root_causes else None))
+            parts.append(_case_table(rest, _("Not explained by a root cause ({n})").format(n=len(rest))
+                                     if root_causes else None))
     elif cases:
         not_pass = len(cases) - t[Verdict.PASS.value]
-        parts.append(Text(f"All {len(cases)} cases passed." if not not_pass else
-                          f"No case FAIL, ERROR, NON-STRICT or INCONCLUSIVE among {len(cases)}.", style="green"))
+        parts.append(Text(_("All {n} cases passed.").format(n=len(cases)) if not not_pass else
+                          _("No case FAIL, ERROR, NON-STRICT or INCONCLUSIVE among {n}.").format(n=len(cases)),
+                          style="green"))
     counts = [f"{v.value} {t[v.value]} ·" for v in VERDICT_ORDER]
-    line = packed(["Totals:", *counts[:-1], counts[-1].rstrip(" ·"),
-                   f" ({len(cases)} cases, {format_duration(suite.duration_s)})"], console.width)
-    line.highlight_words(["Totals:"], style="bold")
+    totals_word = _("Totals:")
+    line = packed([totals_word, *counts[:-1], counts[-1].rstrip(" ·"),
+                   _(" ({n} cases, {duration})").format(n=len(cases), duration=format_duration(suite.duration_s))],
+                  console.width)
+    line.highlight_words([totals_word], style="bold")
     for v in VERDICT_ORDER:
         line.highlight_regex(rf"{v.value} [1-9]\d*", style=STYLES[v])
     parts.append(line)
@@ -242,14 +255,14 @@ def print_final_table(suite: SuiteInfo, cases: list[CaseResult], console: Consol
     if not suite.complete and suite.not_run:
         more = len(suite.not_run) - NOT_RUN_SHOWN
         ids = [f"{cid}," for cid in suite.not_run[:NOT_RUN_SHOWN]]
-        ids[-1] = ids[-1].rstrip(",") + (f", … and {more} more" if more > 0 else "")
-        parts.append(packed([f"Not run ({len(suite.not_run)}):", *ids], console.width, "yellow"))
-    parts.append(Text(f"Target: {suite.target}", style="dim"))
+        ids[-1] = ids[-1].rstrip(",") + (_(", … and {more} more").format(more=more) if more > 0 else "")
+        parts.append(packed([_("Not run ({n}):").format(n=len(suite.not_run)), *ids], console.width, "yellow"))
+    parts.append(Text(_("Target: {target}").format(target=suite.target), style="dim"))
     console.print(Group(*parts), soft_wrap=False)
     if reports:  # a path stays on one line at any width, so it can be copied whole
         items = reports.items() if isinstance(reports, Mapping) else ((None, p) for p in reports)
         for label, path in items:
             out = Text()
-            out.append("Report: " if label is None else f"{label}: ", style="bold")
+            out.append(_("Report: ") if label is None else f"{_(label)}: ", style="bold")
             out.append(os.fspath(path))
             console.print(out, soft_wrap=True)

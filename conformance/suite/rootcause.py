@@ -22,6 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from ..i18n import gettext  # titles in the language of the run (the .format placeholders are named)
 from .verdicts import CaseResult, Level, RootCause, Verdict
 
 #: A signature shared by at least this many non-PASS cases is reported as a root cause.
@@ -59,17 +60,19 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
         members = [c for c in cases if c.verdict in _NOT_PASS and c.signature != "unreachable:session start"
                    and (int(c.details.get("max_open_connections", 0)) >= 2 or "S4" in c.judged
                         or c.signature == "unreachable:connect")]  # its second connection was refused
-        claim(RootCause("", ("S4",), "The box serves one connection at a time: a second connection is not answered "
-                        "while the first is open", facts.one_at_a_time, kind="one-connection"), members)
+        claim(RootCause("", ("S4",), gettext("The box serves one connection at a time: a second connection is not "
+                                             "answered while the first is open"),
+                        facts.one_at_a_time, kind="one-connection"), members)
     for case_id, kind, detail, opened, closed in facts.deaths:
         members = [c for c in cases if (c.id == case_id and c.verdict in _NOT_PASS)
                    or c.signature == f"unreachable:{case_id}"]
         if kind == "not-accepting":
-            title = (f"The box stops accepting connections after the suite has opened {opened} and closed {closed}: "
-                     "closed connections are never freed")
+            title = gettext("The box stops accepting connections after the suite has opened {opened} and closed "
+                            "{closed}: closed connections are never freed").format(opened=opened, closed=closed)
             claim(RootCause("", ("S5", "R2"), title, detail, kind="connection-leak"), members)
         else:
-            claim(RootCause("", ("R2",), f"The box stops answering new connections after the input of case {case_id}",
+            claim(RootCause("", ("R2",), gettext("The box stops answering new connections after the input of case "
+                                                 "{case}").format(case=case_id),
                             detail, kind="dead-after-input"), members)
     groups: dict[str, list[CaseResult]] = {}
     for case in cases:
@@ -114,32 +117,39 @@ def _from_signature(signature: str, members: list[CaseResult]) -> RootCause:
         clause, _, detail = rest.partition(":")
         field, _, value = detail.partition("=")
         what = f"{field.replace('-', ' ')} {value}" if value else field.replace("-", " ")
-        title = f"Every answer of the box is malformed the same way: {what} ({clause})"
+        title = gettext("Every answer of the box is malformed the same way: {what} ({clause})").format(
+            what=what, clause=clause)
         return RootCause("", (clause,), title, evidence, level=Level.MUST, kind="malformed-answers")
     if kind == "swapped":
-        return RootCause("", ("F4", "A3"), "The box writes error codes with their bytes swapped (little-endian): "
-                         "1001 goes out as 01 10", evidence, level=Level.MUST, kind="byte-order")
+        return RootCause("", ("F4", "A3"), gettext("The box writes error codes with their bytes swapped "
+                                                   "(little-endian): 1001 goes out as 01 10"),
+                         evidence, level=Level.MUST, kind="byte-order")
     if kind == "silence":  # a MUST: time_out (T1) is what it breaks; a SHOULD (R6: hangs after garbage) is not T1
         named = ("T1", *[c for c in clauses if c != "T1"][:1]) if level is Level.MUST else clauses
         return RootCause("", named,
-                         f"The box does not answer {rest} within time_out", evidence, level=level,
+                         gettext("The box does not answer {what} within time_out").format(what=rest), evidence,
+                         level=level,
                          kind="unanswered")
     if kind == "skipped":
-        return RootCause("", clauses, "The box leaves requests that are parse errors unanswered (it goes on to the "
-                         "next request); A3 asks for the action's error code", evidence, level=level,
+        return RootCause("", clauses, gettext("The box leaves requests that are parse errors unanswered (it goes on "
+                                              "to the next request); A3 asks for the action's error code"),
+                         evidence, level=level,
                          kind="unanswered-errors")
     if kind == "closed":
-        return RootCause("", clauses, f"The box closes the connection instead of answering {rest}", evidence,
-                         level=level, kind="closes")
+        return RootCause("", clauses, gettext("The box closes the connection instead of answering {what}").format(
+            what=rest), evidence, level=level, kind="closes")
     if kind == "code":
         action, _, code = rest.partition(":")
-        return RootCause("", clauses, f"The box answers {action} with error 0x{code.upper()} where the cases expect "
-                         "another code", evidence, level=level, kind="wrong-code")
+        return RootCause("", clauses, gettext("The box answers {action} with error 0x{code} where the cases expect "
+                                              "another code").format(action=action, code=code.upper()),
+                         evidence, level=level, kind="wrong-code")
     if kind == "left-open":  # certify-robot: a connection the robot never closed (S5), so S1's last steps miss
-        return RootCause("", ("S5", "S1"), f"The robot leaves its {rest.replace('+', ' and ')} connection open when its "
-                         "session ends", evidence, level=Level.MUST, kind="left-open")
+        return RootCause("", ("S5", "S1"), gettext("The robot leaves its {what} connection open when its session "
+                                                   "ends").format(what=rest.replace("+", " and ")),
+                         evidence, level=Level.MUST, kind="left-open")
     if kind == "fuzz":
-        return RootCause("", clauses, f"Fuzzing finds the same defect ({rest})", evidence, level=level, kind="fuzz")
+        return RootCause("", clauses, gettext("Fuzzing finds the same defect ({what})").format(what=rest), evidence,
+                         level=level, kind="fuzz")
     return RootCause("", clauses, first.message.split(";")[0][:200], evidence, level=level, kind=kind)
 
 

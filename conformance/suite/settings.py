@@ -14,41 +14,42 @@ from pathlib import Path
 from typing import Any
 
 from ..harness.target import Target
+from ..i18n import N_, gettext
 from ..options import add_profile_options, profile_flags, profile_from_options
 from ..protocol import DEFAULT_PORT, Profile
 
 #: (flag, argparse/pytest keyword arguments); dests all start with "isight_".
 SUITE_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
     ("--target", {"dest": "isight_target", "metavar": "HOST:PORT", "default": None,
-                  "help": "the AI Box to test over TCP (default: start the bundled reference box); under pytest it "
-                          "may be given several times: every case runs against each box, one report per box"}),
+                  "help": N_("the AI Box to test over TCP (default: start the bundled reference box); under pytest it "
+                          "may be given several times: every case runs against each box, one report per box")}),
     ("--udp-target", {"dest": "isight_udp_target", "metavar": "HOST:PORT", "default": None,
-                      "help": "the box's UDP endpoint; UDP cases are SKIP without it"}),
+                      "help": N_("the box's UDP endpoint; UDP cases are SKIP without it")}),
     ("--stream-target", {"dest": "isight_stream_target", "metavar": "HOST:PORT", "default": None,
-                         "help": "where the pose stream connects (default: same as --target)"}),
+                         "help": N_("where the pose stream connects (default: same as --target)")}),
     ("--extension", {"dest": "isight_extension", "choices": ["auto", "on", "off"], "default": None,
-                     "help": "extension E (actions 26/27): detect once (auto, default), force on, or skip"}),
+                     "help": N_("extension E (actions 26/27): detect once (auto, default), force on, or skip")}),
     ("--report-dir", {"dest": "isight_report_dir", "metavar": "DIR", "default": None,
-                      "help": "write summary.json, junit.xml and report.html here"}),
+                      "help": N_("write summary.json, junit.xml and report.html here")}),
     ("--pcap-dir", {"dest": "isight_pcap_dir", "metavar": "DIR", "default": None,
-                    "help": "write one pcapng per case here"}),
+                    "help": N_("write one pcapng per case here")}),
     ("--capture", {"dest": "isight_capture", "choices": ["synth", "live", "off"], "default": None,
-                   "help": "pcaps synthesised from the socket transcript (synth, default), captured "
-                           "from the interface (live, needs root), or none (off)"}),
+                   "help": N_("pcaps synthesised from the socket transcript (synth, default), captured "
+                           "from the interface (live, needs root), or none (off)")}),
     ("--stream-seconds", {"dest": "isight_stream_seconds", "type": float, "metavar": "S", "default": None,
-                          "help": "how long the timing cases stream poses (default 3)"}),
+                          "help": N_("how long the timing cases stream poses (default 3)")}),
     ("--settle-ms", {"dest": "isight_settle_ms", "type": int, "metavar": "MS", "default": None,
-                     "help": "after a probe's answer, how long to watch for late extra answers (default 50)"}),
+                     "help": N_("after a probe's answer, how long to watch for late extra answers (default 50)")}),
     ("--sequence", {"dest": "isight_sequences", "action": "append", "metavar": "FILE", "default": None,
-                    "help": "also run this scripted sequence file (repeatable)"}),
+                    "help": N_("also run this scripted sequence file (repeatable)")}),
     ("--cases", {"dest": "isight_cases", "action": "append", "metavar": "GLOB", "default": None,
-                 "help": "run only cases whose ID matches GLOB (repeatable), e.g. 'F*' or 'A3-*'"}),
+                 "help": N_("run only cases whose ID matches GLOB (repeatable), e.g. 'F*' or 'A3-*'")}),
     ("--exclude", {"dest": "isight_exclude", "action": "append", "metavar": "GLOB", "default": None,
-                   "help": "leave out cases whose ID matches GLOB (repeatable)"}),
+                   "help": N_("leave out cases whose ID matches GLOB (repeatable)")}),
     ("--target-label", {"dest": "isight_target_label", "metavar": "LABEL", "default": None,
-                        "help": "how reports name the target"}),
+                        "help": N_("how reports name the target")}),
     ("--seed", {"dest": "isight_seed", "type": int, "metavar": "N", "default": None,
-                "help": "seed of the fuzz cases FUZZ-01/02 (default 20240601; a run is repeatable with its seed)"}),
+                "help": N_("seed of the fuzz cases FUZZ-01/02 (default 20240601; a run is repeatable with its seed)")}),
 )
 #: FUZZ-01/02's seed when --seed is not given.
 DEFAULT_SEED = 20240601
@@ -168,6 +169,7 @@ def add_suite_options(add: Callable[..., Any], pytest: bool = False) -> None:
     """Register the suite options and the profile options (argparse's add_argument,
     or pytest's addoption with ``pytest=True``, where ``--target`` may repeat)."""
     for flag, kwargs in SUITE_OPTIONS:
+        kwargs = {**kwargs, "help": gettext(kwargs["help"])}  # in the language active when the parser is built
         if pytest and flag == "--target":
             kwargs = {**kwargs, "action": "append"}
         add(PYTEST_RENAMES.get(flag, flag) if pytest else flag, **kwargs)
