@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..certify.traffic import judge_profile
+from ..observed.frames import judge_profile
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile
 from .findings import Findings, Series
 from .judging import Cycles

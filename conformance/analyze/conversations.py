@@ -19,8 +19,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..certify.records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
 from ..harness.transcript import Endpoint, Transcript
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
 from ..protocol import TransferType
 from ..suite.verdicts import Verdict
 from .context import Context

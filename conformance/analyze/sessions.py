@@ -3,7 +3,7 @@
 A session is the connections between one robot address and one box address and port
 that overlap in time (the command connection and the stream connections opened while
 it is open); it ends when the last of them ends. When it ends it is judged with
-certify-robot's session judgement (:mod:`conformance.certify.session`): the canonical
+certify-robot's session judgement (:mod:`conformance.observed.session`): the canonical
 order of S1 (or E4 when the session uses ProgIdx or the result request, or with
 ``--extension``) across both connections, the robot awaiting each answer on the command
 connection (A1/T1), and here also that the robot closes what it opened (S5).
@@ -20,9 +20,9 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..certify.records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord, SessionRecord
-from ..certify.session import Cut, SessionView, awaited, build_view, judge_order
-from ..certify.traffic import FrameRecord
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord, SessionRecord
+from ..observed.frames import FrameRecord
+from ..observed.session import Cut, SessionView, awaited, build_view, judge_order
 from ..protocol import Action
 from ..suite.verdicts import Verdict
 from .context import Context

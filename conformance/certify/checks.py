@@ -15,10 +15,7 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from ..protocol import Action, action_name
-from ..suite.record import CaseRecord
-from ..suite.verdicts import CaseResult, Verdict, WireLine
-from .catalogue import (
+from ..observed.catalogue import (
     ANY_FRAME,
     APPLIES,
     AWAIT_SPEC,
@@ -33,10 +30,15 @@ from .catalogue import (
     S1_SPEC,
     catalogue,
 )
-from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, RunRecord, SessionRecord
-from .session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
-from .timing import judge_jitter, judge_rate, stream_stats
-from .traffic import FrameRecord, byte_order_evidence, frame_wire, session_wire
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
+from ..observed.frames import FrameRecord, byte_order_evidence
+from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
+from ..observed.timing import judge_jitter, judge_rate, stream_stats
+from ..protocol import Action, action_name
+from ..suite.record import CaseRecord
+from ..suite.verdicts import CaseResult, Verdict, WireLine
+from .records import RunRecord
+from .wire import frame_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
 HISTOGRAM_BINS = 40

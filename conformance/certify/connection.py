@@ -19,19 +19,19 @@ from typing import Any, Protocol
 from ..endpoints.behaviour import BoxBehaviour, Decision, Reaction
 from ..endpoints.connection import BoxConnection
 from ..harness.transcript import Endpoint, Kind
-from ..protocol import Action, Frame, ProtocolError
-from ..protocol.frames import ValueBlock
-from .records import (
+from ..observed.connections import (
     BY_BOX,
     BY_ROBOT,
     BY_ROBOT_RESET,
     BY_SUITE,
-    CertifyConfig,
     ConnRecord,
     Exchange,
     InjectionEvent,
     SessionRecord,
 )
+from ..protocol import Action, Frame, ProtocolError
+from ..protocol.frames import ValueBlock
+from .records import CertifyConfig
 
 
 class Listener(Protocol):

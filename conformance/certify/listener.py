@@ -25,9 +25,10 @@ from ..endpoints.behaviour import BoxBehaviour, Decision
 from ..endpoints.protocols import format_address
 from ..evidence.pcap import PcapRecorder
 from ..harness.transcript import Endpoint, Kind, Transcript
+from ..observed.connections import ConnRecord, SessionRecord
 from ..protocol import Frame, ProtocolError
 from .connection import TcpConnection, UdpEndpoint, endpoint, exchange_of
-from .records import CertifyConfig, ConnRecord, RunRecord, SessionRecord, monotonic_wall
+from .records import CertifyConfig, RunRecord, monotonic_wall
 
 TICK_S = 0.05
 
