@@ -191,7 +191,7 @@ class Conversations:
         self.candidates: dict[bytes, _Candidate] = {}
         self.ignored: dict[bytes, None] = {}
         self.closed: dict[bytes, float] = {}
-        self.byte_order = ctx.profile.byte_order
+        self.profile = ctx.profile
 
     # -- TCP ------------------------------------------------------------------------------------------
     def tcp_packet(self, key: bytes, seq: int, ack: int, flags: int, payload: bytes, missing: int, no: int,
@@ -217,7 +217,7 @@ class Conversations:
             elif sport in self.ports and dport not in self.ports:
                 robot_dir = 1
             else:
-                pos = plausible_header(payload, 0, None, self.byte_order) if payload else -1
+                pos = plausible_header(payload, 0, None, self.profile) if payload else -1
                 robot_dir = 1 if pos >= 0 and payload[pos + 4] == TransferType.BOX_TO_ROBOT else 0
             self._start(key, robot_dir, [packet], bool(flags & SYN))
             return
@@ -250,7 +250,7 @@ class Conversations:
         cand.size += len(payload)
         if payload:
             cand.payloads += 1
-            pos = plausible_header(payload, 0, None, self.byte_order)
+            pos = plausible_header(payload, 0, None, self.profile)
             if pos >= 0:
                 del self.candidates[canon]
                 robot_dir = cand.robot_dir
@@ -300,7 +300,7 @@ class Conversations:
             if key in self.ignored:
                 return
             sport, dport = (key[-4] << 8) | key[-3], (key[-2] << 8) | key[-1]
-            pos = plausible_header(payload, 0, None, self.byte_order) if payload else -1
+            pos = plausible_header(payload, 0, None, self.profile) if payload else -1
             if dport in self.ports and sport not in self.ports:
                 robot_dir = 0
             elif sport in self.ports and dport not in self.ports:

@@ -9,7 +9,6 @@ A case whose judgement itself raises becomes ERROR (the suite's fault), never a 
 
 from __future__ import annotations
 
-import struct
 import time
 import traceback
 from collections.abc import Callable
@@ -34,7 +33,8 @@ from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, S
 from ..observed.frames import FrameRecord, byte_order_evidence
 from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
 from ..observed.timing import judge_jitter, judge_rate, stream_stats
-from ..protocol import Action, action_name
+from ..protocol import HEADER_LEN, Action, action_name, codec_for
+from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
 from ..suite.verdicts import CaseResult, Verdict, WireLine
 from .records import RunRecord
@@ -150,12 +150,11 @@ def byte_order_case(ctx: Ctx) -> CaseResult:
 
 
 def _swapped_example(rec: FrameRecord, ctx: Ctx) -> str:
-    big = ctx.profile.float_byte_order == "big"
-    if rec.raw[2:4] in (b"\x01\x00", b"\x00\x01") and rec.error is not None and rec.error.clause == "F2":
+    if rec.error is not None and rec.error.clause == "F2" and rec.raw[:4] == codec_for(ctx.profile.swapped(header=True)).start:
         return "the version field reads 01 00 in the profile's byte order: the header is the other way round"
-    if rec.action in (Action.POSE, Action.REGISTER_POSE) and len(rec.raw) >= 39:
-        straight = struct.unpack_from((">" if big else "<") + "6f", rec.raw, 13)
-        swapped = struct.unpack_from(("<" if big else ">") + "6f", rec.raw, 13)
+    if rec.action in (Action.POSE, Action.REGISTER_POSE) and len(rec.raw) >= HEADER_LEN + POSE_BLOCK_LEN:
+        straight = codec_for(ctx.profile).pose.unpack_from(rec.raw, HEADER_LEN)[1:]
+        swapped = codec_for(ctx.profile.swapped(floats=True)).pose.unpack_from(rec.raw, HEADER_LEN)[1:]
         return (f"pose read as ({', '.join(f'{v:.3g}' for v in straight)}), byte-swapped "
                 f"({', '.join(f'{v:.1f}' for v in swapped)})")
     return rec.describe()

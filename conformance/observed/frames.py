@@ -11,7 +11,6 @@ profile is the run's profile with ``tcp_check=zero``: a TCP *sender* MUST send 0
 from __future__ import annotations
 
 import math
-import struct
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -25,11 +24,23 @@ from ..protocol import (
     TransferType,
     decode_datagram,
 )
-from ..protocol.constants import HEADER_LEN, START_WORD, VERSION, Action, BlockType
+from ..protocol.codec import Codec, codec_for
+from ..protocol.constants import (
+    HEADER_LEN,
+    POSE_BLOCK_LEN,
+    START_BYTES,
+    START_WORD,
+    TOLERANCE_BLOCK_LEN,
+    VALUE_BLOCK_LEN,
+    VERSION,
+    Action,
+    BlockType,
+)
 from .connections import ConnRecord
 
-_FLOAT_ACTIONS = {Action.POSE: (BlockType.POSE, 6), Action.REGISTER_POSE: (BlockType.POSE, 6),
-                  Action.TOLERANCE: (BlockType.TOLERANCE, 1)}
+#: The actions whose blocks carry floats, and their (block type, block length).
+_FLOAT_ACTIONS = {Action.POSE: (BlockType.POSE, POSE_BLOCK_LEN), Action.REGISTER_POSE: (BlockType.POSE, POSE_BLOCK_LEN),
+                  Action.TOLERANCE: (BlockType.TOLERANCE, TOLERANCE_BLOCK_LEN)}
 #: A pose value (mm or degrees) or a tolerance beyond this is not plausible.
 PLAUSIBLE_MAX = 1e6
 #: Values of at least this magnitude count as evidence (other-endian floats read as ~1e-40).
@@ -145,33 +156,34 @@ def byte_order_evidence(rec: FrameRecord, profile: Profile) -> str | None:
     plausible in the other one, ``"straight"`` when it reads plausibly, None when the
     frame says nothing about byte order (no values, all zero, not a whole frame)."""
     raw = rec.raw
-    if len(raw) < HEADER_LEN + 2 or raw[:2] != b"\xfe\xfe":
+    if len(raw) < HEADER_LEN + 2 or raw[:2] != START_BYTES:
         return None
-    order = ">" if profile.byte_order == "big" else "<"
-    other = "<" if order == ">" else ">"
-    version, = struct.unpack_from(order + "H", raw, 2)
-    if version != VERSION:
-        return "swapped" if struct.unpack_from(other + "H", raw, 2)[0] == VERSION else None
-    _tt, action, block_type, count, length = struct.unpack_from(order + "BBBBH", raw, 4)
-    if len(raw) != HEADER_LEN + count * length + 2 or not count:
+    codec = codec_for(profile)
+    if codec.u16(raw, 2) != VERSION:
+        return "swapped" if codec_for(profile.swapped(header=True)).u16(raw, 2) == VERSION else None
+    header = codec.parse_header(raw)
+    if len(raw) != codec.frame_length(raw) or not header.block_count:
         return None
-    f_order = ">" if profile.float_byte_order == "big" else "<"
-    f_other = "<" if f_order == ">" else ">"
-    if action in _FLOAT_ACTIONS and (block_type, length) == (_FLOAT_ACTIONS[Action(action)][0], 1 + 4 * _FLOAT_ACTIONS[Action(action)][1]):
-        n = _FLOAT_ACTIONS[Action(action)][1]
+    other = codec_for(profile.swapped(floats=True))
+    shape = (header.block_type, header.block_length)
+    if header.action in _FLOAT_ACTIONS and shape == _FLOAT_ACTIONS[Action(header.action)]:
         straight: list[float] = []
         swapped: list[float] = []
-        for i in range(count):
-            at = HEADER_LEN + i * length + 1
-            straight += struct.unpack_from(f"{f_order}{n}f", raw, at)
-            swapped += struct.unpack_from(f"{f_other}{n}f", raw, at)
+        for at in range(HEADER_LEN, HEADER_LEN + header.block_count * header.block_length, header.block_length):
+            straight += _block_values(codec, header.block_type, raw, at)
+            swapped += _block_values(other, header.block_type, raw, at)
         return compare_readings(straight, swapped)
-    if action == Action.PROG_IDX and (block_type, length) == (BlockType.VALUE, 5):
-        value, = struct.unpack_from(f_order + "i", raw, HEADER_LEN + 1)
-        value_swapped, = struct.unpack_from(f_other + "i", raw, HEADER_LEN + 1)
+    if header.action == Action.PROG_IDX and shape == (BlockType.VALUE, VALUE_BLOCK_LEN):
+        value, value_swapped = codec.value.unpack_from(raw, HEADER_LEN)[1], other.value.unpack_from(raw, HEADER_LEN)[1]
         if value == 0:
             return None
         if 0 < abs(value) <= 0xFFFF:
             return "straight"
         return "swapped" if 0 < abs(value_swapped) <= 0xFFFF else None
     return None
+
+
+def _block_values(codec: Codec, block_type: int, raw: bytes, at: int) -> tuple[float, ...]:
+    """A pose or tolerance block's floats at ``at``, read with ``codec``'s float byte order."""
+    block = codec.pose if block_type == BlockType.POSE else codec.tolerance
+    return tuple(block.unpack_from(raw, at)[1:])
