@@ -17,11 +17,15 @@ import shlex
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..options import add_profile_options, profile_from_options
 from ..rundirs import default_run_dirs, drop_if_empty
 from .records import INJECTIONS, CertifyConfig
 from .runner import EXIT_USAGE, CertifyOutcome, ListenError, certify
+
+if TYPE_CHECKING:
+    from ..options import Subparsers
 
 DEFAULT_LISTEN = "127.0.0.1:9004"
 
@@ -47,6 +51,20 @@ def parse_listen(text: str) -> tuple[str, int]:
     if not 0 <= port <= 65535:
         raise ValueError(f"port out of range in --listen {text!r}")
     return host, port
+
+
+def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "certify-robot",
+        help="act as the AI Box and certify a robot (client) implementation against PROTOCOL.md",
+        description="Become the AI Box: answer the robot with the reference box's logic, record everything and "
+        "judge the robot's frames, session order, stream rate and closes. The first line on stdout is "
+        "'listening tcp HOST:PORT udp HOST:PORT'. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or "
+        "no robot connected within --wait. See docs/CERTIFY.md.",
+    )
+    add_arguments(p)
+    p.set_defaults(func=main_certify)
+    return p
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
