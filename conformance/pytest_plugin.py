@@ -135,16 +135,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             config.hook.pytest_deselected(items=drop)
             items[:] = keep
     config.stash[SELECTED] = [info.id for item in items if (info := info_of(item)) is not None]
-    for item in items:
-        if info_of(item) is not None:
-            # a verdict carries its own evidence (the report's longrepr is replaced by it): spare pytest from
-            # parsing sources for a traceback of every INCONCLUSIVE and FAIL (seconds on a dead box's run)
-            item.repr_failure = _plain_repr  # type: ignore[method-assign]
-            item._repr_failure_py = _plain_repr  # type: ignore[method-assign,assignment]
-
-
-def _plain_repr(excinfo: pytest.ExceptionInfo[BaseException], style: object = None) -> str:
-    return f"{excinfo.typename}: {excinfo.value}"
 
 
 # -- the fixture and the case run ----------------------------------------------------------------
@@ -195,6 +185,20 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, o
     if error is not None:
         raise error
     return result
+
+
+@pytest.hookimpl(tryfirst=True, specname="pytest_runtest_makereport")
+def pytest_runtest_makereport_of_a_case(item: pytest.Item, call: pytest.CallInfo[None]) -> pytest.TestReport | None:
+    """A case's report when it raised (not a skip): built here, with the exception's one line as its
+    ``longrepr``, so that pytest does not parse sources for a traceback of every INCONCLUSIVE and FAIL
+    (seconds on a dead box's run); the verdict carries the evidence and the wrapper below shapes the
+    report from it. Anything else: None, pytest's own report."""
+    excinfo, when = call.excinfo, call.when
+    if info_of(item) is None or excinfo is None or excinfo.errisinstance(pytest.skip.Exception) or when == "collect":
+        return None
+    return pytest.TestReport(item.nodeid, item.location, dict.fromkeys(item.keywords, 1), "failed",
+                             f"{excinfo.typename}: {excinfo.value}", when, (), call.duration, call.start,
+                             call.stop, user_properties=item.user_properties)
 
 
 @pytest.hookimpl(wrapper=True)
