@@ -220,7 +220,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
 
 def _shape_report(rep: pytest.TestReport, item: pytest.Item, result: CaseResult) -> None:
     verdict = result.verdict
-    rep.isight_verdict = verdict.value  # type: ignore[attr-defined]
+    rep.__dict__["isight_verdict"] = verdict.value  # an extra attribute, as TestReport(**extra) sets them
     rep.user_properties.extend([("isight_case", result.id), ("isight_verdict", verdict.value)])
     if result.pcap:
         rep.user_properties.append(("pcap", result.pcap))

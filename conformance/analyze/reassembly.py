@@ -231,11 +231,12 @@ class TcpStream:
     def _accept(self, d: int, payload: bytes, missing: int, no: int, ts: float, ack: int | None) -> None:
         me = self.dirs[d]
         start = me.next
-        me.next = (start + len(payload) + missing) & MASK  # type: ignore[operator]
+        assert start is not None  # a direction accepts bytes once its start is known
+        me.next = (start + len(payload) + missing) & MASK
         me.last_no = no
         if payload:
-            me.recent.append((start, payload))  # type: ignore[arg-type]
-            self._deliver(d, _DATA, payload, no, ts, ack, (start + len(payload)) & MASK)  # type: ignore[operator]
+            me.recent.append((start, payload))
+            self._deliver(d, _DATA, payload, no, ts, ack, (start + len(payload)) & MASK)
         if missing:
             self._deliver(d, _GAP, missing, no, ts, ack, me.next)
 
@@ -244,22 +245,25 @@ class TcpStream:
         if me.closed:
             return
         me.closed = True
-        me.next = (me.next + 1) & MASK  # type: ignore[operator]
+        assert me.next is not None
+        me.next = (me.next + 1) & MASK
         self._deliver(d, _FIN, None, no, ts, ack, me.next)
 
     def _drain(self, d: int) -> None:
         me = self.dirs[d]
         while me.ooo and not me.closed:
+            nxt = me.next
+            assert nxt is not None  # out-of-order bytes wait behind a known start
             best = None
             for s in me.ooo:
-                if not _behind(me.next, s):  # type: ignore[arg-type]
+                if not _behind(nxt, s):
                     best = s
                     break
             if best is None:
                 break
             payload, missing, no, ts, fin, ack = me.ooo.pop(best)
             me.ooo_bytes -= len(payload)
-            back = (me.next - best) & MASK  # type: ignore[operator]
+            back = (nxt - best) & MASK
             if back:
                 self._old(d, back, payload, missing, fin, no, ts, ack)
                 continue
@@ -276,10 +280,11 @@ class TcpStream:
         me = self.dirs[d]
         size = len(payload)
         nxt = me.next
-        start = (nxt - back) & MASK  # type: ignore[operator]
+        assert nxt is not None
+        start = (nxt - back) & MASK
         for s0, p0 in me.recent:  # positions relative to ``next``, shifted to stay positive
-            a0 = (s0 - nxt + HALF) & MASK  # type: ignore[operator]
-            a = (start - nxt + HALF) & MASK  # type: ignore[operator]
+            a0 = (s0 - nxt + HALF) & MASK
+            a = (start - nxt + HALF) & MASK
             lo, hi = max(a, a0), min(a + min(size, back), a0 + len(p0))
             if lo < hi and payload[lo - a : hi - a] != p0[lo - a0 : hi - a0]:
                 self.sink.conflict(d, no, ts)
@@ -328,26 +333,27 @@ class TcpStream:
     def _declare_gap(self, d: int, ts: float) -> None:
         """The bytes between ``next`` and the first waiting segment (or the other side's ACK) are missing."""
         me = self.dirs[d]
-        if me.next is None:
+        nxt = me.next
+        if nxt is None:
             return
         end, after, best = None, me.hole_no, None
         for s, item in me.ooo.items():
-            off = (s - me.next) & MASK
+            off = (s - nxt) & MASK
             if off < HALF and (best is None or off < best):
                 best, end, after = off, s, item[2]
         if end is None:
-            if not me.acked_hole():
+            if me.acked is None or not me.acked_hole():
                 me.hole_pkt = None
                 return
             end = me.acked
-        nbytes = (end - me.next) & MASK  # type: ignore[operator]
+        nbytes = (end - nxt) & MASK
         before = me.last_no
         me.next = end
         me.recent.clear()
         me.hole_pkt = None
         if nbytes:
             if me.pending:
-                me.pending.append((_GAP, nbytes, before, ts, me.pending[-1][4], end))  # type: ignore[arg-type]
+                me.pending.append((_GAP, nbytes, before, ts, me.pending[-1][4], end))
             else:
                 me.emitted = end
                 self.sink.gap(d, nbytes, before, after, ts)

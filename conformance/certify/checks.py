@@ -277,7 +277,7 @@ def inject_case(ctx: Ctx, name: str) -> CaseResult:
         return ctx.result(spec, Verdict.INCONCLUSIVE, "nothing was injected: the robot never sent the request it applies to")
     t, what = trigger
     after = [r for r in ctx.records if r.t >= t and r.action is not None]
-    cmds = [f"{action_name(r.action)} at {view.ms(r.t)}" for r in after if r.action != Action.POSE]  # type: ignore[arg-type]
+    cmds = [f"{action_name(r.action)} at {view.ms(r.t)}" for r in after if r.action != Action.POSE]
     poses = [r for r in after if r.action == Action.POSE]
     closes = [f"conn {c.number} ({c.role}) {c.closed_by} at {view.ms(c.t_close)}" for c in ctx.session.tcp
               if c.t_close is not None and c.t_close >= t]
@@ -323,7 +323,7 @@ def judge_session(run: RunRecord, session: SessionRecord, suffix: str) -> list[C
         (AWAIT_SPEC, lambda: [awaited_case(ctx)]),
         (RATE_SPEC, lambda: rate_cases(ctx)),
         (CLOSE_SPEC, lambda: [close_case(ctx)]),
-        *((INJECT_SPECS[n], (lambda n=n: [inject_case(ctx, n)])) for n in run.config.inject),  # type: ignore[misc]
+        *((INJECT_SPECS[n], (lambda n=n: [inject_case(ctx, n)])) for n in run.config.inject),
     ]
     for spec, check in checks:
         t = time.perf_counter()

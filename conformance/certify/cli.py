@@ -124,7 +124,7 @@ async def _main(config: CertifyConfig, quiet: bool) -> CertifyOutcome:
     holder: list = []
     installed = []
 
-    def ready(listener) -> None:  # type: ignore[no-untyped-def]
+    def ready(listener) -> None:
         holder.append(listener)
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):

@@ -14,7 +14,7 @@ import asyncio
 from collections import deque
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 from ..endpoints.behaviour import BoxBehaviour, Decision, Reaction
 from ..endpoints.connection import BoxConnection
@@ -85,14 +85,14 @@ class TcpConnection(asyncio.Protocol):
 
     # -- asyncio callbacks -----------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        tcp = self.transport = cast(asyncio.Transport, transport)  # a stream server's transport
         with self.listener.guard("accepting a connection"):
             accepted = self.listener.accept(self, transport)
             if accepted is not None:
                 self.session, self.rec = accepted
                 self.box = BoxConnection(self.listener.behaviour, self._trace)
                 return
-        transport.abort()  # type: ignore[attr-defined]
+        tcp.abort()
 
     def data_received(self, data: bytes) -> None:
         rec, box = self.rec, self.box
@@ -227,7 +227,7 @@ class UdpEndpoint(asyncio.DatagramProtocol):
         self.transport: asyncio.DatagramTransport | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        self.transport = cast(asyncio.DatagramTransport, transport)  # a datagram endpoint's transport
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         with self.listener.guard("handling a UDP datagram"):

@@ -88,7 +88,7 @@ class CertifyListener:
                     continue
                 raise OSError(exc.errno, f"cannot bind UDP {format_address(self.host, self.tcp_port)}: "
                               f"{exc.strerror}") from None
-            self._udp = udp  # type: ignore[assignment]
+            self._udp = udp
             self.udp_port = udp.get_extra_info("sockname")[1]
             break
         self._server = server
@@ -133,7 +133,7 @@ class CertifyListener:
                          self.sessions, self.end_reason, self.end_note, self.refused, self.errors)
 
     @contextlib.contextmanager
-    def guard(self, what: str):  # type: ignore[no-untyped-def]
+    def guard(self, what: str):
         """The suite's own failures become an ERROR case, never a traceback on the robot's account."""
         try:
             yield

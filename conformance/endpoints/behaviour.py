@@ -64,6 +64,7 @@ from ..protocol import (
     ResultCode,
     TransferType,
     Transport,
+    ValueBlock,
     answer,
     codec_for,
     value_blocks,
@@ -329,7 +330,9 @@ class BoxBehaviour:
         return self.decide(event).frame
 
     def _prog_idx(self, frame: Frame) -> Decision:
-        value = frame.blocks[0].value  # type: ignore[union-attr]
+        block = frame.blocks[0]
+        assert isinstance(block, ValueBlock), frame  # the codec let through E2's one type-03 block only
+        value = block.value
         self.prog_idx = value
         decision = self._prog_idx_cache.get(value)
         if decision is None:

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import asyncio
 from collections import deque
-from typing import Any
+from collections.abc import Callable
+from typing import Any, cast
 
 from ..harness.target import Target
 from ..protocol import Frame, ProtocolError
@@ -55,7 +56,7 @@ class TcpConnection(asyncio.BufferedProtocol):
     __slots__ = (
         "box", "id", "transport", "conn", "receive", "rx", "ans", "rx_seen", "ans_seen", "last_rx",
         "last_progress", "delay", "queue", "queued", "timer", "write_paused", "read_paused", "peer", "closed",
-        "close_logged", "buffer", "view", "eof",
+        "close_logged", "buffer", "view", "eof", "write",
     )
 
     def __init__(self, box: ConnectionTable) -> None:
@@ -74,10 +75,11 @@ class TcpConnection(asyncio.BufferedProtocol):
 
     # -- asyncio callbacks ----------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        tcp = self.transport = cast(asyncio.Transport, transport)  # a stream server's transport
+        self.write = tcp.write
         box = self.box
         if not box._admit(self):
-            transport.abort()  # type: ignore[attr-defined]
+            tcp.abort()
             return
         peer = transport.get_extra_info("peername")
         self.peer = format_address(peer[0], peer[1]) if isinstance(peer, tuple) else str(peer)
@@ -92,7 +94,7 @@ class TcpConnection(asyncio.BufferedProtocol):
             log.write({"conn": cid, "transport": "tcp", "peer": peer_text, "direction": "open"})
         self.conn = BoxConnection(box.behaviour, trace)
         self.receive = self.conn.receive_data
-        transport.set_write_buffer_limits(high=WRITE_HIGH, low=WRITE_LOW)  # type: ignore[attr-defined]
+        tcp.set_write_buffer_limits(high=WRITE_HIGH, low=WRITE_LOW)
 
     def get_buffer(self, sizehint: int) -> memoryview:
         return self.view
@@ -105,7 +107,7 @@ class TcpConnection(asyncio.BufferedProtocol):
             if self.delay:
                 self._hold(out)
             else:
-                self.transport.write(out)  # type: ignore[union-attr]
+                self.write(out)
         if self.conn.should_close:
             self._close(self.conn.close_reason)
 
@@ -165,7 +167,7 @@ class TcpConnection(asyncio.BufferedProtocol):
         if chunks:
             data = b"".join(chunks)
             self.queued -= len(data)
-            self.transport.write(data)  # type: ignore[union-attr]
+            self.write(data)
         if queue:
             self.timer = self.box.loop.call_at(queue[0][0], self._release)
         elif self.eof:
@@ -188,10 +190,13 @@ class UdpEndpoint(asyncio.DatagramProtocol):
     def __init__(self, box: ConnectionTable) -> None:
         self.box = box
         self.transport: asyncio.DatagramTransport | None = None
+        self.buffered: Callable[[], int] = lambda: 0
         self.delay = box.behaviour.config.latency_ms / 1000.0
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        self.transport = cast(asyncio.DatagramTransport, transport)  # a datagram endpoint's transport
+        # asyncio's datagram transports buffer writes too (typeshed does not declare the method)
+        self.buffered = getattr(transport, "get_write_buffer_size", lambda: 0)
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         box = self.box
@@ -207,7 +212,7 @@ class UdpEndpoint(asyncio.DatagramProtocol):
         transport = self.transport
         if out is None or transport is None or transport.is_closing():
             return
-        if transport.get_write_buffer_size() > UDP_BUFFER_LIMIT:  # type: ignore[attr-defined]
+        if self.buffered() > UDP_BUFFER_LIMIT:
             box.udp_dropped_answers += 1
             return
         if self.delay:
@@ -227,6 +232,9 @@ class ConnectionTable:
     """The box's live TCP connections and their counters: admission (R5's limit, eviction of the
     connection that has gone longest without an answer), close logging and the idle sweep."""
 
+    #: the loop the box runs on (set when it starts)
+    loop: asyncio.AbstractEventLoop
+
     def __init__(self, behaviour: BoxBehaviour, max_connections: int, idle_timeout: float, evict_after: float) -> None:
         self.behaviour = behaviour
         self.max_connections = max_connections
@@ -240,7 +248,6 @@ class ConnectionTable:
         self._next_id = 1
         self._read_buffer = bytearray(_READ_SIZE)
         self._read_view = memoryview(self._read_buffer)
-        self.loop: asyncio.AbstractEventLoop = None  # type: ignore[assignment]
         self._closing = False
 
     # -- connection bookkeeping ---------------------------------------------------------------

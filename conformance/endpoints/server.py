@@ -120,7 +120,7 @@ class ReferenceBox(ConnectionTable):
                 if attempt + 1 < attempts:
                     continue
                 raise OSError(exc.errno, f"cannot bind UDP {format_address(address, udp_port)}: {exc.strerror}") from None
-            self._udp_transport = transport  # type: ignore[assignment]
+            self._udp_transport = transport
             self.udp_port = transport.get_extra_info("sockname")[1]
             break
         self._server = server

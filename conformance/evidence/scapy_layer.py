@@ -189,7 +189,7 @@ class _BlockTypeField(ByteEnumField):
         if x is None and pkt is not None:
             blocks = pkt.getfieldval("blocks") or []
             return int(_BLOCK_TYPE_OF.get(type(blocks[0]), 0)) if blocks else 0
-        return super().i2m(pkt, x)  # type: ignore[no-any-return]
+        return super().i2m(pkt, x)
 
 
 def _per_block(pkt: Packet, total: int) -> int:
@@ -238,12 +238,12 @@ class ISight(Packet):
             self.raw_packet_cache_fields = {}
             self.explicit = 1
             return s
-        return super().do_dissect(s[:cut]) + s[cut:]  # type: ignore[no-any-return]
+        return super().do_dissect(s[:cut]) + s[cut:]
 
     def guess_payload_class(self, payload: bytes) -> type:
         if payload[:2] == START_BYTES and self._chain_position() < MAX_CHAIN - 1:
             return ISight
-        return conf.raw_layer  # type: ignore[no-any-return]
+        return conf.raw_layer
 
     def _chain_position(self) -> int:
         n, under = 0, self.underlayer
@@ -254,7 +254,7 @@ class ISight(Packet):
     def mysummary(self) -> str:
         if "check" not in self.fields and self.raw_packet_cache is not None:
             return f"iSight truncated frame ({len(self.raw_packet_cache)} bytes)"
-        return self.sprintf(  # type: ignore[no-any-return]
+        return self.sprintf(
             "iSight %transfer_type% %action% N=%block_count% L=%block_length% err=%error_code%"
         )
 

@@ -87,6 +87,8 @@ class Codec:
         self.value = struct.Struct(f + "Bi")
         self._unpack_header = self.header.unpack_from
         self._u16 = struct.Struct(e + "H").unpack_from
+        #: a 16-bit header field's two bytes in this byte order
+        self.pack_u16 = struct.Struct(e + "H").pack
         #: the first four bytes of every frame in this byte order: start word and version (F1, F2)
         self.start = struct.pack(e + "HH", START_WORD, VERSION)
         self._unpack_pose = self.pose.unpack_from

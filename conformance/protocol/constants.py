@@ -120,7 +120,7 @@ ACTION_ERROR: dict[Action, ErrorCode] = {
 EXTENSION_ACTIONS = frozenset({Action.PROG_IDX, Action.VISION_RESULT})
 
 
-class Shape(tuple):  # type: ignore[type-arg]
+class Shape(tuple):
     """(block type, fewest blocks, most blocks, clause) an action's frame must have."""
 
     __slots__ = ()

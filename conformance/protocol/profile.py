@@ -38,7 +38,7 @@ def crc_function(name: str) -> Callable[[bytes], int]:
         raise ValueError(
             f"unknown CRC-16 algorithm {name!r}; choose one of: {', '.join(crc16_names())}"
         )
-    return crcmod.predefined.mkPredefinedCrcFun(name)  # type: ignore[no-any-return]
+    return crcmod.predefined.mkPredefinedCrcFun(name)
 
 
 _BYTE_ORDERS = ("big", "little")

@@ -111,7 +111,7 @@ class StreamDecoder:
             data = bytes(buf[pos : pos + total])
             self._pos = pos + total
             try:
-                return self._parse(data, Transport.TCP, self.expect)  # type: ignore[no-any-return]
+                return self._parse(data, Transport.TCP, self.expect)
             except ProtocolError as exc:
                 exc.offset += self._base + pos
                 return exc
