@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import struct
 from math import isfinite
+from typing import cast
 
 from .constants import (
     BLOCK_CLAUSE,
@@ -152,7 +153,8 @@ class Codec:
             )
             if kind is PoseBlock:
                 pack = self.pose.pack
-                return head + b"".join([pack(b.index, *b.pose) for b in blocks])  # type: ignore[union-attr]
+                poses = cast("tuple[PoseBlock, ...]", blocks)  # all of one type, checked above
+                return head + b"".join([pack(b.index, *b.pose) for b in poses])
         except (struct.error, TypeError):
             pass  # fall through to the slow path for a precise message
         else:
@@ -311,8 +313,9 @@ class Codec:
         """A4: action 00 is answered 0000. E3: 0 and 404 are the robot's own values, never sent."""
         if action is Action.NONE and error_code:
             raise self._fail(AnswerError, f"NONE answered with error 0x{error_code:04X}, expected 0x0000", data, 10, "A4")
-        if action is Action.VISION_RESULT:
-            value = blocks[0].value  # type: ignore[union-attr]
+        block = blocks[0] if blocks else None
+        if action is Action.VISION_RESULT and isinstance(block, ValueBlock):  # its shape: one type-03 block
+            value = block.value
             if value in (ResultCode.EMPTY, ResultCode.NO_ANSWER):
                 raise self._fail(
                     AnswerError, f"result code {value} is the robot's own value, never sent by a box", data, 13, "E3"
