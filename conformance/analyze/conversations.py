@@ -1,4 +1,4 @@
-"""Finding iSight conversations in a capture and following each TCP connection.
+"""Observation iSight conversations in a capture and following each TCP connection.
 
 :class:`Conversations` sorts every TCP segment and UDP datagram by its addresses and
 ports. A conversation is iSight when one side is on one of the configured ports (9004
@@ -10,7 +10,7 @@ Who is the robot: the side that sent the SYN; without a handshake in the capture
 side that is not on the iSight port; on an unconfigured port, the side whose frames
 carry transfer type 01.
 
-:class:`TcpConnection` chains reassembly (:mod:`.reassembly`), framing (:mod:`.framing`)
+:class:`TcpConversation` chains reassembly (:mod:`.reassembly`), framing (:mod:`.framing`)
 and the judgement (:mod:`.exchanges`), and when it ends hands a summary to the
 session tracker (:mod:`.sessions`).
 """
@@ -32,7 +32,7 @@ from .reassembly import RESTART, TcpStream
 from .sessions import ConnOutcome, SessionTracker
 from .udp import UdpConversation
 
-__all__ = ["Conversations", "TcpConnection"]
+__all__ = ["Conversations", "TcpConversation"]
 
 CANDIDATE_PACKETS = 16  # packets of an undecided conversation kept while its content is looked at
 CANDIDATE_BYTES = 16384  # ... and their payload bytes
@@ -44,7 +44,7 @@ MAX_OPEN = 20000  # connections followed at once; past it the one opened longest
 STRAY_S = 60.0  # packets of a closed connection within this time are its stragglers
 
 
-class TcpConnection:
+class TcpConversation:
     """One TCP connection of an iSight conversation."""
 
     def __init__(self, ctx: Context, key: bytes, robot_dir: int, ts: float, frame: int, handshake: bool) -> None:
@@ -185,9 +185,9 @@ class Conversations:
         self.ports = frozenset(ctx.config.ports)
         self.heuristic = ctx.config.heuristic
         #: both directions' keys -> (the connection's ``segment``, direction, connection)
-        self.tcp: dict[bytes, tuple[Any, int, TcpConnection]] = {}
+        self.tcp: dict[bytes, tuple[Any, int, TcpConversation]] = {}
         self.udp: dict[bytes, tuple[UdpConversation, int]] = {}
-        self.open: dict[int, TcpConnection] = {}
+        self.open: dict[int, TcpConversation] = {}
         self.candidates: dict[bytes, _Candidate] = {}
         self.ignored: dict[bytes, None] = {}
         self.closed: dict[bytes, float] = {}
@@ -226,7 +226,7 @@ class Conversations:
             return
         self._candidate(key, packet)
 
-    def settle(self, conn: TcpConnection, result: str, key: bytes, seq: int, ack: int, flags: int, payload: bytes,
+    def settle(self, conn: TcpConversation, result: str, key: bytes, seq: int, ack: int, flags: int, payload: bytes,
                missing: int, no: int, ts: float) -> None:
         """After ``segment`` returned DONE (the connection ended) or RESTART (a SYN reuses its ports)."""
         self._retire(conn, ts, no)
@@ -271,7 +271,7 @@ class Conversations:
     def _start(self, key: bytes, robot_dir: int, packets: list[tuple[Any, ...]], handshake: bool) -> None:
         """A new connection; ``packets`` (its first ones, ``key``'s direction first) are fed to it."""
         ctx = self.ctx
-        conn = TcpConnection(ctx, key, robot_dir, packets[0][7], packets[0][6], handshake)
+        conn = TcpConversation(ctx, key, robot_dir, packets[0][7], packets[0][6], handshake)
         self.tcp[key] = (conn.stream.segment, 0, conn)
         self.tcp[reverse_key(key)] = (conn.stream.segment, 1, conn)
         self.open[conn.number] = conn
@@ -281,7 +281,7 @@ class Conversations:
         for packet in packets:
             self.tcp_packet(*packet)
 
-    def _retire(self, conn: TcpConnection, ts: float, no: int) -> None:
+    def _retire(self, conn: TcpConversation, ts: float, no: int) -> None:
         rev = reverse_key(conn.key)
         for k in (conn.key, rev):
             if self.tcp.get(k, (None, 0, None))[2] is conn:

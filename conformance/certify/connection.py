@@ -50,7 +50,7 @@ class Listener(Protocol):
         """Turns the suite's own failures inside the block into an ERROR of the run."""
         ...
 
-    def accept(self, proto: TcpConnection, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
+    def accept(self, proto: CertifyTcpProtocol, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
         """The connection's session and record, or None: refused."""
         ...
 
@@ -67,7 +67,7 @@ def endpoint(address: object) -> Endpoint:
     return Endpoint(str(address), 0)
 
 
-class TcpConnection(asyncio.Protocol):
+class CertifyTcpProtocol(asyncio.Protocol):
     """One robot connection: record, answer through the box logic, inject."""
 
     def __init__(self, listener: Listener) -> None:
@@ -221,7 +221,7 @@ def exchange_of(offset: int, t: float, action: int | None, decision: Decision) -
                     frame.error_code if frame else None, value)
 
 
-class UdpEndpoint(asyncio.DatagramProtocol):
+class CertifyUdpProtocol(asyncio.DatagramProtocol):
     def __init__(self, listener: Listener) -> None:
         self.listener = listener
         self.transport: asyncio.DatagramTransport | None = None

@@ -27,7 +27,7 @@ from ..evidence.pcap import PcapRecorder
 from ..harness.transcript import Endpoint, Kind, Transcript
 from ..observed.connections import ConnRecord, SessionRecord
 from ..protocol import Frame, ProtocolError
-from .connection import TcpConnection, UdpEndpoint, endpoint, exchange_of
+from .connection import CertifyTcpProtocol, CertifyUdpProtocol, endpoint, exchange_of
 from .records import CertifyConfig, RunRecord, monotonic_wall
 
 TICK_S = 0.05
@@ -49,7 +49,7 @@ class CertifyListener:
         self.t_start = self.clock()
         self.sessions: list[SessionRecord] = []
         self.current: SessionRecord | None = None
-        self.protocols: dict[int, TcpConnection] = {}  # id(ConnRecord) -> protocol
+        self.protocols: dict[int, CertifyTcpProtocol] = {}  # id(ConnRecord) -> protocol
         self.udp_peers: dict[tuple[int, str], ConnRecord] = {}
         self.udp_waiting: list[ConnRecord] = []
         self.errors: list[str] = []
@@ -73,13 +73,13 @@ class CertifyListener:
         self.host = str(sockaddr[0])
         attempts = 20 if self.config.port == 0 and self.config.udp else 1
         for attempt in range(attempts):
-            server = await loop.create_server(lambda: TcpConnection(self), self.host, self.config.port,
+            server = await loop.create_server(lambda: CertifyTcpProtocol(self), self.host, self.config.port,
                                               family=family, reuse_address=True)
             self.tcp_port = server.sockets[0].getsockname()[1]
             if not self.config.udp:
                 break
             try:
-                udp, _ = await loop.create_datagram_endpoint(lambda: UdpEndpoint(self),
+                udp, _ = await loop.create_datagram_endpoint(lambda: CertifyUdpProtocol(self),
                                                              local_addr=(self.host, self.tcp_port), family=family)
             except OSError as exc:
                 server.close()
@@ -157,7 +157,7 @@ class CertifyListener:
         self.emit(f"session {session.number}: started")
         return session
 
-    def accept(self, proto: TcpConnection, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
+    def accept(self, proto: CertifyTcpProtocol, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
         assert self._done is not None
         now = self.clock()
         if self._done.is_set() or (self.current is None and len(self.sessions) >= self.config.sessions):

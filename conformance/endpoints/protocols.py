@@ -50,7 +50,7 @@ def format_address(host: str, port: int) -> str:
 _READ_SIZE = 256 * 1024
 
 
-class TcpConnection(asyncio.BufferedProtocol):
+class BoxTcpProtocol(asyncio.BufferedProtocol):
     """One robot connection (command or stream: the box does not care which)."""
 
     __slots__ = (
@@ -186,7 +186,7 @@ class TcpConnection(asyncio.BufferedProtocol):
             transport.close()
 
 
-class UdpEndpoint(asyncio.DatagramProtocol):
+class BoxUdpProtocol(asyncio.DatagramProtocol):
     def __init__(self, box: ConnectionTable) -> None:
         self.box = box
         self.transport: asyncio.DatagramTransport | None = None
@@ -241,7 +241,7 @@ class ConnectionTable:
         self.idle_timeout = idle_timeout
         self.evict_after = evict_after
         self.log: FrameLog | None = None
-        self.connections: dict[int, TcpConnection] = {}
+        self.connections: dict[int, BoxTcpProtocol] = {}
         self.accepted = self.refused = self.evicted = self.idle_closed = 0
         self.peak_connections = 0
         self.udp_dropped_answers = 0
@@ -251,7 +251,7 @@ class ConnectionTable:
         self._closing = False
 
     # -- connection bookkeeping ---------------------------------------------------------------
-    def _admit(self, conn: TcpConnection) -> bool:
+    def _admit(self, conn: BoxTcpProtocol) -> bool:
         if self._closing:
             return False
         if len(self.connections) >= self.max_connections:
@@ -274,7 +274,7 @@ class ConnectionTable:
         self.peak_connections = max(self.peak_connections, len(self.connections))
         return True
 
-    def _victim(self) -> TcpConnection | None:
+    def _victim(self) -> BoxTcpProtocol | None:
         """The connection that has gone longest without an answer, if long enough."""
         now = self.loop.time()
         best, best_key = None, None
@@ -287,13 +287,13 @@ class ConnectionTable:
             return None
         return best
 
-    def _forget(self, conn: TcpConnection, reason: str) -> None:
+    def _forget(self, conn: BoxTcpProtocol, reason: str) -> None:
         if conn.id and self.connections.get(conn.id) is conn:
             del self.connections[conn.id]
         if conn.id:
             self._log_close(conn, reason)
 
-    def _log_close(self, conn: TcpConnection, reason: str) -> None:
+    def _log_close(self, conn: BoxTcpProtocol, reason: str) -> None:
         if self.log is not None and not conn.close_logged:
             conn.close_logged = True
             self.log.write({"conn": conn.id, "transport": "tcp", "peer": conn.peer, "direction": "close", "reason": reason})
@@ -321,5 +321,5 @@ class ConnectionTable:
 
 
 __all__ = [
-    "DEFAULT_IDLE_TIMEOUT", "DEFAULT_MAX_CONNECTIONS", "ConnectionTable", "TcpConnection", "UdpEndpoint", "format_address",
+    "DEFAULT_IDLE_TIMEOUT", "DEFAULT_MAX_CONNECTIONS", "ConnectionTable", "BoxTcpProtocol", "BoxUdpProtocol", "format_address",
 ]

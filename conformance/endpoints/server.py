@@ -28,9 +28,9 @@ from .framelog import FrameLog
 from .protocols import (
     DEFAULT_IDLE_TIMEOUT,
     DEFAULT_MAX_CONNECTIONS,
+    BoxTcpProtocol,
+    BoxUdpProtocol,
     ConnectionTable,
-    TcpConnection,
-    UdpEndpoint,
     format_address,
 )
 
@@ -104,7 +104,7 @@ class ReferenceBox(ConnectionTable):
         attempts = 20 if self.port == 0 and self.udp and self.udp_port_request is None else 1
         for attempt in range(attempts):
             server = await self.loop.create_server(
-                lambda: TcpConnection(self), address, self.port, family=family, reuse_address=True, backlog=1024,
+                lambda: BoxTcpProtocol(self), address, self.port, family=family, reuse_address=True, backlog=1024,
             )
             tcp_port = server.sockets[0].getsockname()[1]
             if not self.udp:
@@ -112,7 +112,7 @@ class ReferenceBox(ConnectionTable):
             udp_port = tcp_port if self.udp_port_request is None else self.udp_port_request
             try:
                 transport, _ = await self.loop.create_datagram_endpoint(
-                    lambda: UdpEndpoint(self), local_addr=(address, udp_port), family=family,
+                    lambda: BoxUdpProtocol(self), local_addr=(address, udp_port), family=family,
                 )
             except OSError as exc:
                 server.close()
