@@ -101,8 +101,6 @@ class TcpStream:
         self.dirs = (Direction(), Direction())
         self.packets = 0
         self.client: int | None = None  # the direction whose SYN opened the connection
-        self.syn_frame = 0
-        self.syn_ts = 0.0
         self.done = False  # reset, or both sides closed
         self.reset_by: int | None = None
         self._holes = False
@@ -143,7 +141,7 @@ class TcpStream:
             me.last_no = no
             seq = me.next
             if not flags & ACK:
-                self.client, self.syn_frame, self.syn_ts = d, no, ts
+                self.client = d
             elif self.client is None:
                 self.client = d ^ 1
         elif self.done:

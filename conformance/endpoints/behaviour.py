@@ -325,10 +325,6 @@ class BoxBehaviour:
             stats.answers += 1
         return decision
 
-    def handle(self, event: Frame | ProtocolError) -> Frame | None:
-        """The answer frame to ``event``, or None (silence, or close: see :meth:`decide`)."""
-        return self.decide(event).frame
-
     def _prog_idx(self, frame: Frame) -> Decision:
         block = frame.blocks[0]
         assert isinstance(block, ValueBlock), frame  # the codec let through E2's one type-03 block only
