@@ -240,6 +240,19 @@ def _close(out: list[str], notes: list[str]) -> str:
     return "\n".join(out)
 
 
+def _bin(values: Sequence[float], bins: int, width_bin: float, x_top: float) -> tuple[list[int], int]:
+    """(count per bin, values beyond ``x_top``): those beyond the last bin are counted in it."""
+    counts = [0] * bins
+    over = 0
+    for v in values:
+        i = int(v / width_bin)
+        if i >= bins:
+            over += v > x_top
+            i = bins - 1
+        counts[i] += 1
+    return counts, over
+
+
 def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms: float | None = None,
                   width: int = 640, height: int = 200) -> str:
     """A histogram of intervals (e.g. a pose stream's send intervals) as an SVG document string.
@@ -260,14 +273,7 @@ def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms
     step = _nice_step((top or 1.0) / 5)
     x_top = max(step, math.ceil(top / step - 1e-9) * step)
     width_bin = x_top / bins
-    counts = [0] * bins
-    over = 0
-    for v in finite:
-        i = int(v / width_bin)
-        if i >= bins:
-            over += v > x_top
-            i = bins - 1
-        counts[i] += 1
+    counts, over = _bin(finite, bins, width_bin, x_top)
     c_max = max(counts)
 
     def xx(v: float) -> float:
