@@ -159,34 +159,38 @@ class TcpStream:
             if other.hole_pkt is None:
                 other.hole_pkt, other.hole_ts, other.hole_no = self.packets, ts, no
             self._holes = True
-        n = len(payload) + missing
-        if n or flags & FIN:
-            if me.next is None:
-                me.next = me.emitted = seq
-                me.midstart = True
-                self.sink.midstart(d)
-            off = (seq - me.next) & MASK
-            fin = bool(flags & FIN)
-            if off == 0:
-                if not me.closed:
-                    if n:
-                        self._accept(d, payload, missing, no, ts, got_ack)
-                    if fin:
-                        self._fin(d, no, ts, got_ack)
-                    if me.ooo:
-                        self._drain(d)
-            elif off >= HALF:
-                self._old(d, MASK + 1 - off, payload, missing, fin, no, ts, got_ack)
-            elif not me.closed:
-                if seq not in me.ooo or len(me.ooo[seq][0]) < len(payload):
-                    me.ooo[seq] = (payload, missing, no, ts, fin, got_ack)
-                    me.ooo_bytes += len(payload)
-                if me.hole_pkt is None:
-                    me.hole_pkt, me.hole_ts, me.hole_no = self.packets, ts, no
-                self._holes = True
+        if payload or missing or flags & FIN:
+            self._data(d, seq, payload, missing, bool(flags & FIN), no, ts, got_ack)
         if self._holes:
             self._check_holes(ts)
         return None
+
+    def _data(self, d: int, seq: int, payload: bytes, missing: int, fin: bool, no: int, ts: float,
+              got_ack: int | None) -> None:
+        """Bytes (or a FIN) at ``seq``: in order, old (compared, the rest kept) or ahead (held)."""
+        me = self.dirs[d]
+        if me.next is None:
+            me.next = me.emitted = seq
+            me.midstart = True
+            self.sink.midstart(d)
+        off = (seq - me.next) & MASK
+        if off == 0:
+            if not me.closed:
+                if payload or missing:
+                    self._accept(d, payload, missing, no, ts, got_ack)
+                if fin:
+                    self._fin(d, no, ts, got_ack)
+                if me.ooo:
+                    self._drain(d)
+        elif off >= HALF:
+            self._old(d, MASK + 1 - off, payload, missing, fin, no, ts, got_ack)
+        elif not me.closed:
+            if seq not in me.ooo or len(me.ooo[seq][0]) < len(payload):
+                me.ooo[seq] = (payload, missing, no, ts, fin, got_ack)
+                me.ooo_bytes += len(payload)
+            if me.hole_pkt is None:
+                me.hole_pkt, me.hole_ts, me.hole_no = self.packets, ts, no
+            self._holes = True
 
     def finish(self, ts: float) -> None:
         """The capture ended: what is still missing is a gap; release everything held."""
