@@ -17,6 +17,7 @@ The hot path is one pose in, one cached answer out:
 from __future__ import annotations
 
 import asyncio
+import socket
 from collections import deque
 from collections.abc import Callable
 from typing import Any, cast
@@ -41,6 +42,40 @@ UDP_BUFFER_LIMIT = 1 << 20
 def format_address(host: str, port: int) -> str:
     """``host:port``, or ``[host]:port`` for an IPv6 address."""
     return str(Target(host, port))
+
+
+async def resolve(loop: asyncio.AbstractEventLoop, host: str) -> tuple[int, str]:
+    """(family, address): one local address for ``host``, so that port 0 means one port for TCP and UDP."""
+    infos = await loop.getaddrinfo(host, None, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    if not infos:
+        raise OSError(f"cannot resolve {host!r}")
+    family, _, _, _, sockaddr = infos[0]
+    return int(family), str(sockaddr[0])
+
+
+async def listen(loop: asyncio.AbstractEventLoop, family: int, host: str, port: int,
+                 tcp: Callable[[], asyncio.BaseProtocol], udp: Callable[[], asyncio.BaseProtocol] | None = None,
+                 udp_port: int | None = None, backlog: int = 100,
+                 ) -> tuple[asyncio.Server, asyncio.DatagramTransport | None]:
+    """A TCP server on ``host:port`` and, with a ``udp`` protocol factory, a UDP endpoint on the
+    same port (or on ``udp_port``). With port 0 and one port for both, up to 20 tries for a port
+    that is free for UDP too; an OSError names what could not be bound."""
+    attempts = 20 if port == 0 and udp is not None and udp_port is None else 1
+    for attempt in range(attempts):
+        server = await loop.create_server(tcp, host, port, family=family, reuse_address=True, backlog=backlog)
+        if udp is None:
+            return server, None
+        local = (host, server.sockets[0].getsockname()[1] if udp_port is None else udp_port)
+        try:
+            transport, _ = await loop.create_datagram_endpoint(udp, local_addr=local, family=family)
+        except OSError as exc:
+            server.close()
+            await server.wait_closed()
+            if attempt + 1 < attempts:
+                continue
+            raise OSError(exc.errno, f"cannot bind UDP {format_address(*local)}: {exc.strerror}") from None
+        return server, transport
+    raise AssertionError("unreachable: the last attempt returns or raises")
 
 
 #: One receive buffer for every connection: the loop is single-threaded and each read
