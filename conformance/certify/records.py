@@ -13,6 +13,7 @@ from pathlib import Path
 
 from ..endpoints.behaviour import BoxConfig
 from ..observed.connections import SessionRecord
+from ..observed.timing import check_tolerances
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile, ResultCode
 
 #: ``--inject`` choices: box behaviours that show how the robot copes (INFORMATIONAL).
@@ -65,10 +66,7 @@ class CertifyConfig:
         for name in ("wait_s", "linger_s", "grace_s", "max_session_s"):
             if not 0 < getattr(self, name) <= 86_400:
                 raise ValueError(f"{name} must be in (0, 86400] seconds, not {getattr(self, name)}")
-        if not 0 < self.rate_tolerance < 1:
-            raise ValueError(f"rate tolerance must be in (0, 100) %, not {self.rate_tolerance * 100:g} %")
-        if not 0 < self.jitter_tolerance <= 10:
-            raise ValueError(f"jitter tolerance must be in (0, 1000] %, not {self.jitter_tolerance * 100:g} %")
+        check_tolerances(self.rate_tolerance, self.jitter_tolerance)
 
     @property
     def slow_delay_s(self) -> float:
