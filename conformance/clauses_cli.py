@@ -13,15 +13,19 @@ import json
 import sys
 import textwrap
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from .i18n import _, current, wrap_cells
 from .protocol.clauses import REGISTRY_VERSION, Clause, all_clauses, families
+
+if TYPE_CHECKING:
+    from .options import Subparsers
 
 EXIT_OK, EXIT_USAGE = 0, 2
 WIDTH = 88
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "clauses",
         help=_("print the clauses of docs/PROTOCOL.md: level, title, text, flags and source"),
@@ -34,6 +38,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     p.add_argument("--format", choices=("text", "json"), default="text", help=_("plain text (default) or JSON"))
     p.add_argument("--brief", action="store_true", help=_("text: one line per clause (ID, level, title)"))
     p.set_defaults(func=main_clauses)
+    return p
 
 
 def select(ids: Sequence[str]) -> list[Clause]:

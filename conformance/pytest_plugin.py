@@ -145,16 +145,6 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             config.hook.pytest_deselected(items=drop)
             items[:] = keep
     config.stash[SELECTED] = [info.id for item in items if (info := info_of(item)) is not None]
-    for item in items:
-        if info_of(item) is not None:
-            # a verdict carries its own evidence (the report's longrepr is replaced by it): spare pytest from
-            # parsing sources for a traceback of every INCONCLUSIVE and FAIL (seconds on a dead box's run)
-            item.repr_failure = _plain_repr  # type: ignore[method-assign]
-            item._repr_failure_py = _plain_repr  # type: ignore[method-assign,assignment]
-
-
-def _plain_repr(excinfo: pytest.ExceptionInfo[BaseException], style: object = None) -> str:
-    return f"{excinfo.typename}: {excinfo.value}"
 
 
 # -- the fixture and the case run ----------------------------------------------------------------
@@ -207,6 +197,20 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> Generator[None, object, o
     return result
 
 
+@pytest.hookimpl(tryfirst=True, specname="pytest_runtest_makereport")
+def pytest_runtest_makereport_of_a_case(item: pytest.Item, call: pytest.CallInfo[None]) -> pytest.TestReport | None:
+    """A case's report when it raised (not a skip): built here, with the exception's one line as its
+    ``longrepr``, so that pytest does not parse sources for a traceback of every INCONCLUSIVE and FAIL
+    (seconds on a dead box's run); the verdict carries the evidence and the wrapper below shapes the
+    report from it. Anything else: None, pytest's own report."""
+    excinfo, when = call.excinfo, call.when
+    if info_of(item) is None or excinfo is None or excinfo.errisinstance(pytest.skip.Exception) or when == "collect":
+        return None
+    return pytest.TestReport(item.nodeid, item.location, dict.fromkeys(item.keywords, 1), "failed",
+                             f"{excinfo.typename}: {excinfo.value}", when, (), call.duration, call.start,
+                             call.stop, user_properties=item.user_properties)
+
+
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, pytest.TestReport, pytest.TestReport]:
     rep = yield
@@ -226,7 +230,7 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
 
 def _shape_report(rep: pytest.TestReport, item: pytest.Item, result: CaseResult) -> None:
     verdict = result.verdict
-    rep.isight_verdict = verdict.value  # type: ignore[attr-defined]
+    rep.__dict__["isight_verdict"] = verdict.value  # an extra attribute, as TestReport(**extra) sets them
     rep.user_properties.extend([("isight_case", result.id), ("isight_verdict", verdict.value)])
     if result.pcap:
         rep.user_properties.append(("pcap", result.pcap))

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .protocol import (
+    DEFAULT_PROFILE,
     Action,
     Frame,
     PoseBlock,
@@ -61,8 +62,8 @@ def group_profile(group: Mapping[str, Any], base: Profile | None = None) -> Prof
     """The receiver profile a test group asks for."""
     prof = group.get("profile", {})
     return (base or Profile()).replace(
-        crc=group.get("crc", "modbus"),
-        crc_byte_order=prof.get("crcByteOrder", "big"),
+        crc=group.get("crc", DEFAULT_PROFILE.crc),
+        crc_byte_order=prof.get("crcByteOrder", DEFAULT_PROFILE.crc_byte_order),
         first_index=prof.get("firstIndex", 0),
     )
 
@@ -127,8 +128,16 @@ def frame_to_dict(frame: Frame) -> dict[str, Any]:
     }
 
 
+_SPECIAL = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
+
+
 def _unfloat(value: float | str) -> float:
-    return float({"NaN": "nan", "Infinity": "inf", "-Infinity": "-inf"}.get(value, value))  # type: ignore[arg-type]
+    return float(_SPECIAL.get(value, value)) if isinstance(value, str) else float(value)
+
+
+def _pose(values: list[float | str]) -> tuple[float, float, float, float, float, float]:
+    x, y, z, w, p, r = (_unfloat(v) for v in values)
+    return x, y, z, w, p, r
 
 
 def frame_from_dict(data: Mapping[str, Any]) -> Frame:
@@ -136,7 +145,7 @@ def frame_from_dict(data: Mapping[str, Any]) -> Frame:
     blocks: list[PoseBlock | ToleranceBlock | ValueBlock] = []
     for b in data.get("blocks", ()):
         if "pose" in b:
-            blocks.append(PoseBlock(b["index"], tuple(_unfloat(v) for v in b["pose"])))  # type: ignore[arg-type]
+            blocks.append(PoseBlock(b["index"], _pose(b["pose"])))
         elif "tolerance" in b:
             blocks.append(ToleranceBlock(b["index"], _unfloat(b["tolerance"])))
         else:

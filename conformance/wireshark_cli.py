@@ -18,6 +18,10 @@ import tempfile
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .options import Subparsers
 
 from .i18n import _
 
@@ -27,7 +31,7 @@ FOLDER_KEY = "Personal Lua Plugins"
 TSHARK_TIMEOUT_S = 30.0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "wireshark",
         help=_("print, or install into, Wireshark's personal Lua plugins folder the iSight dissector"),
@@ -41,6 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-ar
     what.add_argument("--install", action="store_true", help=_("copy isight.lua into that folder (created if needed)"))
     what.add_argument("--print", action="store_true", help=_("write isight.lua to stdout"))
     p.set_defaults(func=main_wireshark)
+    return p
 
 
 def dissector_bytes() -> bytes:

@@ -71,7 +71,7 @@ class XdistHooks:
             deaths = tuple(tuple(d) for d in facts["deaths"]) + (known.deaths if known is not None else ())
             config.stash[FACTS][key] = SessionFacts(facts["unresponsive"] or (known.unresponsive if known else ""),
                                                     facts["one_at_a_time"] or (known.one_at_a_time if known else ""),
-                                                    deaths)  # type: ignore[arg-type]
+                                                    deaths)
             state = config.stash[SESSIONS].get(key)
             if state is not None and box["extension_how"]:
                 state.extension_how = box["extension_how"]
@@ -112,7 +112,7 @@ def box_scheduling(config: pytest.Config, log: Any, keys: list[str]) -> Any:
     which pytest 9 no longer lets a plugin change.)"""
     from xdist.scheduler import LoadScopeScheduling
 
-    class BoxScheduling(LoadScopeScheduling):  # type: ignore[misc]
+    class BoxScheduling(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
             return "isight-box " + box_key(nodeid, keys)
 

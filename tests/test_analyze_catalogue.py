@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 
 from conformance.analyze.catalogue import SPECS, case_id, spec_for
-from conformance.certify.catalogue import FRAME_SPECS
+from conformance.observed.catalogue import FRAME_SPECS
 from conformance.protocol.clauses import clause as registry_clause
 from conformance.report.summary import CLAUSES
 from conformance.suite.verdicts import Level

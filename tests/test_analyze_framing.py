@@ -119,4 +119,5 @@ def test_plausible_header():
     assert plausible_header(b"xx" + POSE) == 2
     assert plausible_header(b"\xfe\xfe\x00\x01\x01\x99" + POSE) == 6  # action 0x99 is unknown
     assert plausible_header(WRONG_DIR, expect=0x01) == -1 and plausible_header(WRONG_DIR, expect=0x10) == 0
-    assert plausible_header(b"\xfe\xfe\x01\x00\x01\x23", byte_order="little") == 0
+    assert plausible_header(b"\xfe\xfe\x01\x00\x01\x23", profile=DEFAULT_PROFILE.replace(byte_order="little")) == 0
+    assert plausible_header(b"\xfe\xfe\x01\x00\x01\x23") == -1

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from conformance.analyze import AnalyzeConfig, analyze, build_cases
 from conformance.analyze.sessions import ObservedView
-from conformance.certify.session import SessionView
+from conformance.observed.session import SessionView
 from conformance.protocol import Action, answer, encode, request, value_blocks
 from conformance.suite.verdicts import Verdict
 from tests.analyze_util import POSE, POSE_OK, Capture, canonical, exchange

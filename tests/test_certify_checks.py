@@ -10,7 +10,8 @@ import pytest
 
 from conformance.certify import checks
 from conformance.certify.checks import judge
-from conformance.certify.records import BY_SUITE, CertifyConfig, InjectionEvent, RunRecord
+from conformance.certify.records import CertifyConfig, RunRecord
+from conformance.observed.connections import BY_SUITE, InjectionEvent
 from conformance.protocol import DEFAULT_PROFILE, Action, ErrorCode, encode, pose_blocks, request
 from conformance.report import render_html
 from conformance.report.svg import histogram_svg

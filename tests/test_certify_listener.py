@@ -9,8 +9,9 @@ from collections.abc import Awaitable, Callable
 import pytest
 
 from conformance.certify.listener import CertifyListener
-from conformance.certify.records import BY_BOX, BY_ROBOT, BY_SUITE, CertifyConfig, RunRecord
+from conformance.certify.records import CertifyConfig, RunRecord
 from conformance.harness.transcript import Kind
+from conformance.observed.connections import BY_BOX, BY_ROBOT, BY_SUITE
 from conformance.protocol import Action, Profile, encode, encode_udp, request
 from tests.test_certify_session import POSE, frame
 

@@ -4,7 +4,7 @@ Clean robots (S1, E4) certify with zero FAIL/NON-STRICT/ERROR; robots built with
 RobotFaults break one clause each and fail with it; clients that send garbage, stream
 only, never close or disconnect mid-cycle get clear verdicts; no robot at all is exit 2.
 
-Timing: the T2 judgement itself is tested on synthetic timestamps (test_certify_timing).
+Timing: the T2 judgement itself is tested on synthetic timestamps (test_observed_timing).
 Here a clean stream is judged with generous tolerances (``LOOSE``) so that a loaded CI
 machine's scheduling does not make a clean robot fail; the faulty streams are far
 outside any tolerance (bursts of 5 frames: 400 % of the period; a clock slowing 100 %

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.certify.records import BY_BOX, BY_ROBOT, BY_SUITE, ConnRecord, Exchange, SessionRecord
-from conformance.certify.session import (
+from conformance.harness.transcript import ConnectionInfo, Endpoint, Kind, Transcript, WireEvent
+from conformance.observed.connections import BY_BOX, BY_ROBOT, BY_SUITE, ConnRecord, Exchange, SessionRecord
+from conformance.observed.session import (
     E4_STEPS,
     S1_STEPS,
     awaited,
@@ -18,7 +19,6 @@ from conformance.certify.session import (
     judge_order,
     observe_steps,
 )
-from conformance.harness.transcript import ConnectionInfo, Endpoint, Kind, Transcript, WireEvent
 from conformance.protocol import (
     DEFAULT_PROFILE,
     Action,

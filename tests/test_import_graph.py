@@ -124,3 +124,15 @@ def test_every_module_is_a_small_room() -> None:
     big = {name: n for name, path in _modules().items()
            if (n := len(path.read_text(encoding="utf-8").splitlines())) > MAX_LINES}
     assert big == {}
+
+
+def test_analyze_and_certify_are_siblings_on_the_observed_model() -> None:
+    """Both judge observed traffic from conformance/observed/; analyze imports nothing of certify,
+    and the shared model imports neither of them."""
+    graph = import_graph()
+    assert any(d.startswith("conformance.observed") for d in graph["conformance.analyze.sessions"]), "the walker lost analyze"
+    for name, deps in graph.items():
+        if name.startswith("conformance.analyze"):
+            assert not {d for d in deps if d.startswith("conformance.certify")}, name
+        if name.startswith("conformance.observed"):
+            assert not {d for d in deps if d.startswith(("conformance.certify", "conformance.analyze"))}, name

@@ -33,6 +33,7 @@ from conformance.evidence.scapy_layer import (
     unbind_port,
     with_udp_crc,
 )
+from conformance.protocol import DEFAULT_PROFILE
 
 ROOT = Path(__file__).resolve().parents[1]
 VECTOR_DIR = ROOT / "vectors" / "frames"
@@ -187,10 +188,11 @@ def test_vector_udp_crc(group: Any, tc: Any) -> None:
     _need(group)
     order = _crc_order(group)
     raw = bytes.fromhex(tc["hex"])
-    assert crc_ok(raw, group["crc"], order)
+    profile = DEFAULT_PROFILE.replace(crc=group["crc"], crc_byte_order=order)
+    assert crc_ok(raw, profile)
     if _quiet_nans(raw, tc["frame"]) == raw:  # else the dict cannot give these bytes
         unchecked = dict(_expected(tc["frame"]), check=0)
-        assert with_udp_crc(from_dict(unchecked), group["crc"], order) == raw
+        assert with_udp_crc(from_dict(unchecked), profile) == raw
 
 
 def test_vector_files_exist() -> None:
@@ -259,8 +261,9 @@ def test_udp_frame_on_9004_with_crc() -> None:
     assert crc_ok(bytes(pkt[ISight]))
     assert crc_ok(pkt)
     assert not crc_ok(datagram[:-1] + bytes([datagram[-1] ^ 1]))
-    little = with_udp_crc(_pose_request(1), "xmodem", "little")
-    assert crc_ok(little, "xmodem", "little") and not crc_ok(little, "xmodem", "big")
+    xmodem = DEFAULT_PROFILE.replace(crc="xmodem", crc_byte_order="little")
+    little = with_udp_crc(_pose_request(1), xmodem)
+    assert crc_ok(little, xmodem) and not crc_ok(little, xmodem.replace(crc_byte_order="big"))
     assert int.from_bytes(little[-2:], "little") == crc16(little[:-2], "xmodem")
 
 

@@ -40,6 +40,7 @@ BAD = [
     ([{"open": "s"}, {"stop": "s"}], "no stream runs on 's'"),
     ([], "steps: expected a non-empty list of steps"),
     ([{"open": "c"}, {"raw": "fe fe 00 01 01 23 01 01 00 19 00 00", "on": "c", "probe": True}], "incomplete frame"),
+    ([{"open": "c"}, {"raw": "fe fe 01 00 01 23 01 01 19 00 00 00", "on": "c", "probe": True}], "incomplete frame"),
 ]
 
 

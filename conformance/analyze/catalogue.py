@@ -9,7 +9,7 @@ judge in the capture is SKIP.
 
 from __future__ import annotations
 
-from ..certify.catalogue import (
+from ..observed.catalogue import (
     AWAIT_SPEC,
     CLOSE_SPEC,
     E4_SPEC,

@@ -12,12 +12,16 @@ import datetime as _dt
 import shlex
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..i18n import _
 from ..options import add_profile_options, profile_from_options
 from .context import AnalyzeConfig
 from .engine import CaptureError, analyze
 from .report import write_analysis
+
+if TYPE_CHECKING:
+    from ..options import Subparsers
 
 __all__ = ["add_parser", "main_analyze"]
 
@@ -26,7 +30,7 @@ EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 PROGRESS_FROM = 4 << 20
 
 
-def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "analyze",
         help=_("judge a capture (pcap/pcapng) of real robot <-> box traffic against PROTOCOL.md, both roles"),

@@ -5,7 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..certify.traffic import judge_profile
+from ..observed.frames import judge_profile
+from ..observed.timing import check_tolerances
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile
 from .findings import Findings, Series
 from .judging import Cycles
@@ -39,10 +40,7 @@ class AnalyzeConfig:
         bad = [p for p in self.ports if not 0 < p <= 65535]
         if bad or not self.ports:
             raise ValueError(f"--port must be 1..65535, not {bad[0] if bad else 'nothing'}")
-        if not 0 < self.rate_tolerance < 1:
-            raise ValueError(f"rate tolerance must be in (0, 100) %, not {self.rate_tolerance * 100:g} %")
-        if not 0 < self.jitter_tolerance <= 10:
-            raise ValueError(f"jitter tolerance must be in (0, 1000] %, not {self.jitter_tolerance * 100:g} %")
+        check_tolerances(self.rate_tolerance, self.jitter_tolerance)
         if not 0 < self.linger_s <= 86_400:
             raise ValueError(f"--linger must be in (0, 86400] seconds, not {self.linger_s}")
 

@@ -1,4 +1,4 @@
-"""Finding iSight conversations in a capture and following each TCP connection.
+"""Observation iSight conversations in a capture and following each TCP connection.
 
 :class:`Conversations` sorts every TCP segment and UDP datagram by its addresses and
 ports. A conversation is iSight when one side is on one of the configured ports (9004
@@ -10,7 +10,7 @@ Who is the robot: the side that sent the SYN; without a handshake in the capture
 side that is not on the iSight port; on an unconfigured port, the side whose frames
 carry transfer type 01.
 
-:class:`TcpConnection` chains reassembly (:mod:`.reassembly`), framing (:mod:`.framing`)
+:class:`TcpConversation` chains reassembly (:mod:`.reassembly`), framing (:mod:`.framing`)
 and the judgement (:mod:`.exchanges`), and when it ends hands a summary to the
 session tracker (:mod:`.sessions`).
 """
@@ -19,8 +19,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..certify.records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
 from ..harness.transcript import Endpoint, Transcript
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
 from ..protocol import TransferType
 from ..suite.verdicts import Verdict
 from .context import Context
@@ -32,7 +32,7 @@ from .reassembly import RESTART, TcpStream
 from .sessions import ConnOutcome, SessionTracker
 from .udp import UdpConversation
 
-__all__ = ["Conversations", "TcpConnection"]
+__all__ = ["Conversations", "TcpConversation"]
 
 CANDIDATE_PACKETS = 16  # packets of an undecided conversation kept while its content is looked at
 CANDIDATE_BYTES = 16384  # ... and their payload bytes
@@ -44,7 +44,7 @@ MAX_OPEN = 20000  # connections followed at once; past it the one opened longest
 STRAY_S = 60.0  # packets of a closed connection within this time are its stragglers
 
 
-class TcpConnection:
+class TcpConversation:
     """One TCP connection of an iSight conversation."""
 
     def __init__(self, ctx: Context, key: bytes, robot_dir: int, ts: float, frame: int, handshake: bool) -> None:
@@ -185,13 +185,13 @@ class Conversations:
         self.ports = frozenset(ctx.config.ports)
         self.heuristic = ctx.config.heuristic
         #: both directions' keys -> (the connection's ``segment``, direction, connection)
-        self.tcp: dict[bytes, tuple[Any, int, TcpConnection]] = {}
+        self.tcp: dict[bytes, tuple[Any, int, TcpConversation]] = {}
         self.udp: dict[bytes, tuple[UdpConversation, int]] = {}
-        self.open: dict[int, TcpConnection] = {}
+        self.open: dict[int, TcpConversation] = {}
         self.candidates: dict[bytes, _Candidate] = {}
         self.ignored: dict[bytes, None] = {}
         self.closed: dict[bytes, float] = {}
-        self.byte_order = ctx.profile.byte_order
+        self.profile = ctx.profile
 
     # -- TCP ------------------------------------------------------------------------------------------
     def tcp_packet(self, key: bytes, seq: int, ack: int, flags: int, payload: bytes, missing: int, no: int,
@@ -217,7 +217,7 @@ class Conversations:
             elif sport in self.ports and dport not in self.ports:
                 robot_dir = 1
             else:
-                pos = plausible_header(payload, 0, None, self.byte_order) if payload else -1
+                pos = plausible_header(payload, 0, None, self.profile) if payload else -1
                 robot_dir = 1 if pos >= 0 and payload[pos + 4] == TransferType.BOX_TO_ROBOT else 0
             self._start(key, robot_dir, [packet], bool(flags & SYN))
             return
@@ -226,7 +226,7 @@ class Conversations:
             return
         self._candidate(key, packet)
 
-    def settle(self, conn: TcpConnection, result: str, key: bytes, seq: int, ack: int, flags: int, payload: bytes,
+    def settle(self, conn: TcpConversation, result: str, key: bytes, seq: int, ack: int, flags: int, payload: bytes,
                missing: int, no: int, ts: float) -> None:
         """After ``segment`` returned DONE (the connection ended) or RESTART (a SYN reuses its ports)."""
         self._retire(conn, ts, no)
@@ -250,7 +250,7 @@ class Conversations:
         cand.size += len(payload)
         if payload:
             cand.payloads += 1
-            pos = plausible_header(payload, 0, None, self.byte_order)
+            pos = plausible_header(payload, 0, None, self.profile)
             if pos >= 0:
                 del self.candidates[canon]
                 robot_dir = cand.robot_dir
@@ -271,7 +271,7 @@ class Conversations:
     def _start(self, key: bytes, robot_dir: int, packets: list[tuple[Any, ...]], handshake: bool) -> None:
         """A new connection; ``packets`` (its first ones, ``key``'s direction first) are fed to it."""
         ctx = self.ctx
-        conn = TcpConnection(ctx, key, robot_dir, packets[0][7], packets[0][6], handshake)
+        conn = TcpConversation(ctx, key, robot_dir, packets[0][7], packets[0][6], handshake)
         self.tcp[key] = (conn.stream.segment, 0, conn)
         self.tcp[reverse_key(key)] = (conn.stream.segment, 1, conn)
         self.open[conn.number] = conn
@@ -281,7 +281,7 @@ class Conversations:
         for packet in packets:
             self.tcp_packet(*packet)
 
-    def _retire(self, conn: TcpConnection, ts: float, no: int) -> None:
+    def _retire(self, conn: TcpConversation, ts: float, no: int) -> None:
         rev = reverse_key(conn.key)
         for k in (conn.key, rev):
             if self.tcp.get(k, (None, 0, None))[2] is conn:
@@ -300,7 +300,7 @@ class Conversations:
             if key in self.ignored:
                 return
             sport, dport = (key[-4] << 8) | key[-3], (key[-2] << 8) | key[-1]
-            pos = plausible_header(payload, 0, None, self.byte_order) if payload else -1
+            pos = plausible_header(payload, 0, None, self.profile) if payload else -1
             if dport in self.ports and sport not in self.ports:
                 robot_dir = 0
             elif sport in self.ports and dport not in self.ports:

@@ -43,6 +43,12 @@ class Analysis:
         return bool(s.tcp_connections or s.udp_conversations)
 
 
+def _refuse_a_cut_file(reader: CaptureReader, config: AnalyzeConfig) -> None:
+    if reader.truncated and not config.accept_truncated:
+        raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "
+                           "frames before the cut)")
+
+
 def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
             progress: Callable[[int, int], None] | None = None) -> Analysis:
     """Judge the capture at ``path``; raises :class:`CaptureError` (one line) for a bad file,
@@ -53,9 +59,7 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
     ctx = Context(config, Path(path))
     stats = ctx.stats
     try:
-        if reader.truncated and not config.accept_truncated:
-            raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "
-                               "frames before the cut)")
+        _refuse_a_cut_file(reader, config)
         decoder = PacketDecoder()
         decode = decoder.decode
         sessions = SessionTracker(ctx)
@@ -91,9 +95,7 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
             else:
                 udp_packet(key, payload, missing, no, ts)
         stats.first_ts = reader.first_ts
-        if reader.truncated and not config.accept_truncated:
-            raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "
-                               "frames before the cut)")
+        _refuse_a_cut_file(reader, config)
         stats.truncated = reader.truncated
         stats.frames = reader.frames
         stats.last_ts = ts if reader.frames else None

@@ -25,8 +25,8 @@ from array import array
 from collections import deque
 from typing import Any
 
-from ..certify.records import Exchange
-from ..certify.traffic import FrameRecord
+from ..observed.connections import Exchange
+from ..observed.frames import FrameRecord
 from ..protocol import Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION

@@ -19,7 +19,7 @@ from typing import Any
 from ..stats import percentile
 from ..suite.verdicts import VERDICT_ORDER, Verdict
 
-__all__ = ["BOX", "ROBOT", "SIDES", "Finding", "Findings", "Series", "Tally", "frames_text"]
+__all__ = ["BOX", "ROBOT", "SIDES", "Observation", "Findings", "Series", "Tally", "frames_text"]
 
 BOX, ROBOT = "box", "robot"
 SIDES = (BOX, ROBOT)
@@ -40,7 +40,7 @@ def frames_text(frames: Iterable[int]) -> str:
 
 
 @dataclass
-class Finding:
+class Observation:
     verdict: Verdict
     text: str  # one line, naming the connection; the frame numbers are added by :meth:`line`
     frames: tuple[int, ...] = ()
@@ -55,7 +55,7 @@ class Finding:
 class Tally:
     checked: int = 0
     counts: dict[Verdict, int] = field(default_factory=dict)
-    kept: dict[Verdict, list[Finding]] = field(default_factory=dict)
+    kept: dict[Verdict, list[Observation]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     details: dict[str, Any] = field(default_factory=dict)
     latencies_ms: list[float] = field(default_factory=list)
@@ -95,7 +95,7 @@ class Findings:
         t.counts[verdict] = t.counts.get(verdict, 0) + 1
         kept = t.kept.setdefault(verdict, [])
         if len(kept) < KEEP:
-            kept.append(Finding(verdict, text, tuple(frames), robot[:2048].hex(" "), box[:2048].hex(" ")))
+            kept.append(Observation(verdict, text, tuple(frames), robot[:2048].hex(" "), box[:2048].hex(" ")))
 
     def count(self, clause: str, side: str, verdict: Verdict) -> int:
         t = self.tallies.get((clause, side))

@@ -22,13 +22,13 @@ the frame's first byte, ``last_frame`` and ``ts`` the packet that completed it.
 
 from __future__ import annotations
 
-import struct
 from collections import deque
 from collections.abc import Callable
 from typing import Any
 
 from ..protocol import (
     CLOSED,
+    DEFAULT_PROFILE,
     NEED_DATA,
     Action,
     Profile,
@@ -38,7 +38,7 @@ from ..protocol import (
     Transport,
     codec_for,
 )
-from ..protocol.constants import MAX_BLOCK_COUNT, MAX_BLOCK_LEN
+from ..protocol.constants import MAX_BLOCK_COUNT, MAX_BLOCK_LEN, START_BYTES
 
 __all__ = ["FrameReader", "plausible_header"]
 
@@ -52,16 +52,16 @@ _CARRY = 5
 Emit = Callable[[Any, bytes, int, int, int, float], None]
 
 
-def plausible_header(data: bytes, start: int = 0, expect: int | None = None, byte_order: str = "big") -> int:
-    """Index of the first plausible iSight header at or after ``start``: FE FE, version 1
-    in ``byte_order``, transfer type ``expect`` (or either), a known action. -1 if none."""
-    version = b"\x00\x01" if byte_order == "big" else b"\x01\x00"
-    pos = data.find(b"\xfe\xfe", start)
+def plausible_header(data: bytes, start: int = 0, expect: int | None = None, profile: Profile = DEFAULT_PROFILE) -> int:
+    """Index of the first plausible iSight header at or after ``start``: the start word, version 1
+    in the profile's byte order, transfer type ``expect`` (or either), a known action. -1 if none."""
+    head = codec_for(profile).start
+    pos = data.find(START_BYTES, start)
     while 0 <= pos <= len(data) - 6:
-        if data[pos + 2 : pos + 4] == version and (data[pos + 4] == expect if expect is not None
-                                                     else data[pos + 4] in _TRANSFER) and data[pos + 5] in _ACTIONS:
+        if data[pos : pos + 4] == head and (data[pos + 4] == expect if expect is not None
+                                            else data[pos + 4] in _TRANSFER) and data[pos + 5] in _ACTIONS:
             return pos
-        pos = data.find(b"\xfe\xfe", pos + 1)
+        pos = data.find(START_BYTES, pos + 1)
     return -1
 
 
@@ -72,9 +72,10 @@ class FrameReader:
         self.profile = profile
         self.expect = expect
         self.emit = emit
-        self._parse = codec_for(profile).parse
-        self._u16 = struct.Struct(">H" if profile.byte_order == "big" else "<H").unpack_from
-        self._big = profile.byte_order == "big"
+        codec = codec_for(profile)
+        self._parse = codec.parse
+        self._start = codec.start
+        self._length = codec.frame_length
         self._known: dict[bytes, Any] = {}  # 14-byte frames already parsed (immutable Frames)
         self.decoder = StreamDecoder(profile, expect)
         self.offset = 0  # stream offset of the next byte to read (of the carry, while resynchronising)
@@ -91,9 +92,8 @@ class FrameReader:
         self._settle()
 
     def _settle(self) -> None:
-        """The short path is open when no partial frame waits, nothing is skipped, the stream is open
-        and headers are big-endian (the byte order the short path reads)."""
-        self._simple = not self._buf and not self.resync and not self.eof and self._big
+        """The short path is open when no partial frame waits, nothing is skipped and the stream is open."""
+        self._simple = not self._buf and not self.resync and not self.eof
 
     def mark_midstart(self) -> None:
         """The bytes do not start at a frame: skip to the first plausible header."""
@@ -103,9 +103,8 @@ class FrameReader:
     # -- input -------------------------------------------------------------------------------------
     def feed(self, data: bytes, no: int, ts: float) -> None:
         n = len(data)
-        if (self._simple and n >= 14 and data[0] == 0xFE and data[1] == 0xFE and data[2] == 0 and data[3] == 1
-                and data[7] * ((data[8] << 8) | data[9]) + 14 == n and n <= _MAX_FRAME):
-            # one whole frame (big-endian header), no partial frame waiting: the codec judges it
+        if (self._simple and n >= 14 and data[:4] == self._start and self._length(data) == n and n <= _MAX_FRAME):
+            # one whole frame, no partial frame waiting: the codec judges it
             offset = self.offset
             self.offset = offset + n
             event: Any = self._known.get(data) if n == 14 else None
@@ -131,9 +130,10 @@ class FrameReader:
         if not self._buf:
             n = len(data)
             pos = 0
-            u16, parse, expect, emit, offset = self._u16, self._parse, self.expect, self.emit, self.offset
-            while n - pos >= 14 and data[pos] == 0xFE and data[pos + 1] == 0xFE and u16(data, pos + 2)[0] == 1:
-                total = data[pos + 7] * u16(data, pos + 8)[0] + 14
+            start, length, parse, expect, emit, offset = \
+                self._start, self._length, self._parse, self.expect, self.emit, self.offset
+            while n - pos >= 14 and data[pos : pos + 4] == start:
+                total = length(data, pos)
                 if total > _MAX_BODY + 14 or pos + total > n:
                     break
                 raw = data if total == n else data[pos : pos + total]
@@ -209,7 +209,7 @@ class FrameReader:
     def _find_header(self, data: bytes) -> bytes:
         combined = self._carry + data if self._carry else data
         start = self.offset  # stream offset of combined[0]
-        pos = plausible_header(combined, 0, int(self.expect), self.profile.byte_order)
+        pos = plausible_header(combined, 0, int(self.expect), self.profile)
         if pos < 0:
             keep = combined[-_CARRY:] if len(combined) > _CARRY else combined
             self.skipped += len(combined) - len(keep)

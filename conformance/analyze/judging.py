@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..certify.traffic import FrameRecord, byte_order_evidence
+from ..observed.frames import FrameRecord, byte_order_evidence
 from ..protocol import Action, Frame, Transport, action_name
 from ..protocol.answers import (
     Cycle,

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ipaddress
 import struct
+from typing import Any
 
 __all__ = ["ACK", "FIN", "PSH", "RST", "SYN", "TCP", "UDP", "PacketDecoder", "endpoints", "format_endpoint", "reverse_key"]
 
@@ -30,6 +31,7 @@ FIN, SYN, RST, PSH, ACK = 0x01, 0x02, 0x04, 0x08, 0x10
 _SEQ_ACK_FLAGS = struct.Struct("!IIH").unpack_from
 _U16 = struct.Struct("!H").unpack_from
 _VLAN = (0x8100, 0x88A8, 0x9100)
+_ETHERTYPE_IP = {0x0800: 4, 0x86DD: 6}
 _IPV6_EXT = (0, 43, 60)  # hop-by-hop, routing, destination options
 _LINK_NAMES = {1: "Ethernet", 113: "Linux cooked", 276: "Linux cooked v2", 101: "raw IP", 0: "BSD loopback",
                108: "OpenBSD loopback", 228: "raw IPv4", 229: "raw IPv6", 12: "raw IP"}
@@ -63,86 +65,76 @@ class PacketDecoder:
         self.skipped[reason] = self.skipped.get(reason, 0) + 1
 
     def decode(self, linktype: int, data: bytes) -> tuple[int, bytes, int, int, int, bytes, int] | None:
-        # -- link layer: find the IP header -------------------------------------------------
+        link = self._link(linktype, data)
+        ip = self._ip(data, *link) if link is not None else None
+        return self._transport(data, *ip) if ip is not None else None
+
+    def _drop(self, reason: str = "short frame") -> Any:
+        """Count ``reason``; None (``return self._drop(...)`` from any of the steps below)."""
+        self._skip(reason)
+        return None
+
+    def _link(self, linktype: int, data: bytes) -> tuple[int, int] | None:
+        """(IP version, offset of the IP header) behind the link layer; None (counted) if not IP."""
         if linktype == 1:
             if len(data) < 34:
-                self._skip("short frame")
-                return None
+                return self._drop()
             et = (data[12] << 8) | data[13]
             off = 14
             while et in _VLAN:
                 if len(data) < off + 4:
-                    self._skip("short frame")
-                    return None
+                    return self._drop()
                 et = (data[off + 2] << 8) | data[off + 3]
                 off += 4
-            if et == 0x0800:
-                v = 4
-            elif et == 0x86DD:
-                v = 6
-            else:
-                self._skip("not IP")
-                return None
-        elif linktype in (101, 12, 14, 228, 229):
-            off = 0
-            v = data[0] >> 4 if data else 0
-        elif linktype == 113 or linktype == 276:
+            if et in _ETHERTYPE_IP:
+                return _ETHERTYPE_IP[et], off
+            return self._drop("not IP")
+        if linktype in (101, 12, 14, 228, 229):
+            return (data[0] >> 4 if data else 0), 0
+        if linktype == 113 or linktype == 276:
             if len(data) < 20:
-                self._skip("short frame")
-                return None
+                return self._drop()
             et = (data[14] << 8 | data[15]) if linktype == 113 else (data[0] << 8 | data[1])
-            off = 16 if linktype == 113 else 20
-            v = 4 if et == 0x0800 else 6 if et == 0x86DD else 0
-        elif linktype in (0, 108):
+            return _ETHERTYPE_IP.get(et, 0), (16 if linktype == 113 else 20)
+        if linktype in (0, 108):
             if len(data) < 5:
-                self._skip("short frame")
-                return None
-            v = data[4] >> 4
-            off = 4
-        else:
-            self._skip(f"link type {linktype} ({_LINK_NAMES.get(linktype, 'not supported')})")
-            return None
-        # -- IP ----------------------------------------------------------------------------------
+                return self._drop()
+            return data[4] >> 4, 4
+        return self._drop(f"link type {linktype} ({_LINK_NAMES.get(linktype, 'not supported')})")
+
+    def _ip(self, data: bytes, v: int, off: int) -> tuple[int, int, int, bytes] | None:
+        """(protocol, offset of its header, end of the packet, addresses) of the IP packet at ``off``."""
         size = len(data)
         if v == 4:
             if size < off + 20:
-                self._skip("short frame")
-                return None
-            ihl = (data[off] & 15) * 4
-            total = (data[off + 2] << 8) | data[off + 3]
+                return self._drop()
             if (data[off + 6] & 0x3F) or data[off + 7]:  # MF flag or a fragment offset
-                self._skip("IP fragment")
-                return None
-            proto = data[off + 9]
-            l4 = off + ihl
-            end = off + total
-            addrs = data[off + 12 : off + 20]
-        elif v == 6:
-            if size < off + 40:
-                self._skip("short frame")
-                return None
-            proto = data[off + 6]
-            end = off + 40 + ((data[off + 4] << 8) | data[off + 5])
-            addrs = data[off + 8 : off + 40]
-            l4 = off + 40
-            while proto in _IPV6_EXT or proto == 51:
-                if size < l4 + 2:
-                    self._skip("short frame")
-                    return None
-                step = (data[l4 + 1] + 2) * 4 if proto == 51 else (data[l4 + 1] + 1) * 8
-                proto = data[l4]
-                l4 += step
-            if proto == 44:
-                self._skip("IP fragment")
-                return None
-        else:
-            self._skip("not IP")
-            return None
-        # -- TCP / UDP ----------------------------------------------------------------------------
+                return self._drop("IP fragment")
+            total = (data[off + 2] << 8) | data[off + 3]
+            return data[off + 9], off + (data[off] & 15) * 4, off + total, data[off + 12 : off + 20]
+        if v != 6:
+            return self._drop("not IP")
+        if size < off + 40:
+            return self._drop()
+        proto = data[off + 6]
+        end = off + 40 + ((data[off + 4] << 8) | data[off + 5])
+        l4 = off + 40
+        while proto in _IPV6_EXT or proto == 51:
+            if size < l4 + 2:
+                return self._drop()
+            step = (data[l4 + 1] + 2) * 4 if proto == 51 else (data[l4 + 1] + 1) * 8
+            proto = data[l4]
+            l4 += step
+        if proto == 44:
+            return self._drop("IP fragment")
+        return proto, l4, end, data[off + 8 : off + 40]
+
+    def _transport(self, data: bytes, proto: int, l4: int, end: int,
+                   addrs: bytes) -> tuple[int, bytes, int, int, int, bytes, int] | None:
+        size = len(data)
         if proto == TCP:
             if size < l4 + 20:
-                self._skip("headers cut by the snap length")
-                return None
+                return self._drop("headers cut by the snap length")
             seq, ack, hl_flags = _SEQ_ACK_FLAGS(data, l4 + 4)
             start = l4 + ((hl_flags >> 12) << 2)
             payload = data[start:end] if end <= size else data[start:]
@@ -150,12 +142,10 @@ class PacketDecoder:
             return TCP, addrs + data[l4 : l4 + 4], seq, ack, hl_flags & 0x3F, payload, missing
         if proto == UDP:
             if size < l4 + 8:
-                self._skip("headers cut by the snap length")
-                return None
+                return self._drop("headers cut by the snap length")
             udp_end = l4 + _U16(data, l4 + 4)[0]
             end = min(end, udp_end) if udp_end >= l4 + 8 else end
             payload = data[l4 + 8 : end] if end <= size else data[l4 + 8 :]
             missing = max(0, end - max(l4 + 8, size)) if end > size else 0
             return UDP, addrs + data[l4 : l4 + 4], 0, 0, 0, payload, missing
-        self._skip("not TCP or UDP")
-        return None
+        return self._drop("not TCP or UDP")

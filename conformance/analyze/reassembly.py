@@ -101,8 +101,6 @@ class TcpStream:
         self.dirs = (Direction(), Direction())
         self.packets = 0
         self.client: int | None = None  # the direction whose SYN opened the connection
-        self.syn_frame = 0
-        self.syn_ts = 0.0
         self.done = False  # reset, or both sides closed
         self.reset_by: int | None = None
         self._holes = False
@@ -143,7 +141,7 @@ class TcpStream:
             me.last_no = no
             seq = me.next
             if not flags & ACK:
-                self.client, self.syn_frame, self.syn_ts = d, no, ts
+                self.client = d
             elif self.client is None:
                 self.client = d ^ 1
         elif self.done:
@@ -161,34 +159,38 @@ class TcpStream:
             if other.hole_pkt is None:
                 other.hole_pkt, other.hole_ts, other.hole_no = self.packets, ts, no
             self._holes = True
-        n = len(payload) + missing
-        if n or flags & FIN:
-            if me.next is None:
-                me.next = me.emitted = seq
-                me.midstart = True
-                self.sink.midstart(d)
-            off = (seq - me.next) & MASK
-            fin = bool(flags & FIN)
-            if off == 0:
-                if not me.closed:
-                    if n:
-                        self._accept(d, payload, missing, no, ts, got_ack)
-                    if fin:
-                        self._fin(d, no, ts, got_ack)
-                    if me.ooo:
-                        self._drain(d)
-            elif off >= HALF:
-                self._old(d, MASK + 1 - off, payload, missing, fin, no, ts, got_ack)
-            elif not me.closed:
-                if seq not in me.ooo or len(me.ooo[seq][0]) < len(payload):
-                    me.ooo[seq] = (payload, missing, no, ts, fin, got_ack)
-                    me.ooo_bytes += len(payload)
-                if me.hole_pkt is None:
-                    me.hole_pkt, me.hole_ts, me.hole_no = self.packets, ts, no
-                self._holes = True
+        if payload or missing or flags & FIN:
+            self._data(d, seq, payload, missing, bool(flags & FIN), no, ts, got_ack)
         if self._holes:
             self._check_holes(ts)
         return None
+
+    def _data(self, d: int, seq: int, payload: bytes, missing: int, fin: bool, no: int, ts: float,
+              got_ack: int | None) -> None:
+        """Bytes (or a FIN) at ``seq``: in order, old (compared, the rest kept) or ahead (held)."""
+        me = self.dirs[d]
+        if me.next is None:
+            me.next = me.emitted = seq
+            me.midstart = True
+            self.sink.midstart(d)
+        off = (seq - me.next) & MASK
+        if off == 0:
+            if not me.closed:
+                if payload or missing:
+                    self._accept(d, payload, missing, no, ts, got_ack)
+                if fin:
+                    self._fin(d, no, ts, got_ack)
+                if me.ooo:
+                    self._drain(d)
+        elif off >= HALF:
+            self._old(d, MASK + 1 - off, payload, missing, fin, no, ts, got_ack)
+        elif not me.closed:
+            if seq not in me.ooo or len(me.ooo[seq][0]) < len(payload):
+                me.ooo[seq] = (payload, missing, no, ts, fin, got_ack)
+                me.ooo_bytes += len(payload)
+            if me.hole_pkt is None:
+                me.hole_pkt, me.hole_ts, me.hole_no = self.packets, ts, no
+            self._holes = True
 
     def finish(self, ts: float) -> None:
         """The capture ended: what is still missing is a gap; release everything held."""
@@ -231,11 +233,12 @@ class TcpStream:
     def _accept(self, d: int, payload: bytes, missing: int, no: int, ts: float, ack: int | None) -> None:
         me = self.dirs[d]
         start = me.next
-        me.next = (start + len(payload) + missing) & MASK  # type: ignore[operator]
+        assert start is not None  # a direction accepts bytes once its start is known
+        me.next = (start + len(payload) + missing) & MASK
         me.last_no = no
         if payload:
-            me.recent.append((start, payload))  # type: ignore[arg-type]
-            self._deliver(d, _DATA, payload, no, ts, ack, (start + len(payload)) & MASK)  # type: ignore[operator]
+            me.recent.append((start, payload))
+            self._deliver(d, _DATA, payload, no, ts, ack, (start + len(payload)) & MASK)
         if missing:
             self._deliver(d, _GAP, missing, no, ts, ack, me.next)
 
@@ -244,22 +247,25 @@ class TcpStream:
         if me.closed:
             return
         me.closed = True
-        me.next = (me.next + 1) & MASK  # type: ignore[operator]
+        assert me.next is not None
+        me.next = (me.next + 1) & MASK
         self._deliver(d, _FIN, None, no, ts, ack, me.next)
 
     def _drain(self, d: int) -> None:
         me = self.dirs[d]
         while me.ooo and not me.closed:
+            nxt = me.next
+            assert nxt is not None  # out-of-order bytes wait behind a known start
             best = None
             for s in me.ooo:
-                if not _behind(me.next, s):  # type: ignore[arg-type]
+                if not _behind(nxt, s):
                     best = s
                     break
             if best is None:
                 break
             payload, missing, no, ts, fin, ack = me.ooo.pop(best)
             me.ooo_bytes -= len(payload)
-            back = (me.next - best) & MASK  # type: ignore[operator]
+            back = (nxt - best) & MASK
             if back:
                 self._old(d, back, payload, missing, fin, no, ts, ack)
                 continue
@@ -276,10 +282,11 @@ class TcpStream:
         me = self.dirs[d]
         size = len(payload)
         nxt = me.next
-        start = (nxt - back) & MASK  # type: ignore[operator]
+        assert nxt is not None
+        start = (nxt - back) & MASK
         for s0, p0 in me.recent:  # positions relative to ``next``, shifted to stay positive
-            a0 = (s0 - nxt + HALF) & MASK  # type: ignore[operator]
-            a = (start - nxt + HALF) & MASK  # type: ignore[operator]
+            a0 = (s0 - nxt + HALF) & MASK
+            a = (start - nxt + HALF) & MASK
             lo, hi = max(a, a0), min(a + min(size, back), a0 + len(p0))
             if lo < hi and payload[lo - a : hi - a] != p0[lo - a0 : hi - a0]:
                 self.sink.conflict(d, no, ts)
@@ -328,26 +335,27 @@ class TcpStream:
     def _declare_gap(self, d: int, ts: float) -> None:
         """The bytes between ``next`` and the first waiting segment (or the other side's ACK) are missing."""
         me = self.dirs[d]
-        if me.next is None:
+        nxt = me.next
+        if nxt is None:
             return
         end, after, best = None, me.hole_no, None
         for s, item in me.ooo.items():
-            off = (s - me.next) & MASK
+            off = (s - nxt) & MASK
             if off < HALF and (best is None or off < best):
                 best, end, after = off, s, item[2]
         if end is None:
-            if not me.acked_hole():
+            if me.acked is None or not me.acked_hole():
                 me.hole_pkt = None
                 return
             end = me.acked
-        nbytes = (end - me.next) & MASK  # type: ignore[operator]
+        nbytes = (end - nxt) & MASK
         before = me.last_no
         me.next = end
         me.recent.clear()
         me.hole_pkt = None
         if nbytes:
             if me.pending:
-                me.pending.append((_GAP, nbytes, before, ts, me.pending[-1][4], end))  # type: ignore[arg-type]
+                me.pending.append((_GAP, nbytes, before, ts, me.pending[-1][4], end))
             else:
                 me.emitted = end
                 self.sink.gap(d, nbytes, before, after, ts)

@@ -3,7 +3,7 @@
 A session is the connections between one robot address and one box address and port
 that overlap in time (the command connection and the stream connections opened while
 it is open); it ends when the last of them ends. When it ends it is judged with
-certify-robot's session judgement (:mod:`conformance.certify.session`): the canonical
+certify-robot's session judgement (:mod:`conformance.observed.session`): the canonical
 order of S1 (or E4 when the session uses ProgIdx or the result request, or with
 ``--extension``) across both connections, the robot awaiting each answer on the command
 connection (A1/T1), and here also that the robot closes what it opened (S5).
@@ -20,10 +20,10 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..certify.records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord, SessionRecord
-from ..certify.session import Cut, SessionView, awaited, build_view, judge_order
-from ..certify.traffic import FrameRecord
-from ..protocol import Action
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord, SessionRecord
+from ..observed.frames import FrameRecord
+from ..observed.session import Cut, SessionView, awaited, build_view, judge_order
+from ..protocol import Action, action_name
 from ..suite.verdicts import Verdict
 from .context import Context
 from .findings import ROBOT
@@ -169,7 +169,7 @@ def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label:
         actions = sorted({r.action for r in seen if r.action is not None})
         f.add(clause, ROBOT, Verdict.INCONCLUSIVE,
               f"{label}: the capture starts mid-session ({first.label} was already open): the order is not judged; "
-              f"seen: {', '.join(_name(a) for a in actions) or 'no request'}",
+              f"seen: {', '.join(action_name(a) for a in actions) or 'no request'}",
               (view.frame_at.get(first.record.t_open, 0),))
         return
     result = judge_order(view, extension)
@@ -243,11 +243,4 @@ def _streams(ctx: Context, outcomes: list[ConnOutcome]) -> None:
         texts = [t for ok, t in ((j.rate_ok, j.rate_text), (j.jitter_ok, j.jitter_text)) if not ok]
         f.add("T2", ROBOT, Verdict.FAIL, f"{o.label}: {'; '.join(texts)} ({j.described[0] if j.described else ''})",
               (o.first_pose[1],) if o.first_pose else ())
-
-
-def _name(action: int) -> str:
-    try:
-        return Action(action).name
-    except ValueError:
-        return f"0x{action:02X}"
 

@@ -4,15 +4,15 @@ Like Autobahn's fuzzingserver or h2specd, the suite listens, answers the robot w
 reference box's logic and judges what the robot does against PROTOCOL.md's client-side
 reading:
 
-* :mod:`.records` — the settings and what a run records (sessions, connections, exchanges);
+* :mod:`.records` — the settings and the run's record;
 * :mod:`.listener` — the asyncio TCP/UDP server: sessions, bounded waits, UDP;
 * :mod:`.connection` — one robot connection: answers (the reference box's logic), injects, records;
-* :mod:`.traffic` — the robot's bytes decoded from the transcripts, the F4 heuristic, wire logs;
-* :mod:`.session` — canonical-order tracking (S1/E4) and awaited answers (A1/T1);
-* :mod:`.timing` — stream rate and send-interval jitter (T2);
-* :mod:`.catalogue` — the cases: stable IDs, clauses, levels, acceptable outcomes;
-* :mod:`.checks` — the judgments (CaseResults with their evidence);
+* :mod:`.checks` — the judgments (CaseResults with their evidence); :mod:`.wire` — the wire logs they quote;
 * :mod:`.runner` — one run end to end (:func:`certify`); :mod:`.cli` — the command.
+
+What it records and judges from (sessions, connections, the robot's frames, the session
+view, the stream's rate and jitter, the case catalogue) is the shared model of observed
+traffic, :mod:`conformance.observed`, which ``analyze`` builds on too.
 """
 
 from .checks import catalogue, judge

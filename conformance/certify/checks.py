@@ -9,16 +9,12 @@ A case whose judgement itself raises becomes ERROR (the suite's fault), never a 
 
 from __future__ import annotations
 
-import struct
 import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from ..protocol import Action, action_name
-from ..suite.record import CaseRecord
-from ..suite.verdicts import CaseResult, Verdict, WireLine
-from .catalogue import (
+from ..observed.catalogue import (
     ANY_FRAME,
     APPLIES,
     AWAIT_SPEC,
@@ -33,10 +29,16 @@ from .catalogue import (
     S1_SPEC,
     catalogue,
 )
-from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, RunRecord, SessionRecord
-from .session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
-from .timing import judge_jitter, judge_rate, stream_stats
-from .traffic import FrameRecord, byte_order_evidence, frame_wire, session_wire
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
+from ..observed.frames import FrameRecord, byte_order_evidence
+from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
+from ..observed.timing import judge_jitter, judge_rate, stream_stats
+from ..protocol import HEADER_LEN, Action, action_name, codec_for
+from ..protocol.constants import POSE_BLOCK_LEN
+from ..suite.record import CaseRecord
+from ..suite.verdicts import CaseResult, Verdict, WireLine
+from .records import RunRecord
+from .wire import frame_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
 HISTOGRAM_BINS = 40
@@ -148,12 +150,11 @@ def byte_order_case(ctx: Ctx) -> CaseResult:
 
 
 def _swapped_example(rec: FrameRecord, ctx: Ctx) -> str:
-    big = ctx.profile.float_byte_order == "big"
-    if rec.raw[2:4] in (b"\x01\x00", b"\x00\x01") and rec.error is not None and rec.error.clause == "F2":
+    if rec.error is not None and rec.error.clause == "F2" and rec.raw[:4] == codec_for(ctx.profile.swapped(header=True)).start:
         return "the version field reads 01 00 in the profile's byte order: the header is the other way round"
-    if rec.action in (Action.POSE, Action.REGISTER_POSE) and len(rec.raw) >= 39:
-        straight = struct.unpack_from((">" if big else "<") + "6f", rec.raw, 13)
-        swapped = struct.unpack_from(("<" if big else ">") + "6f", rec.raw, 13)
+    if rec.action in (Action.POSE, Action.REGISTER_POSE) and len(rec.raw) >= HEADER_LEN + POSE_BLOCK_LEN:
+        straight = codec_for(ctx.profile).pose.unpack_from(rec.raw, HEADER_LEN)[1:]
+        swapped = codec_for(ctx.profile.swapped(floats=True)).pose.unpack_from(rec.raw, HEADER_LEN)[1:]
         return (f"pose read as ({', '.join(f'{v:.3g}' for v in straight)}), byte-swapped "
                 f"({', '.join(f'{v:.1f}' for v in swapped)})")
     return rec.describe()
@@ -276,7 +277,7 @@ def inject_case(ctx: Ctx, name: str) -> CaseResult:
         return ctx.result(spec, Verdict.INCONCLUSIVE, "nothing was injected: the robot never sent the request it applies to")
     t, what = trigger
     after = [r for r in ctx.records if r.t >= t and r.action is not None]
-    cmds = [f"{action_name(r.action)} at {view.ms(r.t)}" for r in after if r.action != Action.POSE]  # type: ignore[arg-type]
+    cmds = [f"{action_name(r.action)} at {view.ms(r.t)}" for r in after if r.action != Action.POSE]
     poses = [r for r in after if r.action == Action.POSE]
     closes = [f"conn {c.number} ({c.role}) {c.closed_by} at {view.ms(c.t_close)}" for c in ctx.session.tcp
               if c.t_close is not None and c.t_close >= t]
@@ -322,7 +323,7 @@ def judge_session(run: RunRecord, session: SessionRecord, suffix: str) -> list[C
         (AWAIT_SPEC, lambda: [awaited_case(ctx)]),
         (RATE_SPEC, lambda: rate_cases(ctx)),
         (CLOSE_SPEC, lambda: [close_case(ctx)]),
-        *((INJECT_SPECS[n], (lambda n=n: [inject_case(ctx, n)])) for n in run.config.inject),  # type: ignore[misc]
+        *((INJECT_SPECS[n], (lambda n=n: [inject_case(ctx, n)])) for n in run.config.inject),
     ]
     for spec, check in checks:
         t = time.perf_counter()

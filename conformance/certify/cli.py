@@ -17,12 +17,16 @@ import shlex
 import signal
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..i18n import _
 from ..options import add_profile_options, profile_from_options
 from ..rundirs import default_run_dirs, drop_if_empty
 from .records import INJECTIONS, CertifyConfig
 from .runner import EXIT_USAGE, CertifyOutcome, ListenError, certify
+
+if TYPE_CHECKING:
+    from ..options import Subparsers
 
 DEFAULT_LISTEN = "127.0.0.1:9004"
 
@@ -48,6 +52,20 @@ def parse_listen(text: str) -> tuple[str, int]:
     if not 0 <= port <= 65535:
         raise ValueError(f"port out of range in --listen {text!r}")
     return host, port
+
+
+def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
+    p = sub.add_parser(
+        "certify-robot",
+        help=_("act as the AI Box and certify a robot (client) implementation against PROTOCOL.md"),
+        description=_("Become the AI Box: answer the robot with the reference box's logic, record everything and "
+        "judge the robot's frames, session order, stream rate and closes. The first line on stdout is "
+        "'listening tcp HOST:PORT udp HOST:PORT'. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or "
+        "no robot connected within --wait. See docs/CERTIFY.md."),
+    )
+    add_arguments(p)
+    p.set_defaults(func=main_certify)
+    return p
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -107,7 +125,7 @@ async def _main(config: CertifyConfig, quiet: bool) -> CertifyOutcome:
     holder: list = []
     installed = []
 
-    def ready(listener) -> None:  # type: ignore[no-untyped-def]
+    def ready(listener) -> None:
         holder.append(listener)
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError, ValueError):

@@ -14,24 +14,24 @@ import asyncio
 from collections import deque
 from collections.abc import Callable
 from contextlib import AbstractContextManager
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 from ..endpoints.behaviour import BoxBehaviour, Decision, Reaction
 from ..endpoints.connection import BoxConnection
 from ..harness.transcript import Endpoint, Kind
-from ..protocol import Action, Frame, ProtocolError
-from ..protocol.frames import ValueBlock
-from .records import (
+from ..observed.connections import (
     BY_BOX,
     BY_ROBOT,
     BY_ROBOT_RESET,
     BY_SUITE,
-    CertifyConfig,
     ConnRecord,
     Exchange,
     InjectionEvent,
     SessionRecord,
 )
+from ..protocol import Action, Frame, ProtocolError
+from ..protocol.frames import ValueBlock
+from .records import CertifyConfig
 
 
 class Listener(Protocol):
@@ -50,7 +50,7 @@ class Listener(Protocol):
         """Turns the suite's own failures inside the block into an ERROR of the run."""
         ...
 
-    def accept(self, proto: TcpConnection, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
+    def accept(self, proto: CertifyTcpProtocol, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
         """The connection's session and record, or None: refused."""
         ...
 
@@ -67,7 +67,7 @@ def endpoint(address: object) -> Endpoint:
     return Endpoint(str(address), 0)
 
 
-class TcpConnection(asyncio.Protocol):
+class CertifyTcpProtocol(asyncio.Protocol):
     """One robot connection: record, answer through the box logic, inject."""
 
     def __init__(self, listener: Listener) -> None:
@@ -85,14 +85,14 @@ class TcpConnection(asyncio.Protocol):
 
     # -- asyncio callbacks -----------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        tcp = self.transport = cast(asyncio.Transport, transport)  # a stream server's transport
         with self.listener.guard("accepting a connection"):
             accepted = self.listener.accept(self, transport)
             if accepted is not None:
                 self.session, self.rec = accepted
                 self.box = BoxConnection(self.listener.behaviour, self._trace)
                 return
-        transport.abort()  # type: ignore[attr-defined]
+        tcp.abort()
 
     def data_received(self, data: bytes) -> None:
         rec, box = self.rec, self.box
@@ -221,13 +221,13 @@ def exchange_of(offset: int, t: float, action: int | None, decision: Decision) -
                     frame.error_code if frame else None, value)
 
 
-class UdpEndpoint(asyncio.DatagramProtocol):
+class CertifyUdpProtocol(asyncio.DatagramProtocol):
     def __init__(self, listener: Listener) -> None:
         self.listener = listener
         self.transport: asyncio.DatagramTransport | None = None
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        self.transport = cast(asyncio.DatagramTransport, transport)  # a datagram endpoint's transport
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         with self.listener.guard("handling a UDP datagram"):

@@ -16,18 +16,18 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import socket
 import traceback
 from collections.abc import Callable
 from typing import Any
 
 from ..endpoints.behaviour import BoxBehaviour, Decision
-from ..endpoints.protocols import format_address
+from ..endpoints.protocols import format_address, listen, resolve
 from ..evidence.pcap import PcapRecorder
 from ..harness.transcript import Endpoint, Kind, Transcript
+from ..observed.connections import ConnRecord, SessionRecord
 from ..protocol import Frame, ProtocolError
-from .connection import TcpConnection, UdpEndpoint, endpoint, exchange_of
-from .records import CertifyConfig, ConnRecord, RunRecord, SessionRecord, monotonic_wall
+from .connection import CertifyTcpProtocol, CertifyUdpProtocol, endpoint, exchange_of
+from .records import CertifyConfig, RunRecord, monotonic_wall
 
 TICK_S = 0.05
 
@@ -48,7 +48,7 @@ class CertifyListener:
         self.t_start = self.clock()
         self.sessions: list[SessionRecord] = []
         self.current: SessionRecord | None = None
-        self.protocols: dict[int, TcpConnection] = {}  # id(ConnRecord) -> protocol
+        self.protocols: dict[int, CertifyTcpProtocol] = {}  # id(ConnRecord) -> protocol
         self.udp_peers: dict[tuple[int, str], ConnRecord] = {}
         self.udp_waiting: list[ConnRecord] = []
         self.errors: list[str] = []
@@ -67,29 +67,12 @@ class CertifyListener:
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
         self._done = asyncio.Event()
-        infos = await loop.getaddrinfo(self.config.host, None, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
-        family, _, _, _, sockaddr = infos[0]
-        self.host = str(sockaddr[0])
-        attempts = 20 if self.config.port == 0 and self.config.udp else 1
-        for attempt in range(attempts):
-            server = await loop.create_server(lambda: TcpConnection(self), self.host, self.config.port,
-                                              family=family, reuse_address=True)
-            self.tcp_port = server.sockets[0].getsockname()[1]
-            if not self.config.udp:
-                break
-            try:
-                udp, _ = await loop.create_datagram_endpoint(lambda: UdpEndpoint(self),
-                                                             local_addr=(self.host, self.tcp_port), family=family)
-            except OSError as exc:
-                server.close()
-                await server.wait_closed()
-                if attempt + 1 < attempts:
-                    continue
-                raise OSError(exc.errno, f"cannot bind UDP {format_address(self.host, self.tcp_port)}: "
-                              f"{exc.strerror}") from None
-            self._udp = udp  # type: ignore[assignment]
-            self.udp_port = udp.get_extra_info("sockname")[1]
-            break
+        family, self.host = await resolve(loop, self.config.host)
+        server, self._udp = await listen(loop, family, self.host, self.config.port, lambda: CertifyTcpProtocol(self),
+                                         (lambda: CertifyUdpProtocol(self)) if self.config.udp else None)
+        self.tcp_port = server.sockets[0].getsockname()[1]
+        if self._udp is not None:
+            self.udp_port = self._udp.get_extra_info("sockname")[1]
         self._server = server
         self.t_start = self.clock()
 
@@ -132,7 +115,7 @@ class CertifyListener:
                          self.sessions, self.end_reason, self.end_note, self.refused, self.errors)
 
     @contextlib.contextmanager
-    def guard(self, what: str):  # type: ignore[no-untyped-def]
+    def guard(self, what: str):
         """The suite's own failures become an ERROR case, never a traceback on the robot's account."""
         try:
             yield
@@ -156,7 +139,7 @@ class CertifyListener:
         self.emit(f"session {session.number}: started")
         return session
 
-    def accept(self, proto: TcpConnection, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
+    def accept(self, proto: CertifyTcpProtocol, transport: asyncio.BaseTransport) -> tuple[SessionRecord, ConnRecord] | None:
         assert self._done is not None
         now = self.clock()
         if self._done.is_set() or (self.current is None and len(self.sessions) >= self.config.sessions):

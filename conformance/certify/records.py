@@ -1,11 +1,7 @@
-"""What ``certify-robot`` records: the settings, and every session, connection and exchange.
+"""What ``certify-robot`` is told and what a run recorded: the settings and the run.
 
-The listener (:mod:`.listener`) fills these in as the robot talks to it; the
-judgement (:mod:`.session`, :mod:`.timing`, :mod:`.checks`) reads them afterwards and
-never touches a socket. A connection's bytes live in its
-:class:`~conformance.harness.transcript.Transcript` (``local`` is the suite, the box;
-``remote`` the robot; ``recv`` is what the robot sent); :class:`Exchange` adds what
-the box decided for each request and when its answer went out.
+The sessions, connections and exchanges themselves are the shared model of observed
+traffic (:mod:`conformance.observed.connections`), which ``analyze`` builds too.
 """
 
 from __future__ import annotations
@@ -16,8 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..endpoints.behaviour import BoxConfig
-from ..harness.transcript import Endpoint, Transcript
-from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Action, Profile, ResultCode
+from ..observed.connections import SessionRecord
+from ..observed.timing import check_tolerances
+from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile, ResultCode
 
 #: ``--inject`` choices: box behaviours that show how the robot copes (INFORMATIONAL).
 INJECTIONS: dict[str, str] = {
@@ -28,10 +25,6 @@ INJECTIONS: dict[str, str] = {
 }
 #: ``slow``: answers are held back by this share of ``time_out``.
 SLOW_SHARE = 0.8
-
-#: How a connection ended (ConnRecord.closed_by).
-BY_ROBOT, BY_ROBOT_RESET, BY_BOX, BY_SUITE = "robot", "robot-reset", "box", "suite"
-
 
 @dataclass(frozen=True)
 class CertifyConfig:
@@ -73,10 +66,7 @@ class CertifyConfig:
         for name in ("wait_s", "linger_s", "grace_s", "max_session_s"):
             if not 0 < getattr(self, name) <= 86_400:
                 raise ValueError(f"{name} must be in (0, 86400] seconds, not {getattr(self, name)}")
-        if not 0 < self.rate_tolerance < 1:
-            raise ValueError(f"rate tolerance must be in (0, 100) %, not {self.rate_tolerance * 100:g} %")
-        if not 0 < self.jitter_tolerance <= 10:
-            raise ValueError(f"jitter tolerance must be in (0, 1000] %, not {self.jitter_tolerance * 100:g} %")
+        check_tolerances(self.rate_tolerance, self.jitter_tolerance)
 
     @property
     def slow_delay_s(self) -> float:
@@ -90,79 +80,6 @@ class CertifyConfig:
             vision_result=ResultCode.BUSY if "busy" in self.inject else ResultCode.OK,
             extension=True,
         )
-
-
-@dataclass
-class Exchange:
-    """One event the box decoded on a connection (a request, a malformed frame or
-    garbage) and what it did about it."""
-
-    offset: int  # stream offset of its first byte (TCP), datagram number (UDP)
-    t_request: float  # when the chunk that completed it arrived
-    action: int | None  # the request's action, when its header is a request header
-    reaction: str  # the box's Reaction value
-    answer: bytes | None = None  # the answer's bytes (None: silence)
-    answer_text: str = ""
-    error_code: int | None = None
-    value: int | None = None  # the type-03 block value of a 26/27 answer
-    t_answer: float | None = None  # when the answer was written (None: never)
-
-
-@dataclass
-class ConnRecord:
-    """One connection from the robot (or one UDP peer)."""
-
-    number: int  # within the session, from 1
-    transport: str  # "tcp" | "udp"
-    transcript: Transcript
-    local: Endpoint
-    peer: Endpoint
-    t_open: float
-    t_close: float | None = None
-    closed_by: str | None = None  # BY_ROBOT, BY_ROBOT_RESET, BY_BOX, BY_SUITE
-    close_note: str = ""
-    actions: list[int] = field(default_factory=list)  # request actions, in order
-    exchanges: list[Exchange] = field(default_factory=list)
-    pcap: Path | None = None
-
-    @property
-    def open(self) -> bool:
-        return self.t_close is None
-
-    @property
-    def role(self) -> str:
-        """``stream`` (poses only), ``command`` (any other request) or ``unknown`` (no request)."""
-        if not self.actions:
-            return "unknown"
-        return "stream" if all(a == Action.POSE for a in self.actions) else "command"
-
-    @property
-    def label(self) -> str:
-        return f"conn {self.number} ({self.role}, {self.transport} from {self.peer})"
-
-
-@dataclass
-class InjectionEvent:
-    name: str
-    t: float
-    conn: int
-    note: str
-
-
-@dataclass
-class SessionRecord:
-    number: int  # from 1
-    t_start: float
-    conns: list[ConnRecord] = field(default_factory=list)
-    t_end: float | None = None
-    end_reason: str = ""
-    last_activity: float = 0.0
-    injected: list[InjectionEvent] = field(default_factory=list)
-    pcap: Path | None = None  # every connection of the session in one file
-
-    @property
-    def tcp(self) -> list[ConnRecord]:
-        return [c for c in self.conns if c.transport == "tcp"]
 
 
 @dataclass

@@ -64,6 +64,7 @@ from ..protocol import (
     ResultCode,
     TransferType,
     Transport,
+    ValueBlock,
     answer,
     codec_for,
     value_blocks,
@@ -324,12 +325,10 @@ class BoxBehaviour:
             stats.answers += 1
         return decision
 
-    def handle(self, event: Frame | ProtocolError) -> Frame | None:
-        """The answer frame to ``event``, or None (silence, or close: see :meth:`decide`)."""
-        return self.decide(event).frame
-
     def _prog_idx(self, frame: Frame) -> Decision:
-        value = frame.blocks[0].value  # type: ignore[union-attr]
+        block = frame.blocks[0]
+        assert isinstance(block, ValueBlock), frame  # the codec let through E2's one type-03 block only
+        value = block.value
         self.prog_idx = value
         decision = self._prog_idx_cache.get(value)
         if decision is None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from math import isfinite
 
-from ..protocol import CLOSED, NEED_DATA, Action, StreamDecoder, TransferType, pose_blocks, request
+from ..protocol import Action, Frame, ProtocolError, StreamDecoder, TransferType, pose_blocks, request
 from ..protocol.constants import MAX_FRAME_LEN
 from .behaviour import BoxBehaviour, Reaction, Tracer
 
@@ -145,13 +145,13 @@ class BoxConnection:
         while True:
             start = decoder.offset
             event = decoder.next_event()
-            if event is NEED_DATA or event is CLOSED:
+            if not isinstance(event, (Frame, ProtocolError)):  # NEED_DATA or CLOSED
                 break
             self.frames_in += 1
-            decision = decide(event)  # type: ignore[arg-type]
+            decision = decide(event)
             if trace is not None:
                 base = self._mirror_base
-                trace(bytes(self._mirror[start - base : decoder.offset - base]), event, decision)  # type: ignore[arg-type]
+                trace(bytes(self._mirror[start - base : decoder.offset - base]), event, decision)
             if decision.tcp is not None:
                 out.append(decision.tcp)
             elif decision.reaction is Reaction.CLOSE:

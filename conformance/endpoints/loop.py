@@ -22,10 +22,10 @@ def new_event_loop(kind: str = "asyncio") -> asyncio.AbstractEventLoop:
     """A fresh loop: ``asyncio`` (the standard one) or ``uvloop`` (if installed)."""
     if kind == "uvloop":
         try:
-            import uvloop  # type: ignore[import-not-found]
+            import uvloop
         except ImportError:
             raise ValueError("--loop uvloop: uvloop is not installed (pip install uvloop)") from None
-        return uvloop.new_event_loop()  # type: ignore[no-any-return]
+        return uvloop.new_event_loop()
     if kind != "asyncio":
         raise ValueError(f"unknown event loop {kind!r}")
     return asyncio.new_event_loop()

@@ -17,8 +17,10 @@ The hot path is one pose in, one cached answer out:
 from __future__ import annotations
 
 import asyncio
+import socket
 from collections import deque
-from typing import Any
+from collections.abc import Callable
+from typing import Any, cast
 
 from ..harness.target import Target
 from ..protocol import Frame, ProtocolError
@@ -42,6 +44,40 @@ def format_address(host: str, port: int) -> str:
     return str(Target(host, port))
 
 
+async def resolve(loop: asyncio.AbstractEventLoop, host: str) -> tuple[int, str]:
+    """(family, address): one local address for ``host``, so that port 0 means one port for TCP and UDP."""
+    infos = await loop.getaddrinfo(host, None, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
+    if not infos:
+        raise OSError(f"cannot resolve {host!r}")
+    family, _, _, _, sockaddr = infos[0]
+    return int(family), str(sockaddr[0])
+
+
+async def listen(loop: asyncio.AbstractEventLoop, family: int, host: str, port: int,
+                 tcp: Callable[[], asyncio.BaseProtocol], udp: Callable[[], asyncio.BaseProtocol] | None = None,
+                 udp_port: int | None = None, backlog: int = 100,
+                 ) -> tuple[asyncio.Server, asyncio.DatagramTransport | None]:
+    """A TCP server on ``host:port`` and, with a ``udp`` protocol factory, a UDP endpoint on the
+    same port (or on ``udp_port``). With port 0 and one port for both, up to 20 tries for a port
+    that is free for UDP too; an OSError names what could not be bound."""
+    attempts = 20 if port == 0 and udp is not None and udp_port is None else 1
+    for attempt in range(attempts):
+        server = await loop.create_server(tcp, host, port, family=family, reuse_address=True, backlog=backlog)
+        if udp is None:
+            return server, None
+        local = (host, server.sockets[0].getsockname()[1] if udp_port is None else udp_port)
+        try:
+            transport, _ = await loop.create_datagram_endpoint(udp, local_addr=local, family=family)
+        except OSError as exc:
+            server.close()
+            await server.wait_closed()
+            if attempt + 1 < attempts:
+                continue
+            raise OSError(exc.errno, f"cannot bind UDP {format_address(*local)}: {exc.strerror}") from None
+        return server, transport
+    raise AssertionError("unreachable: the last attempt returns or raises")
+
+
 #: One receive buffer for every connection: the loop is single-threaded and each read
 #: is consumed before the next, so connections need no buffer of their own. (A
 #: ``Protocol`` would get a fresh 256 KiB bytes object per read, which glibc serves
@@ -49,13 +85,13 @@ def format_address(host: str, port: int) -> str:
 _READ_SIZE = 256 * 1024
 
 
-class TcpConnection(asyncio.BufferedProtocol):
+class BoxTcpProtocol(asyncio.BufferedProtocol):
     """One robot connection (command or stream: the box does not care which)."""
 
     __slots__ = (
         "box", "id", "transport", "conn", "receive", "rx", "ans", "rx_seen", "ans_seen", "last_rx",
         "last_progress", "delay", "queue", "queued", "timer", "write_paused", "read_paused", "peer", "closed",
-        "close_logged", "buffer", "view", "eof",
+        "close_logged", "buffer", "view", "eof", "write",
     )
 
     def __init__(self, box: ConnectionTable) -> None:
@@ -74,10 +110,11 @@ class TcpConnection(asyncio.BufferedProtocol):
 
     # -- asyncio callbacks ----------------------------------------------------------------
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        tcp = self.transport = cast(asyncio.Transport, transport)  # a stream server's transport
+        self.write = tcp.write
         box = self.box
         if not box._admit(self):
-            transport.abort()  # type: ignore[attr-defined]
+            tcp.abort()
             return
         peer = transport.get_extra_info("peername")
         self.peer = format_address(peer[0], peer[1]) if isinstance(peer, tuple) else str(peer)
@@ -92,7 +129,7 @@ class TcpConnection(asyncio.BufferedProtocol):
             log.write({"conn": cid, "transport": "tcp", "peer": peer_text, "direction": "open"})
         self.conn = BoxConnection(box.behaviour, trace)
         self.receive = self.conn.receive_data
-        transport.set_write_buffer_limits(high=WRITE_HIGH, low=WRITE_LOW)  # type: ignore[attr-defined]
+        tcp.set_write_buffer_limits(high=WRITE_HIGH, low=WRITE_LOW)
 
     def get_buffer(self, sizehint: int) -> memoryview:
         return self.view
@@ -105,7 +142,7 @@ class TcpConnection(asyncio.BufferedProtocol):
             if self.delay:
                 self._hold(out)
             else:
-                self.transport.write(out)  # type: ignore[union-attr]
+                self.write(out)
         if self.conn.should_close:
             self._close(self.conn.close_reason)
 
@@ -165,7 +202,7 @@ class TcpConnection(asyncio.BufferedProtocol):
         if chunks:
             data = b"".join(chunks)
             self.queued -= len(data)
-            self.transport.write(data)  # type: ignore[union-attr]
+            self.write(data)
         if queue:
             self.timer = self.box.loop.call_at(queue[0][0], self._release)
         elif self.eof:
@@ -184,14 +221,17 @@ class TcpConnection(asyncio.BufferedProtocol):
             transport.close()
 
 
-class UdpEndpoint(asyncio.DatagramProtocol):
+class BoxUdpProtocol(asyncio.DatagramProtocol):
     def __init__(self, box: ConnectionTable) -> None:
         self.box = box
         self.transport: asyncio.DatagramTransport | None = None
+        self.buffered: Callable[[], int] = lambda: 0
         self.delay = box.behaviour.config.latency_ms / 1000.0
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        self.transport = cast(asyncio.DatagramTransport, transport)  # a datagram endpoint's transport
+        # asyncio's datagram transports buffer writes too (typeshed does not declare the method)
+        self.buffered = getattr(transport, "get_write_buffer_size", lambda: 0)
 
     def datagram_received(self, data: bytes, addr: Any) -> None:
         box = self.box
@@ -207,7 +247,7 @@ class UdpEndpoint(asyncio.DatagramProtocol):
         transport = self.transport
         if out is None or transport is None or transport.is_closing():
             return
-        if transport.get_write_buffer_size() > UDP_BUFFER_LIMIT:  # type: ignore[attr-defined]
+        if self.buffered() > UDP_BUFFER_LIMIT:
             box.udp_dropped_answers += 1
             return
         if self.delay:
@@ -227,24 +267,26 @@ class ConnectionTable:
     """The box's live TCP connections and their counters: admission (R5's limit, eviction of the
     connection that has gone longest without an answer), close logging and the idle sweep."""
 
+    #: the loop the box runs on (set when it starts)
+    loop: asyncio.AbstractEventLoop
+
     def __init__(self, behaviour: BoxBehaviour, max_connections: int, idle_timeout: float, evict_after: float) -> None:
         self.behaviour = behaviour
         self.max_connections = max_connections
         self.idle_timeout = idle_timeout
         self.evict_after = evict_after
         self.log: FrameLog | None = None
-        self.connections: dict[int, TcpConnection] = {}
+        self.connections: dict[int, BoxTcpProtocol] = {}
         self.accepted = self.refused = self.evicted = self.idle_closed = 0
         self.peak_connections = 0
         self.udp_dropped_answers = 0
         self._next_id = 1
         self._read_buffer = bytearray(_READ_SIZE)
         self._read_view = memoryview(self._read_buffer)
-        self.loop: asyncio.AbstractEventLoop = None  # type: ignore[assignment]
         self._closing = False
 
     # -- connection bookkeeping ---------------------------------------------------------------
-    def _admit(self, conn: TcpConnection) -> bool:
+    def _admit(self, conn: BoxTcpProtocol) -> bool:
         if self._closing:
             return False
         if len(self.connections) >= self.max_connections:
@@ -267,7 +309,7 @@ class ConnectionTable:
         self.peak_connections = max(self.peak_connections, len(self.connections))
         return True
 
-    def _victim(self) -> TcpConnection | None:
+    def _victim(self) -> BoxTcpProtocol | None:
         """The connection that has gone longest without an answer, if long enough."""
         now = self.loop.time()
         best, best_key = None, None
@@ -280,13 +322,13 @@ class ConnectionTable:
             return None
         return best
 
-    def _forget(self, conn: TcpConnection, reason: str) -> None:
+    def _forget(self, conn: BoxTcpProtocol, reason: str) -> None:
         if conn.id and self.connections.get(conn.id) is conn:
             del self.connections[conn.id]
         if conn.id:
             self._log_close(conn, reason)
 
-    def _log_close(self, conn: TcpConnection, reason: str) -> None:
+    def _log_close(self, conn: BoxTcpProtocol, reason: str) -> None:
         if self.log is not None and not conn.close_logged:
             conn.close_logged = True
             self.log.write({"conn": conn.id, "transport": "tcp", "peer": conn.peer, "direction": "close", "reason": reason})
@@ -314,5 +356,5 @@ class ConnectionTable:
 
 
 __all__ = [
-    "DEFAULT_IDLE_TIMEOUT", "DEFAULT_MAX_CONNECTIONS", "ConnectionTable", "TcpConnection", "UdpEndpoint", "format_address",
+    "DEFAULT_IDLE_TIMEOUT", "DEFAULT_MAX_CONNECTIONS", "ConnectionTable", "BoxTcpProtocol", "BoxUdpProtocol", "format_address",
 ]

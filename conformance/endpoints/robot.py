@@ -333,7 +333,7 @@ class RobotSession(SessionIO):
 
 def run_robot(session: RobotSession, loop: str = "asyncio") -> RobotResult:
     """Run a session to completion from synchronous code."""
-    return run_loop(session.run(), loop)  # type: ignore[no-any-return]
+    return run_loop(session.run(), loop)
 
 
 __all__ = ["RobotSession", "parse_target", "run_robot"]

@@ -11,6 +11,7 @@ import asyncio
 import contextlib
 import time
 from collections.abc import Callable
+from typing import cast
 
 from ..harness.target import Target
 from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, codec_for
@@ -45,7 +46,7 @@ class Link(asyncio.BufferedProtocol):
         self.closing = False
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport = transport  # type: ignore[assignment]
+        self.transport = cast(asyncio.Transport, transport)  # a stream connection's transport
 
     def get_buffer(self, sizehint: int) -> memoryview:
         return self.buffer
@@ -157,7 +158,7 @@ class SessionIO:
         data = self._codec.encode(frame)
         faults = self.faults
         if faults.block_length is not None and frame.blocks:
-            data = data[:8] + faults.block_length.to_bytes(2, self.profile.byte_order) + data[10:]  # type: ignore[arg-type]
+            data = data[:8] + self._codec.pack_u16(faults.block_length) + data[10:]
         if faults.encode_hook is not None:
             data = faults.encode_hook(frame, data)
         return data

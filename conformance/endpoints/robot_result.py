@@ -11,7 +11,7 @@ import statistics
 from dataclasses import dataclass, field
 
 from ..protocol import Frame, ResultCode, TransferType
-from ..protocol.frames import ValueBlock
+from ..protocol.frames import PoseBlock, ValueBlock
 from ..stats import percentile
 
 EXIT_OK = 0
@@ -107,8 +107,9 @@ class RobotResult:
 def frame_text(frame: Frame) -> str:
     """A frame in a timeline line: its action, value blocks and (in answers) error code."""
     text = f"{frame.action.name}"
-    if frame.blocks and isinstance(frame.blocks[0], ValueBlock):
-        text += " value=" + ",".join(str(b.value) for b in frame.blocks)  # type: ignore[union-attr]
+    values = [str(b.value) for b in frame.blocks if isinstance(b, ValueBlock)]
+    if values:
+        text += " value=" + ",".join(values)
     if frame.transfer_type == TransferType.BOX_TO_ROBOT or frame.error_code:
         text += f" {frame.error_code:04X}"
     return text
@@ -116,7 +117,9 @@ def frame_text(frame: Frame) -> str:
 
 def pose_text(frame: Frame) -> str:
     """A pose frame's pose in a timeline line: ``(x, y, z | w, p, r)``."""
-    pose = frame.blocks[0].pose  # type: ignore[union-attr]
+    block = frame.blocks[0]
+    assert isinstance(block, PoseBlock), frame
+    pose = block.pose
     return "(" + ", ".join(f"{v:.1f}" for v in pose[:3]) + " | " + ", ".join(f"{v:.1f}" for v in pose[3:]) + ")"
 
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import socket
 from pathlib import Path
 from typing import IO
 
@@ -28,10 +27,12 @@ from .framelog import FrameLog
 from .protocols import (
     DEFAULT_IDLE_TIMEOUT,
     DEFAULT_MAX_CONNECTIONS,
+    BoxTcpProtocol,
+    BoxUdpProtocol,
     ConnectionTable,
-    TcpConnection,
-    UdpEndpoint,
     format_address,
+    listen,
+    resolve,
 )
 
 
@@ -99,41 +100,16 @@ class ReferenceBox(ConnectionTable):
         target = self._log_target
         if target is not None:
             self.log = target if isinstance(target, FrameLog) else FrameLog(target)
-        family, address = await self._resolve()
+        family, address = await resolve(self.loop, self.host)
         self.bound_host = address
-        attempts = 20 if self.port == 0 and self.udp and self.udp_port_request is None else 1
-        for attempt in range(attempts):
-            server = await self.loop.create_server(
-                lambda: TcpConnection(self), address, self.port, family=family, reuse_address=True, backlog=1024,
-            )
-            tcp_port = server.sockets[0].getsockname()[1]
-            if not self.udp:
-                break
-            udp_port = tcp_port if self.udp_port_request is None else self.udp_port_request
-            try:
-                transport, _ = await self.loop.create_datagram_endpoint(
-                    lambda: UdpEndpoint(self), local_addr=(address, udp_port), family=family,
-                )
-            except OSError as exc:
-                server.close()
-                await server.wait_closed()
-                if attempt + 1 < attempts:
-                    continue
-                raise OSError(exc.errno, f"cannot bind UDP {format_address(address, udp_port)}: {exc.strerror}") from None
-            self._udp_transport = transport  # type: ignore[assignment]
-            self.udp_port = transport.get_extra_info("sockname")[1]
-            break
+        server, self._udp_transport = await listen(
+            self.loop, family, address, self.port, lambda: BoxTcpProtocol(self),
+            (lambda: BoxUdpProtocol(self)) if self.udp else None, self.udp_port_request, backlog=1024)
+        if self._udp_transport is not None:
+            self.udp_port = self._udp_transport.get_extra_info("sockname")[1]
         self._server = server
-        self.tcp_port = tcp_port
+        self.tcp_port = server.sockets[0].getsockname()[1]
         self._sweeper = self.loop.create_task(self._sweep())
-
-    async def _resolve(self) -> tuple[int, str]:
-        """One local address for ``host`` (so that port 0 means one port for TCP and UDP)."""
-        infos = await self.loop.getaddrinfo(self.host, None, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE)
-        if not infos:
-            raise OSError(f"cannot resolve {self.host!r}")
-        family, _, _, _, sockaddr = infos[0]
-        return int(family), str(sockaddr[0])
 
     async def close(self) -> None:
         """Stop listening, close every connection (answers already written are sent), flush the log."""

@@ -74,7 +74,9 @@ def _open_socket(interface: str, bpf: str) -> Any:
         sock.LL = conf.raw_layer
         return sock
 
-    class _ListenSocket(base):  # type: ignore[misc, valid-type]
+    class _ListenSocket(base):
+        LL: Any  # scapy's link layer class for this interface (replaced by Raw below)
+
         def __init__(self) -> None:
             super().__init__(iface=interface, nofilter=1)
             try:
@@ -89,7 +91,7 @@ def _open_socket(interface: str, bpf: str) -> Any:
             elif family in (_ARPHRD_ETHER, _ARPHRD_LOOPBACK):
                 self.linktype = _LINKTYPE_ETHERNET
             else:
-                self.linktype = conf.l2types.layer2num.get(self.LL, _LINKTYPE_ETHERNET)  # type: ignore[has-type]
+                self.linktype = conf.l2types.layer2num.get(self.LL, _LINKTYPE_ETHERNET)
             self.LL = conf.raw_layer  # keep the bytes; no dissection in the capture thread
             for opt in (_SO_RCVBUFFORCE, socket.SO_RCVBUF):
                 try:

@@ -26,6 +26,7 @@ import ipaddress
 import struct
 import zlib
 from dataclasses import dataclass, field
+from typing import Final
 
 from conformance.harness.transcript import ConnectionInfo
 
@@ -53,9 +54,13 @@ _PROTO_TCP, _PROTO_UDP = 6, 17
 _SYNTHETIC_PORT_BASE = 61000
 
 
+#: IP, TCP and UDP headers (and their checksums) are in network byte order, whatever the iSight profile says
+_NETWORK_ORDER: Final = "big"
+
+
 def _sum16(data: bytes) -> int:
     """The 16-bit words of ``data`` (even length) summed modulo 0xFFFF (2**16 == 1)."""
-    return int.from_bytes(data, "big") % 0xFFFF
+    return int.from_bytes(data, _NETWORK_ORDER) % 0xFFFF
 
 
 def _fold(total: int) -> int:
@@ -189,7 +194,7 @@ def _ip(flow: Flow, out: bool, proto: int, segment_len: int) -> tuple[bytes, int
     total = min(20 + segment_len, 0xFFFF)
     head = _IPV4.pack(0x45, 0, total, ident, 0x4000, 64, proto, 0, src, dst)
     csum = _fold(_sum16(head))
-    head = head[:10] + csum.to_bytes(2, "big") + head[12:]
+    head = head[:10] + csum.to_bytes(2, _NETWORK_ORDER) + head[12:]
     pseudo = _sum16(src + dst) + proto + segment_len
     return _ETH_IPV4 + head, pseudo
 
@@ -215,7 +220,7 @@ def tcp(
     head += options
     eth_ip, pseudo = _ip(flow, out, _PROTO_TCP, hlen + len(payload))
     csum = _fold(pseudo + _sum16(head) + (_payload_sum(payload) if payload else 0))
-    return eth_ip + head[:16] + csum.to_bytes(2, "big") + head[18:] + payload
+    return eth_ip + head[:16] + csum.to_bytes(2, _NETWORK_ORDER) + head[18:] + payload
 
 
 def udp(flow: Flow, out: bool, payload: bytes) -> bytes:
@@ -225,4 +230,4 @@ def udp(flow: Flow, out: bool, payload: bytes) -> bytes:
     head = _UDP.pack(sport, dport, length & 0xFFFF, 0)
     eth_ip, pseudo = _ip(flow, out, _PROTO_UDP, length)
     csum = _fold(pseudo + _sum16(head) + _payload_sum(payload)) or 0xFFFF  # RFC 768: 0 means "none"
-    return eth_ip + head[:6] + csum.to_bytes(2, "big") + payload
+    return eth_ip + head[:6] + csum.to_bytes(2, _NETWORK_ORDER) + payload

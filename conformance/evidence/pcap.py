@@ -242,21 +242,7 @@ class PcapRecorder:
             elif ev.note:
                 conn.notes.append(ev.note)
             return
-        # Does this event put anything on the wire? (After a reset nothing does; a
-        # zero-byte send, a second close of one side, a repeated connect do not.)
-        if flow.reset:
-            wire = False
-        elif kind in (Kind.SEND, Kind.RECV):
-            wire = bool(ev.data)
-        elif kind in (Kind.CLOSE, Kind.PEER_CLOSE):
-            wire = not flow.fin[kind == Kind.CLOSE]
-        elif kind in (Kind.ABORT, Kind.PEER_RESET):
-            wire = True
-        elif kind == Kind.CONNECT:
-            wire = not flow.opened
-        else:
-            wire = False
-        if not wire:  # keep the note for the next packet of this connection
+        if not _on_the_wire(flow, ev):  # keep the note for the next packet of this connection
             if ev.note:
                 conn.notes.append(ev.note if kind in _KINDS else f"{kind}: {ev.note}")
             return
@@ -275,6 +261,21 @@ class PcapRecorder:
         elif kind in (Kind.ABORT, Kind.PEER_RESET):
             blocks.append(self._epb(packets.rst(flow, kind == Kind.ABORT), t, comments))
         self._write(b"".join(blocks))
+
+
+def _on_the_wire(flow: Flow, ev: WireEvent) -> bool:
+    """Does this TCP event put anything on the wire? After a reset nothing does; a zero-byte
+    send, a second close of one side, a repeated connect do not."""
+    kind = ev.kind
+    if flow.reset:
+        return False
+    if kind in (Kind.SEND, Kind.RECV):
+        return bool(ev.data)
+    if kind in (Kind.CLOSE, Kind.PEER_CLOSE):
+        return not flow.fin[kind == Kind.CLOSE]
+    if kind in (Kind.ABORT, Kind.PEER_RESET):
+        return True
+    return kind == Kind.CONNECT and not flow.opened
 
 
 def write_transcript(

@@ -40,12 +40,14 @@ from scapy.fields import (
 from scapy.layers.inet import TCP, UDP
 from scapy.packet import Packet, bind_bottom_up, bind_layers, split_bottom_up
 
+from conformance.protocol.codec import codec_for
 from conformance.protocol.constants import (
     BLOCK_LEN,
     CHECK_LEN,
     DEFAULT_PORT,
     HEADER_LEN,
     MAX_BLOCK_COUNT,
+    START_BYTES,
     START_WORD,
     VERSION,
     Action,
@@ -53,7 +55,7 @@ from conformance.protocol.constants import (
     ErrorCode,
     TransferType,
 )
-from conformance.protocol.profile import crc_function
+from conformance.protocol.profile import DEFAULT_PROFILE, Profile, crc_function
 
 __all__ = [
     "ISight",
@@ -82,7 +84,8 @@ ACTIONS = _names(Action)
 BLOCK_TYPES = _names(BlockType)
 ERROR_CODES = _names(ErrorCode)
 
-_START = START_WORD.to_bytes(2, "big")
+#: The layer's fields are big-endian (scapy's ShortField): the default profile's byte order.
+_LAYOUT = codec_for(DEFAULT_PROFILE)
 #: Most ISight layers chained on one packet. Scapy dissects, builds and shows a
 #: packet by recursion, one level per layer, so a deep chain would hit Python's
 #: recursion limit; past this many the rest stays Raw and :func:`frames` goes on.
@@ -186,7 +189,7 @@ class _BlockTypeField(ByteEnumField):
         if x is None and pkt is not None:
             blocks = pkt.getfieldval("blocks") or []
             return int(_BLOCK_TYPE_OF.get(type(blocks[0]), 0)) if blocks else 0
-        return super().i2m(pkt, x)  # type: ignore[no-any-return]
+        return super().i2m(pkt, x)
 
 
 def _per_block(pkt: Packet, total: int) -> int:
@@ -203,7 +206,7 @@ def _complete_len(s: bytes) -> int:
     n = len(s)
     if n < HEADER_LEN:
         return max(end for end in _HEADER_FIELD_ENDS if end <= n)
-    end = HEADER_LEN + s[7] * int.from_bytes(s[8:10], "big")
+    end = _LAYOUT.frame_length(s) - CHECK_LEN
     if n <= end or n >= end + CHECK_LEN:
         return n  # blocks take what there is / the whole frame (and what follows)
     return end  # one stray byte of the check field
@@ -235,12 +238,12 @@ class ISight(Packet):
             self.raw_packet_cache_fields = {}
             self.explicit = 1
             return s
-        return super().do_dissect(s[:cut]) + s[cut:]  # type: ignore[no-any-return]
+        return super().do_dissect(s[:cut]) + s[cut:]
 
     def guess_payload_class(self, payload: bytes) -> type:
-        if payload[:2] == _START and self._chain_position() < MAX_CHAIN - 1:
+        if payload[:2] == START_BYTES and self._chain_position() < MAX_CHAIN - 1:
             return ISight
-        return conf.raw_layer  # type: ignore[no-any-return]
+        return conf.raw_layer
 
     def _chain_position(self) -> int:
         n, under = 0, self.underlayer
@@ -251,7 +254,7 @@ class ISight(Packet):
     def mysummary(self) -> str:
         if "check" not in self.fields and self.raw_packet_cache is not None:
             return f"iSight truncated frame ({len(self.raw_packet_cache)} bytes)"
-        return self.sprintf(  # type: ignore[no-any-return]
+        return self.sprintf(
             "iSight %transfer_type% %action% N=%block_count% L=%block_length% err=%error_code%"
         )
 
@@ -288,7 +291,7 @@ del _lower
 
 def crc16(data: bytes, algorithm: str = "modbus") -> int:
     """CRC-16 of ``data`` under a crcmod predefined 16-bit algorithm name."""
-    return crc_function(algorithm)(bytes(data))  # type: ignore[no-any-return]
+    return crc_function(algorithm)(bytes(data))
 
 
 def _frame_bytes(frame: Packet | bytes | bytearray) -> bytes:
@@ -301,27 +304,26 @@ def _frame_bytes(frame: Packet | bytes | bytearray) -> bytes:
     return bytes(layer.clone_with(**layer.fields))  # the same layer, without its payload
 
 
-def with_udp_crc(pkt: Packet | bytes | bytearray, algorithm: str = "modbus", byteorder: str = "big") -> bytes:
+def with_udp_crc(pkt: Packet | bytes | bytearray, profile: Profile = DEFAULT_PROFILE) -> bytes:
     """The frame's bytes with its last two bytes (the check field) replaced by the
-    CRC-16 of everything before them, as a UDP sender writes it."""
+    CRC-16 of everything before them, as a UDP sender writes it (the profile's CRC)."""
     raw = _frame_bytes(pkt)
     if len(raw) < HEADER_LEN + CHECK_LEN:
         raise ValueError(f"a frame is at least {HEADER_LEN + CHECK_LEN} bytes, not {len(raw)}")
     body = raw[:-CHECK_LEN]
-    return body + crc16(body, algorithm).to_bytes(CHECK_LEN, byteorder)  # type: ignore[arg-type]
+    return body + profile.check_bytes(body)
 
 
-def crc_ok(raw: Packet | bytes | bytearray, algorithm: str = "modbus", byteorder: str = "big") -> bool:
+def crc_ok(raw: Packet | bytes | bytearray, profile: Profile = DEFAULT_PROFILE) -> bool:
     """True when the check field, found where the header puts it (12 + N*L), holds
-    the CRC-16 of bytes 0 .. 12+N*L-1. Bytes after the frame are not looked at."""
+    the profile's CRC-16 of bytes 0 .. 12+N*L-1. Bytes after the frame are not looked at."""
     raw = _frame_bytes(raw)
     if len(raw) < HEADER_LEN:
         return False
-    end = HEADER_LEN + raw[7] * int.from_bytes(raw[8:10], "big")
+    end = _LAYOUT.frame_length(raw) - CHECK_LEN
     if len(raw) < end + CHECK_LEN:
         return False
-    want = crc16(raw[:end], algorithm).to_bytes(CHECK_LEN, byteorder)  # type: ignore[arg-type]
-    return raw[end : end + CHECK_LEN] == want
+    return raw[end : end + CHECK_LEN] == profile.check_bytes(raw[:end])
 
 
 # -- the vector format ---------------------------------------------------------------
@@ -403,6 +405,6 @@ def frames(pkt: Packet | bytes | bytearray) -> Iterator[ISight]:
     while isinstance(layer, ISight):
         yield layer
         nxt = layer.payload
-        if isinstance(nxt, conf.raw_layer) and nxt.load[:2] == _START:
+        if isinstance(nxt, conf.raw_layer) and nxt.load[:2] == START_BYTES:
             nxt = ISight(nxt.load)
         layer = nxt

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import struct
 from math import isfinite
+from typing import cast
 
 from .constants import (
     BLOCK_CLAUSE,
@@ -86,6 +87,11 @@ class Codec:
         self.tolerance = struct.Struct(f + "Bf")
         self.value = struct.Struct(f + "Bi")
         self._unpack_header = self.header.unpack_from
+        self._u16 = struct.Struct(e + "H").unpack_from
+        #: a 16-bit header field's two bytes in this byte order
+        self.pack_u16 = struct.Struct(e + "H").pack
+        #: the first four bytes of every frame in this byte order: start word and version (F1, F2)
+        self.start = struct.pack(e + "HH", START_WORD, VERSION)
         self._unpack_pose = self.pose.unpack_from
         self._pose_runs: dict[int, struct.Struct] = {}
         self._float_order = f
@@ -94,14 +100,14 @@ class Codec:
             struct.Struct(e + "HHBBBBHHB6fH").unpack if profile.byte_order == profile.float_byte_order else None
         )
         self._crc = crc_function(profile.crc)
-        self._crc_order = profile.crc_byte_order
+        self._crc_pack = struct.Struct(_ENDIAN[profile.crc_byte_order] + "H").pack
         self._first = profile.first_index
         self._strict = profile.strict
         self._tcp_check = profile.tcp_check
 
     # -- encoding --------------------------------------------------------------------
     def check_bytes(self, body: bytes) -> bytes:
-        return self._crc(body).to_bytes(2, self._crc_order)  # type: ignore[arg-type]
+        return self._crc_pack(self._crc(body))
 
     def encode_header(self, header: Header) -> bytes:
         try:
@@ -147,7 +153,8 @@ class Codec:
             )
             if kind is PoseBlock:
                 pack = self.pose.pack
-                return head + b"".join([pack(b.index, *b.pose) for b in blocks])  # type: ignore[union-attr]
+                poses = cast("tuple[PoseBlock, ...]", blocks)  # all of one type, checked above
+                return head + b"".join([pack(b.index, *b.pose) for b in poses])
         except (struct.error, TypeError):
             pass  # fall through to the slow path for a precise message
         else:
@@ -171,6 +178,16 @@ class Codec:
         if check is None:
             check = _ZERO_CHECK if transport == "tcp" else self.check_bytes(data)
         return data + bytes(check)
+
+    # -- reading fields ----------------------------------------------------------------
+    def u16(self, data: bytes, at: int) -> int:
+        """A 16-bit header field at ``at`` in the profile's byte order (version, L, error code)."""
+        return int(self._u16(data, at)[0])
+
+    def frame_length(self, data: bytes, at: int = 0) -> int:
+        """The length of the whole frame a header at ``at`` announces: header + N × L + check
+        (``data`` holds at least the header's first 10 bytes there)."""
+        return HEADER_LEN + data[at + 7] * int(self._u16(data, at + 8)[0]) + CHECK_LEN
 
     # -- parsing ---------------------------------------------------------------------
     def parse_header(self, data: bytes) -> Header:
@@ -296,8 +313,9 @@ class Codec:
         """A4: action 00 is answered 0000. E3: 0 and 404 are the robot's own values, never sent."""
         if action is Action.NONE and error_code:
             raise self._fail(AnswerError, f"NONE answered with error 0x{error_code:04X}, expected 0x0000", data, 10, "A4")
-        if action is Action.VISION_RESULT:
-            value = blocks[0].value  # type: ignore[union-attr]
+        block = blocks[0] if blocks else None
+        if action is Action.VISION_RESULT and isinstance(block, ValueBlock):  # its shape: one type-03 block
+            value = block.value
             if value in (ResultCode.EMPTY, ResultCode.NO_ANSWER):
                 raise self._fail(
                     AnswerError, f"result code {value} is the robot's own value, never sent by a box", data, 13, "E3"

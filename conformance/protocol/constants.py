@@ -9,6 +9,8 @@ from __future__ import annotations
 import enum
 
 START_WORD = 0xFEFE  # F1
+#: The start word as it stands on the wire (the same in either byte order).
+START_BYTES = START_WORD.to_bytes(2, "big")
 VERSION = 0x0001  # F2
 HEADER_LEN = 12  # 2+2+1+1+1+1+2+2
 CHECK_LEN = 2  # F6 / F7
@@ -118,7 +120,7 @@ ACTION_ERROR: dict[Action, ErrorCode] = {
 EXTENSION_ACTIONS = frozenset({Action.PROG_IDX, Action.VISION_RESULT})
 
 
-class Shape(tuple):  # type: ignore[type-arg]
+class Shape(tuple):
     """(block type, fewest blocks, most blocks, clause) an action's frame must have."""
 
     __slots__ = ()

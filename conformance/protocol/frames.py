@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 from .constants import (
     BLOCK_LEN,
@@ -114,7 +114,7 @@ class Frame:
         blocks = f" ×{len(self.blocks)}" if self.blocks else ""
         values = ""
         if self.blocks and isinstance(self.blocks[0], ValueBlock):
-            values = " value=" + ",".join(str(b.value) for b in self.blocks)  # type: ignore[union-attr]
+            values = " value=" + ",".join(str(b.value) for b in self.blocks if isinstance(b, ValueBlock))
         return f"{arrow} {self.action.name}{blocks}{values} err=0x{self.error_code:04X}"
 
 
@@ -175,7 +175,7 @@ def new_pose_blocks(flat: tuple[Any, ...], count: int) -> tuple[PoseBlock, ...]:
 
 def pose_blocks(poses: Iterable[Sequence[float]], first_index: int = 0) -> tuple[PoseBlock, ...]:
     return tuple(
-        PoseBlock(first_index + i, tuple(float(v) for v in p))  # type: ignore[arg-type]
+        PoseBlock(first_index + i, cast("tuple[float, float, float, float, float, float]", tuple(float(v) for v in p)))
         for i, p in enumerate(poses)
     )
 

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 from .answers import Cycle, Expectation, Finding, Rule, rule_for_error, rule_for_frame
 from .codec import codec_for
@@ -120,7 +121,7 @@ class Reader:
         self.extension = extension
         self.cycle = cycle
         self.eof = eof
-        self.order = "big" if profile.byte_order == "big" else "little"
+        self.version = codec_for(profile).start[2:]  # version 1 in the profile's byte order
         self._cache: dict[int, Spot] = {}
         self._runs: dict[int, tuple[int, int] | None] = {}
         self.probe_at = probe_at
@@ -135,10 +136,10 @@ class Reader:
             spot = self._cache[p] = self._classify(p)
         return spot
 
-    def _error(self, error: ProtocolError, **kw: object) -> Spot:
+    def _error(self, error: ProtocolError, **kw: Any) -> Spot:
         exp = rule_for_error(error, self.profile, Transport.TCP, self.extension)
         junk = exp.rule in (Rule.NOT_REQUEST, Rule.ANY) and not kw.get("plausible")
-        return Spot(BAD, exp, junk=junk, **kw)  # type: ignore[arg-type]
+        return Spot(BAD, exp, junk=junk, **kw)
 
     def _classify(self, p: int) -> Spot:
         data, rem = self.data, self.n - p
@@ -151,8 +152,7 @@ class Reader:
                                               offset=p, raw=raw), end=nxt)
         if rem < HEADER_LEN:
             version = data[p + 2 : p + 4]
-            want = (1).to_bytes(2, self.order)  # type: ignore[arg-type]
-            if want.startswith(version) and not self.eof:
+            if self.version.startswith(version) and not self.eof:
                 return Spot(PENDING)
             if self.eof:
                 return self._error(LengthError(f"stream ended inside a frame after {rem} bytes", offset=p,

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import functools
+import struct
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -37,7 +38,7 @@ def crc_function(name: str) -> Callable[[bytes], int]:
         raise ValueError(
             f"unknown CRC-16 algorithm {name!r}; choose one of: {', '.join(crc16_names())}"
         )
-    return crcmod.predefined.mkPredefinedCrcFun(name)  # type: ignore[no-any-return]
+    return crcmod.predefined.mkPredefinedCrcFun(name)
 
 
 _BYTE_ORDERS = ("big", "little")
@@ -93,11 +94,17 @@ class Profile:
 
     def check_bytes(self, data: bytes) -> bytes:
         """The two check bytes a UDP sender appends to ``data``."""
-        return self.crc_of(data).to_bytes(2, self.crc_byte_order)  # type: ignore[arg-type]
+        return struct.pack((">H" if self.crc_byte_order == "big" else "<H"), self.crc_of(data))
 
     # -- conversion ----------------------------------------------------------------
     def replace(self, **changes: Any) -> Profile:
         return dataclasses.replace(self, **changes)
+
+    def swapped(self, header: bool = False, floats: bool = False) -> Profile:
+        """This profile with the header's and/or the values' byte order the other way round."""
+        flip = {"big": "little", "little": "big"}
+        return self.replace(byte_order=flip[self.byte_order] if header else self.byte_order,
+                            float_byte_order=flip[self.float_byte_order] if floats else self.float_byte_order)
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)

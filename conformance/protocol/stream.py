@@ -111,7 +111,7 @@ class StreamDecoder:
             data = bytes(buf[pos : pos + total])
             self._pos = pos + total
             try:
-                return self._parse(data, Transport.TCP, self.expect)  # type: ignore[no-any-return]
+                return self._parse(data, Transport.TCP, self.expect)
             except ProtocolError as exc:
                 exc.offset += self._base + pos
                 return exc
@@ -166,9 +166,9 @@ class StreamDecoder:
         """Every event available now."""
         while True:
             event = self.next_event()
-            if event is NEED_DATA or event is CLOSED:
+            if not isinstance(event, (Frame, ProtocolError)):  # NEED_DATA or CLOSED
                 return
-            yield event  # type: ignore[misc]
+            yield event
 
     def feed(self, data: bytes) -> list[Event]:
         """``receive_data(data)`` then every event available now."""

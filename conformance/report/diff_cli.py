@@ -15,7 +15,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rich.console import Console
 from rich.text import Text
@@ -25,10 +25,13 @@ from ..suite.verdicts import CaseResult
 from .diff import RunDiff, compare, render, render_text
 from .load import SummaryError, load_summary, root_causes_of, suite_of, summary_path
 
+if TYPE_CHECKING:
+    from ..options import Subparsers
+
 EXIT_SAME, EXIT_WORSE, EXIT_USAGE = 0, 1, 2
 
 
-def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "diff",
         help=_("compare two runs (summary.json files or report directories): what got worse, what got better"),

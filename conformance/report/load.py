@@ -51,7 +51,7 @@ def load_summary(path: str | os.PathLike[str]) -> dict[str, Any]:
     problem = _shape_problem(doc)
     if problem:
         raise SummaryError(f"{p}: not an isight-conformance summary.json ({problem})")
-    return doc  # type: ignore[no-any-return]
+    return doc
 
 
 def _shape_problem(doc: Any) -> str | None:
@@ -99,7 +99,7 @@ def cases_of(doc: dict[str, Any]) -> list[CaseResult]:
             id=c["id"], title=str(c.get("title", "")), clauses=tuple(str(x) for x in c.get("clauses", [])),
             level=_level(c.get("level")), verdict=Verdict(c["verdict"]),
             duration_s=float(c.get("duration_s") or 0.0), message=str(c.get("message") or ""),
-            requirement=str(c.get("requirement") or ""), expected=str(c.get("expected") or ""),
+            expected=str(c.get("expected") or ""),
             observed=str(c.get("observed") or ""), sent_hex=str(c.get("sent_hex") or ""),
             received_hex=str(c.get("received_hex") or ""), pcap=c.get("pcap"), root_cause=c.get("root_cause"),
             judged=tuple(str(x) for x in c.get("judged") or ()),

@@ -16,7 +16,7 @@ Presentation decisions:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from xml.sax.saxutils import escape
 
 from ..stats import percentile
@@ -94,70 +94,66 @@ def _empty(out: list[str], pw: int, ph: int, message: str) -> str:
     return "\n".join(out)
 
 
-def latency_svg(latencies_ms: Sequence[float], title: str, time_out_ms: float | None = None,
-                width: int = 640, height: int = 200) -> str:
-    """The latency of each request (in request order) as an SVG document string."""
-    width, height, pw, ph, out = _open(width, height, title, "latency")
-    n = len(latencies_ms)
-    finite = [max(0.0, float(v)) for v in latencies_ms if math.isfinite(v)]
-    lost = n - len(finite)
-    if not finite:
-        return _empty(out, pw, ph, "no latency samples" if n == 0 else f"no answer to any of {n} requests")
+def _hline(y: float, pw: int, stroke: str, extra: str = "") -> str:
+    return f'<line x1="{ML}" y1="{_f(y)}" x2="{ML + pw}" y2="{_f(y)}" stroke="{stroke}"{extra}/>'
 
-    ordered = sorted(finite)
-    p50, p99, hi = percentile(ordered, 50), percentile(ordered, 99), ordered[-1]
+
+def _y_label(ph: int, label: str) -> str:
+    return _text(12, MT + ph / 2, label, anchor="middle", extra=f' transform="rotate(-90 12 {_f(MT + ph / 2)})"')
+
+
+def _axis_lines(pw: int, ph: int) -> list[str]:
+    return [f'<line x1="{ML}" y1="{MT + ph}" x2="{ML + pw}" y2="{MT + ph}" stroke="{C_AXIS}"/>',
+            f'<line x1="{ML}" y1="{MT}" x2="{ML}" y2="{MT + ph}" stroke="{C_AXIS}"/>']
+
+
+def _x_tick(x: float, ph: int, label: str) -> list[str]:
+    return [f'<line x1="{_f(x)}" y1="{MT + ph}" x2="{_f(x)}" y2="{MT + ph + 3}" stroke="{C_AXIS}"/>',
+            _text(x, MT + ph + 13, label, anchor="middle")]
+
+
+def _latency_scale(p99: float, hi: float, time_out_ms: float | None) -> tuple[float, float, float | None]:
+    """(y step, top of the y axis, time_out when it is drawn on that scale)."""
     y_max = CLIP_FACTOR * p99 if p99 > 0 and hi > CLIP_FACTOR * p99 else hi
-    limit_on_scale = bool(time_out_ms) and time_out_ms <= 2 * max(y_max, 1e-9)  # type: ignore[operator]
-    if limit_on_scale:
-        y_max = max(y_max, float(time_out_ms))  # type: ignore[arg-type]
-    y_max = y_max or 1.0
+    limit = float(time_out_ms) if time_out_ms and time_out_ms <= 2 * max(y_max, 1e-9) else None
+    y_max = max(y_max, limit or 0.0) or 1.0
     step = _nice_step(y_max / 4)
-    y_top = math.ceil(y_max / step - 1e-9) * step
+    return step, math.ceil(y_max / step - 1e-9) * step, limit
 
-    def yy(v: float) -> float:
-        return MT + ph - min(v, y_top) / y_top * ph
 
-    def xx(i: int) -> float:
-        return ML + (i / (n - 1) * pw if n > 1 else pw / 2)
+class _Points:
+    """The latency line's points, in pixels: every point, or min and max per pixel column, with the
+    columns of points above the scale (``clipped``) and of requests never answered (``lost``)."""
 
-    # grid and y axis
-    ticks = [k * step for k in range(int(round(y_top / step)) + 1)]
-    for t in ticks:
-        out.append(f'<line x1="{ML}" y1="{_f(yy(t))}" x2="{ML + pw}" y2="{_f(yy(t))}" stroke="{C_GRID}"/>')
-        out.append(_text(ML - 4, yy(t) + 3.5, fmt_ms(t), anchor="end"))
-    out.append(_text(12, MT + ph / 2, "latency (ms)", anchor="middle",
-                     extra=f' transform="rotate(-90 12 {_f(MT + ph / 2)})"'))
-    # x axis: request numbers
-    out.append(f'<line x1="{ML}" y1="{MT + ph}" x2="{ML + pw}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
-    out.append(f'<line x1="{ML}" y1="{MT}" x2="{ML}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
-    xstep = max(1, int(_nice_step(n / 6)))
-    for r in [1, *range(xstep, n + 1, xstep)] if n > 1 else [1]:
-        if r != 1 and xx(r - 1) - xx(0) < 24:
-            continue
-        out.append(f'<line x1="{_f(xx(r - 1))}" y1="{MT + ph}" x2="{_f(xx(r - 1))}" y2="{MT + ph + 3}" stroke="{C_AXIS}"/>')
-        out.append(_text(xx(r - 1), MT + ph + 13, f"{r:,}", anchor="middle"))
-    out.append(_text(ML + pw, height - 3, "request #", anchor="end", fill="#777"))
+    def __init__(self, latencies_ms: Sequence[float], pw: int, y_top: float,
+                 xx: Callable[[int], float], yy: Callable[[float], float]) -> None:
+        self.points: list[tuple[float, float]] = []
+        self.clipped: list[float] = []
+        self.lost: list[float] = []
+        if len(latencies_ms) <= 2 * pw:
+            self._every(latencies_ms, y_top, xx, yy)
+        else:
+            self._columns(latencies_ms, pw, y_top, yy)
 
-    # the data: every point, or min/max per pixel column
-    points: list[tuple[float, float]] = []
-    clipped_x: list[float] = []
-    lost_x: list[float] = []
-    if n <= 2 * pw:
+    def _every(self, latencies_ms: Sequence[float], y_top: float, xx: Callable[[int], float],
+               yy: Callable[[float], float]) -> None:
         for i, v in enumerate(latencies_ms):
             if not math.isfinite(v):
-                lost_x.append(xx(i))
+                self.lost.append(xx(i))
                 continue
             v = max(0.0, float(v))
-            points.append((xx(i), yy(v)))
+            self.points.append((xx(i), yy(v)))
             if v > y_top:
-                clipped_x.append(xx(i))
-    else:
+                self.clipped.append(xx(i))
+
+    def _columns(self, latencies_ms: Sequence[float], pw: int, y_top: float, yy: Callable[[float], float]) -> None:
+        n = len(latencies_ms)
         cols: dict[int, list[float]] = {}
         for i, v in enumerate(latencies_ms):
             c = i * pw // n
             if not math.isfinite(v):
-                if not lost_x or lost_x[-1] != ML + c:
-                    lost_x.append(ML + c)
+                if not self.lost or self.lost[-1] != ML + c:
+                    self.lost.append(ML + c)
                 continue
             v = max(0.0, float(v))
             col = cols.get(c)
@@ -169,44 +165,92 @@ def latency_svg(latencies_ms: Sequence[float], title: str, time_out_ms: float | 
                 col[1], col[3] = v, i
         for c, (lo, top, i_lo, i_top) in sorted(cols.items()):
             pair = [(i_lo, lo), (i_top, top)] if i_lo <= i_top else [(i_top, top), (i_lo, lo)]
-            points.extend((ML + c + 0.5, yy(v)) for _, v in pair)
+            self.points.extend((ML + c + 0.5, yy(v)) for _, v in pair)
             if top > y_top:
-                clipped_x.append(ML + c + 0.5)
-    if len(points) > 1:
-        pts = " ".join(f"{_f(x)},{_f(y)}" for x, y in points)
-        out.append(f'<polyline points="{pts}" fill="none" stroke="{C_DATA}" stroke-width="1" stroke-linejoin="round"/>')
-    if len(points) <= DOTS_UP_TO:
-        out.append(f'<g fill="{C_DATA}">' + "".join(f'<circle cx="{_f(x)}" cy="{_f(y)}" r="2"/>' for x, y in points)
-                   + "</g>")
-    if clipped_x:
-        path = "".join(f"M{_f(x)},{MT - 1}l3.5,6h-7z" for x in clipped_x)
-        out.append(f'<path d="{path}" fill="{C_LIMIT}"/>')
-    if lost_x:
-        path = "".join(f"M{_f(x - 3)},{MT + ph - 6}l6,6m0,-6l-6,6" for x in lost_x)
-        out.append(f'<path d="{path}" stroke="{C_LIMIT}" stroke-width="1.2" fill="none"/>')
+                self.clipped.append(ML + c + 0.5)
 
+    def svg(self, ph: int) -> list[str]:
+        out = []
+        if len(self.points) > 1:
+            pts = " ".join(f"{_f(x)},{_f(y)}" for x, y in self.points)
+            out.append(f'<polyline points="{pts}" fill="none" stroke="{C_DATA}" stroke-width="1" stroke-linejoin="round"/>')
+        if len(self.points) <= DOTS_UP_TO:
+            out.append(f'<g fill="{C_DATA}">' + "".join(f'<circle cx="{_f(x)}" cy="{_f(y)}" r="2"/>'
+                                                        for x, y in self.points) + "</g>")
+        if self.clipped:
+            path = "".join(f"M{_f(x)},{MT - 1}l3.5,6h-7z" for x in self.clipped)
+            out.append(f'<path d="{path}" fill="{C_LIMIT}"/>')
+        if self.lost:
+            path = "".join(f"M{_f(x - 3)},{MT + ph - 6}l6,6m0,-6l-6,6" for x in self.lost)
+            out.append(f'<path d="{path}" stroke="{C_LIMIT}" stroke-width="1.2" fill="none"/>')
+        return out
+
+
+def latency_svg(latencies_ms: Sequence[float], title: str, time_out_ms: float | None = None,
+                width: int = 640, height: int = 200) -> str:
+    """The latency of each request (in request order) as an SVG document string."""
+    width, height, pw, ph, out = _open(width, height, title, "latency")
+    n = len(latencies_ms)
+    finite = [max(0.0, float(v)) for v in latencies_ms if math.isfinite(v)]
+    lost = n - len(finite)
+    if not finite:
+        return _empty(out, pw, ph, "no latency samples" if n == 0 else f"no answer to any of {n} requests")
+    ordered = sorted(finite)
+    p50, p99, hi = percentile(ordered, 50), percentile(ordered, 99), ordered[-1]
+    step, y_top, limit = _latency_scale(p99, hi, time_out_ms)
+
+    def yy(v: float) -> float:
+        return MT + ph - min(v, y_top) / y_top * ph
+
+    def xx(i: int) -> float:
+        return ML + (i / (n - 1) * pw if n > 1 else pw / 2)
+
+    for t in [k * step for k in range(int(round(y_top / step)) + 1)]:  # grid and y axis
+        out += [_hline(yy(t), pw, C_GRID), _text(ML - 4, yy(t) + 3.5, fmt_ms(t), anchor="end")]
+    out += [_y_label(ph, "latency (ms)"), *_axis_lines(pw, ph)]
+    xstep = max(1, int(_nice_step(n / 6)))  # x axis: request numbers
+    for r in [1, *range(xstep, n + 1, xstep)] if n > 1 else [1]:
+        if r == 1 or xx(r - 1) - xx(0) >= 24:
+            out += _x_tick(xx(r - 1), ph, f"{r:,}")
+    out.append(_text(ML + pw, height - 3, "request #", anchor="end", fill="#777"))
+    points = _Points(latencies_ms, pw, y_top, xx, yy)
+    out += points.svg(ph)
     # reference lines, labelled on the right
     labels = [(yy(p50) + 3.5, C_P50, f"p50 {fmt_ms(p50)} ms"), (yy(p99) + 3.5, C_P99, f"p99 {fmt_ms(p99)} ms")]
-    out.append(f'<line x1="{ML}" y1="{_f(yy(p50))}" x2="{ML + pw}" y2="{_f(yy(p50))}" stroke="{C_P50}" stroke-dasharray="5 3"/>')
-    out.append(f'<line x1="{ML}" y1="{_f(yy(p99))}" x2="{ML + pw}" y2="{_f(yy(p99))}" stroke="{C_P99}" stroke-dasharray="5 3"/>')
-    if limit_on_scale:
-        y_lim = yy(float(time_out_ms))  # type: ignore[arg-type]
-        out.append(f'<line x1="{ML}" y1="{_f(y_lim)}" x2="{ML + pw}" y2="{_f(y_lim)}" stroke="{C_LIMIT}" stroke-width="1.5"/>')
-        labels.append((y_lim + 3.5, C_LIMIT, f"time_out {fmt_ms(float(time_out_ms))} ms"))  # type: ignore[arg-type]
-    for y, colour, label in _spread(labels, MT + 4, MT + ph + 3):
-        out.append(_text(ML + pw + 5, y, label, fill=colour))
-
+    out += [_hline(yy(p50), pw, C_P50, ' stroke-dasharray="5 3"'), _hline(yy(p99), pw, C_P99, ' stroke-dasharray="5 3"')]
+    if limit is not None:
+        out.append(_hline(yy(limit), pw, C_LIMIT, ' stroke-width="1.5"'))
+        labels.append((yy(limit) + 3.5, C_LIMIT, f"time_out {fmt_ms(limit)} ms"))
+    out += [_text(ML + pw + 5, y, label, fill=colour) for y, colour, label in _spread(labels, MT + 4, MT + ph + 3)]
     # header line: what the reader must know that the lines do not show
     notes = [f"n={n:,}", f"max {fmt_ms(hi)} ms"]
-    if clipped_x:
+    if points.clipped:
         notes.append(f"▲ {sum(v > y_top for v in finite):,} above {fmt_ms(y_top)} ms")
     if lost:
         notes.append(f"× {lost:,} no answer")
-    if time_out_ms and not limit_on_scale:
+    if time_out_ms and limit is None:
         notes.append(f"time_out {fmt_ms(float(time_out_ms))} ms off scale")
+    return _close(out, notes)
+
+
+def _close(out: list[str], notes: list[str]) -> str:
+    """The header line of notes, and the end of the document."""
     out.append(_text(ML, 29, " · ".join(notes), size=9.5, fill="#555"))
     out.append("</svg>")
     return "\n".join(out)
+
+
+def _bin(values: Sequence[float], bins: int, width_bin: float, x_top: float) -> tuple[list[int], int]:
+    """(count per bin, values beyond ``x_top``): those beyond the last bin are counted in it."""
+    counts = [0] * bins
+    over = 0
+    for v in values:
+        i = int(v / width_bin)
+        if i >= bins:
+            over += v > x_top
+            i = bins - 1
+        counts[i] += 1
+    return counts, over
 
 
 def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms: float | None = None,
@@ -229,14 +273,7 @@ def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms
     step = _nice_step((top or 1.0) / 5)
     x_top = max(step, math.ceil(top / step - 1e-9) * step)
     width_bin = x_top / bins
-    counts = [0] * bins
-    over = 0
-    for v in finite:
-        i = int(v / width_bin)
-        if i >= bins:
-            over += v > x_top
-            i = bins - 1
-        counts[i] += 1
+    counts, over = _bin(finite, bins, width_bin, x_top)
     c_max = max(counts)
 
     def xx(v: float) -> float:
@@ -247,9 +284,8 @@ def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms
 
     c_step = max(1, int(_nice_step(c_max / 4)))
     for c in range(0, c_max + 1, c_step):
-        out.append(f'<line x1="{ML}" y1="{_f(yy(c))}" x2="{ML + pw}" y2="{_f(yy(c))}" stroke="{C_GRID}"/>')
-        out.append(_text(ML - 4, yy(c) + 3.5, f"{c:,}", anchor="end"))
-    out.append(_text(12, MT + ph / 2, "count", anchor="middle", extra=f' transform="rotate(-90 12 {_f(MT + ph / 2)})"'))
+        out += [_hline(yy(c), pw, C_GRID), _text(ML - 4, yy(c) + 3.5, f"{c:,}", anchor="end")]
+    out.append(_y_label(ph, "count"))
     bars = []
     for i, c in enumerate(counts):
         if c:
@@ -259,12 +295,9 @@ def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms
     out.append(f'<g fill="{C_DATA}">' + "".join(bars) + "</g>")
     if over:
         out.append(f'<path d="M{_f(ML + pw - 4)},{MT - 1}l3.5,6h-7z" fill="{C_LIMIT}"/>')
-    out.append(f'<line x1="{ML}" y1="{MT + ph}" x2="{ML + pw}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
-    out.append(f'<line x1="{ML}" y1="{MT}" x2="{ML}" y2="{MT + ph}" stroke="{C_AXIS}"/>')
+    out += _axis_lines(pw, ph)
     for k in range(int(round(x_top / step)) + 1):
-        v = k * step
-        out.append(f'<line x1="{_f(xx(v))}" y1="{MT + ph}" x2="{_f(xx(v))}" y2="{MT + ph + 3}" stroke="{C_AXIS}"/>')
-        out.append(_text(xx(v), MT + ph + 13, fmt_ms(v), anchor="middle"))
+        out += _x_tick(xx(k * step), ph, fmt_ms(k * step))
     out.append(_text(ML + pw, height - 3, "interval (ms)", anchor="end", fill="#777"))
     labels = [(MT + 12, C_P50, f"p50 {fmt_ms(p50)} ms"), (MT + 24, C_P99, f"p99 {fmt_ms(p99)} ms")]
     if expected_ms and expected_ms > 0:
@@ -279,6 +312,4 @@ def histogram_svg(values_ms: Sequence[float], bins: int, title: str, expected_ms
         notes.append(f"▲ {over:,} above {fmt_ms(x_top)} ms in the last bin")
     if len(finite) < len(values_ms):
         notes.append(f"{len(values_ms) - len(finite):,} not finite")
-    out.append(_text(ML, 29, " · ".join(notes), size=9.5, fill="#555"))
-    out.append("</svg>")
-    return "\n".join(out)
+    return _close(out, notes)

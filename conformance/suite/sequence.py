@@ -86,7 +86,7 @@ def pieces_of(data: bytes, split: dict[str, Any]) -> list[bytes]:
         sizes: Iterator[int] = iter([1] * len(data))
     elif how == "random":
         rng = random.Random(split.get("seed", 1))
-        sizes = iter(lambda: rng.randint(1, 8), None)  # type: ignore[arg-type]
+        sizes = iter(lambda: rng.randint(1, 8), None)
     else:
         sizes = iter(list(how) + [len(data)])
     out, pos = [], 0

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..protocol import Action
+from ..protocol import DEFAULT_PROFILE, HEADER_LEN, MAX_FRAME_LEN, Action, codec_for
 from ..vectors import REPO_VECTORS
 from .judge import CLOSED, NOT_OK, SILENCE, Expect
 from .record import _CLAUSE, CaseRecord, record
@@ -290,14 +290,24 @@ def _check_steps(steps: Any, where: str, opened: set[str], streams: set[str]) ->
             _check_steps(step["steps"], f"{path}.steps", opened, streams)
 
 
+def _announced_length(data: bytes) -> int:
+    """The length a frame header at the start of ``data`` announces, read in the byte order its
+    version field reads 1 in (either profile's); 0 when ``data`` does not start with a header."""
+    if len(data) >= HEADER_LEN:
+        for codec in (codec_for(DEFAULT_PROFILE), codec_for(DEFAULT_PROFILE.swapped(header=True))):
+            if data[:4] == codec.start:
+                return codec.frame_length(data)
+    return 0
+
+
 def _check_names(step: dict[str, Any], verb: str, opened: set[str], streams: set[str]) -> None:
     if verb == "open":
         opened.add(step["open"])
         return
     if verb == "raw" and step.get("probe"):
         data = hex_bytes(step["raw"], step.get("times", 1))
-        need = 14 + data[7] * int.from_bytes(data[8:10], "big") if data[:4] == b"\xfe\xfe\x00\x01" and len(data) >= 12 else 0
-        if len(data) < need <= 6389:
+        need = _announced_length(data)
+        if len(data) < need <= MAX_FRAME_LEN:
             raise ValueError(f"the bytes are an incomplete frame (its header announces {need} bytes, {len(data)} given): "
                              "a box waits for the rest and swallows the probe; complete the frame, or 'send' it and "
                              "judge on another connection")

@@ -22,8 +22,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..protocol import Action, ErrorCode, Profile, ResultCode, action_name
-from .records import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, ConnRecord, Exchange, SessionRecord
-from .traffic import FrameRecord, decode_conn
+from .connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, ConnRecord, Exchange, SessionRecord
+from .frames import FrameRecord, decode_conn
 
 S1_STEPS: tuple[str, ...] = (
     "command connect", "stream connect", "CycleOn", "CycleOff", "stream close", "command disconnect",

@@ -80,6 +80,14 @@ def stream_stats(times_s: Sequence[float], declared_hz: float) -> StreamStats | 
     )
 
 
+def check_tolerances(rate_tolerance: float, jitter_tolerance: float) -> None:
+    """ValueError (one line) unless the rate tolerance is in (0, 1) and the jitter tolerance in (0, 10]."""
+    if not 0 < rate_tolerance < 1:
+        raise ValueError(f"rate tolerance must be in (0, 100) %, not {rate_tolerance * 100:g} %")
+    if not 0 < jitter_tolerance <= 10:
+        raise ValueError(f"jitter tolerance must be in (0, 1000] %, not {jitter_tolerance * 100:g} %")
+
+
 def _off(rate: float, declared: float) -> float:
     return (rate - declared) / declared if math.isfinite(rate) else math.inf
 

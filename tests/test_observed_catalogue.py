@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from conformance.certify.catalogue import APPLIES, FRAME_SPECS, INJECT_SPECS, catalogue
 from conformance.certify.records import INJECTIONS
+from conformance.observed.catalogue import APPLIES, FRAME_SPECS, INJECT_SPECS, catalogue
 from conformance.protocol import errors
 from conformance.suite.record import _CLAUSE, _ID
 from conformance.suite.verdicts import Level

@@ -6,18 +6,17 @@ import struct
 
 import pytest
 
-from conformance.certify.records import BY_ROBOT
-from conformance.certify.traffic import (
+from conformance.certify.wire import frame_wire, session_wire
+from conformance.harness.transcript import Kind, Transcript, WireEvent
+from conformance.observed.connections import BY_ROBOT
+from conformance.observed.frames import (
     FrameRecord,
     byte_order_evidence,
     compare_readings,
     decode_conn,
     decode_stream,
-    frame_wire,
     judge_profile,
-    session_wire,
 )
-from conformance.harness.transcript import Kind, Transcript, WireEvent
 from conformance.protocol import (
     DEFAULT_PROFILE,
     Action,

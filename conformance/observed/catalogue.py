@@ -11,7 +11,7 @@ from ..protocol.clauses import clause as registry_clause
 from ..protocol.clauses import text_of
 from ..suite.record import CaseRecord, record
 from ..suite.verdicts import Level
-from .traffic import FrameRecord
+from .frames import FrameRecord
 
 MUST, SHOULD, MAY = Level.MUST, Level.SHOULD, Level.MAY
 
