@@ -101,16 +101,17 @@ def test_box_that_closes_at_once_fails_cleanly(tmp_path: Path) -> None:
 def test_expected_failures_list_gates_the_exit_code(tmp_path: Path) -> None:
     # a box that answers everything 0000, even a wrong version: A5 cases fail
     with ScriptedBox(answering(lambda f: encode(answer(f.action, ErrorCode.OK)))) as box:
-        proc, _ = run(tmp_path, "--target", box.target, "--cases", "F*")
+        # F1-F7 only: FUZZ-01/02 (also "F*") fuzz for a fixed wall time, so what they find varies with load
+        proc, _ = run(tmp_path, "--target", box.target, "--cases", "F[1-7]-*")
         assert proc.returncode in (0, 1)
         failing = sorted(c["id"] for c in summary(tmp_path)["cases"] if c["verdict"] in ("FAIL", "ERROR"))
         listed = tmp_path / "expected.txt"
         listed.write_text("# known failures\n" + "".join(f"{i}  # why\n" for i in failing))
-        proc, _ = run(tmp_path, "--target", box.target, "--cases", "F*", "--expected-failures", str(listed))
+        proc, _ = run(tmp_path, "--target", box.target, "--cases", "F[1-7]-*", "--expected-failures", str(listed))
         assert proc.returncode == 0, proc.stderr
         assert (tmp_path / "r" / "failing_cases.txt").read_text().split() == failing
         listed.write_text("F1-01\n")
-        proc, _ = run(tmp_path, "--target", box.target, "--cases", "F*", "--expected-failures", str(listed))
+        proc, _ = run(tmp_path, "--target", box.target, "--cases", "F[1-7]-*", "--expected-failures", str(listed))
     assert proc.returncode == 1
     assert "F1-01" in (tmp_path / "r" / "unexpectedly_passing.txt").read_text()
     assert "differs from the expected-failures list" in proc.stderr
