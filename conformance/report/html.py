@@ -84,6 +84,17 @@ EXTENSION_MEANING = {
 }
 
 
+def extension_meaning(how: str) -> str:
+    """The report's extension line: what the session's detection saw, and what it means for the cases."""
+    if how in EXTENSION_MEANING:
+        return EXTENSION_MEANING[how]
+    if how.startswith("implemented"):
+        return f"{how}: E cases run"
+    if how.startswith("not implemented"):
+        return f"{how}: E cases SKIP, A5-02 judges 26/27 as unknown actions"
+    return how
+
+
 # -- small presentation helpers --------------------------------------------------------
 def display_time(iso: str) -> str:
     """``2026-05-09T07:35:25.123+00:00`` -> ``2026-05-09 07:35:25 UTC``; other text as given."""
@@ -225,7 +236,7 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
     profile = profile_rows(dict(suite.profile))
     return environment().get_template("report.html.j2").render(
         suite=suite, started=display_time(suite.started), duration=format_duration(suite.duration_s),
-        extension=EXTENSION_MEANING.get(suite.extension, suite.extension),
+        extension=extension_meaning(suite.extension),
         profile=profile, changed=[r for r in profile if r["changed"]],
         overall=overall_line(cases, suite), overall_state=overall_state(cases, suite),
         totals=t, total=len(cases), order=[v.value for v in VERDICT_ORDER],
