@@ -27,7 +27,8 @@ def strict_indexes(indexes: list[int], floats: list[float]) -> bool:
 
 def parsing_box(accept: Check, on_refusal: str = "error") -> Callable[[socket.socket], None]:
     """A box answering NONE/CycleOn/CycleOff 0000, and a data request 0000 when ``accept(indexes, floats)``,
-    else with the action's error (or by closing the connection: ``on_refusal="close"``)."""
+    else with the action's error (or by closing the connection: ``on_refusal="close"``, or by never
+    answering on that connection again: ``"hang"``)."""
 
     def handler(conn: socket.socket) -> None:
         conn.settimeout(10)
@@ -49,6 +50,10 @@ def parsing_box(accept: Check, on_refusal: str = "error") -> Callable[[socket.so
                     ok = n > 0 and accept([b[0] for b in blocks], floats)
                 if not ok and on_refusal == "close":
                     conn.close()
+                    return
+                if not ok and on_refusal == "hang":
+                    while conn.recv(65536):
+                        pass
                     return
                 conn.sendall(encode(answer(Action(action), 0 if ok else ACTION_ERROR[Action(action)])))
 
@@ -109,3 +114,14 @@ def test_a_box_closing_on_parse_errors_is_non_strict_and_every_position_is_judge
         # the box closed at each: a fresh connection for the next, all 22 judged (12 named, then "…")
         assert message.startswith("block 2 of 2: ") and "block 17 of 31" in message and "…)" in message, message
         assert v[f"B3-03[{action}]"] == v[f"B4-03[{action}]"] == "PASS", v
+
+
+def test_a_box_hanging_after_a_parse_error_ends_the_case_at_once(tmp_path: Path) -> None:
+    """Bounded time: one wait for the silent box, not one per request left."""
+    results = run(tmp_path, strict_indexes, on_refusal="hang")
+    for action in ("pose", "register-pose", "tolerance"):
+        case = results[f"B3-04[{action}]"]
+        assert case["verdict"] == "NON-STRICT", case
+        assert case["message"].startswith("block 2 of 2: ") and "the box went silent; the 21 requests after it were " \
+            "not sent" in case["message"], case["message"]
+        assert results[f"B3-03[{action}]"]["verdict"] == "PASS"

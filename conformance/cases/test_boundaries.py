@@ -25,12 +25,12 @@ answering ends the case there (bounded time: one time_out, not one per request).
 from __future__ import annotations
 
 import struct
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import pytest
 
-from conformance.harness.client import Answer, Closed, Outcome, Silence, TcpConnection
+from conformance.harness.client import Answer, Closed, Outcome, Silence
 from conformance.protocol import (
     ACTION_ERROR,
     Action,
@@ -116,15 +116,22 @@ def _named_error(action: int, **_: object) -> Expect | None:
 
 
 class Judged:
-    """Judges every request of a case, keeps the first verdict of each kind, raises the worst."""
+    """Judges every request of a case on one connection (a fresh one after a close), keeps the
+    first verdict of each kind, and raises the worst at :meth:`finish`."""
 
-    def __init__(self, isight: CaseContext) -> None:
+    def __init__(self, isight: CaseContext, label: str = "command") -> None:
         self.isight = isight
+        self.label = label
         self.first: dict[Verdict, CaseVerdict] = {}
+        #: the labels of the requests that did not pass
         self.broken: list[str] = []
+        self.judged = 0
+        self.stopped = ""
+        self.conn = isight.connect(label)
 
     def judge(self, label: str, outcome: Outcome, sent: bytes, **values: Any) -> bool:
         """True when ``outcome`` passes; else the verdict is kept for :meth:`finish`."""
+        self.judged += 1
         try:
             self.isight.judge(outcome, sent=sent, **values)
         except Skip:
@@ -137,55 +144,53 @@ class Judged:
             return False
         return True
 
-    def finish(self, judged: int, stopped: str = "") -> None:
-        """Raise the worst verdict kept (PASS when none); ``stopped`` says why requests were left out."""
-        self.isight.details["judged"] = judged
-        if stopped:
-            self.isight.details["stopped"] = stopped
-        if self.broken:
-            self.isight.details["not_passed"] = self.broken
+    def go_on(self, outcome: Outcome | None, left: int) -> bool:
+        """After a request: False (and why) when the box went silent or cannot be reached again;
+        a fresh connection when it closed this one."""
+        if isinstance(outcome, Silence):
+            self.stopped = f"the box went silent; the {left} requests after it were not sent"
+            return False
+        if left and (isinstance(outcome, Closed) or self.conn.closed_by_peer is not None):
+            self.conn.close()
+            try:
+                self.conn = self.isight.connect(self.label)
+            except CaseVerdict as exc:  # unreachable now: what was judged stands
+                self.stopped = f"the box could not be reached again ({exc.message}); {left} requests were not sent"
+                return False
+        return True
+
+    def finish(self) -> None:
+        """Raise the worst verdict kept (PASS when none), naming every other request that did not pass."""
+        self.conn.close()
+        self.isight.details["judged"] = self.judged
+        for key, found in (("not_passed", self.broken), ("stopped", self.stopped)):
+            if found:
+                self.isight.details[key] = found
         worst = next((self.first[v] for v in WORST_FIRST if v in self.first), None)
         if worst is None:
-            if stopped:
-                self.isight.inform(stopped)
+            if self.stopped:
+                self.isight.inform(self.stopped)
             return
         others = [b for b in self.broken if not worst.message.startswith(f"{b}:")]
         if others:
             worst.message += f" (also not passed: {', '.join(others[:12])}{' …' if len(others) > 12 else ''})"
-        if stopped:
-            worst.message += f"; {stopped}"
+        if self.stopped:
+            worst.message += f"; {self.stopped}"
         worst.args = (worst.message,)
         raise worst
 
 
-def _gone(outcome: Outcome | None, conn: TcpConnection) -> bool:
-    return isinstance(outcome, Closed) or conn.closed_by_peer is not None
-
-
-def _requests(isight: CaseContext, action: Action) -> Iterator[tuple[int, bytes]]:
-    first = isight.profile.first_index
-    for count in COUNTS:
-        yield count, encode(request(action, blocks(action, count, first)), isight.profile)
-
-
-def _exchange_all(isight: CaseContext, items: Sequence[tuple[str, bytes, Mapping[str, object]]]) -> None:
-    """Send each well-formed request on one connection (a new one after a close), judge each answer."""
+def _exchange_all(isight: CaseContext, items: Sequence[tuple[str, bytes, Mapping[str, object]]]) -> Judged:
+    """Send each well-formed request on one connection, one after the other, and judge each answer."""
     judged = Judged(isight)
-    conn = isight.connect()
-    stopped = ""
     for n, (label, raw, values) in enumerate(items):
-        outcome = conn.request(raw, label)
+        outcome = judged.conn.request(raw, label)
         if isinstance(outcome, Answer):
             isight.latencies_ms.append(outcome.latency_s * 1000)
         judged.judge(label, outcome, raw, **values)
-        if isinstance(outcome, Silence):
-            stopped = f"the box stayed silent; the {len(items) - n - 1} requests after it were not sent"
+        if not judged.go_on(outcome, len(items) - n - 1):
             break
-        if _gone(outcome, conn) and n + 1 < len(items):
-            conn.close()
-            conn = isight.connect()
-    conn.close()
-    judged.finish(n + 1, stopped)
+    return judged
 
 
 @case("B3-03", ["B3", "B1", "B2", "A1", "A3"], Level.MUST,
@@ -197,9 +202,12 @@ def _exchange_all(isight: CaseContext, items: Sequence[tuple[str, bytes, Mapping
 @pytest.mark.parametrize("action", ACTIONS, ids=ACTION_IDS)
 def test_block_count_boundaries(isight: CaseContext, action: Action) -> None:
     first = isight.profile.first_index
-    items = [(f"{count} blocks", raw, {"count": count, "first": first, "last": (first + count - 1) & 0xFF})
-             for count, raw in _requests(isight, action)]
-    _exchange_all(isight, items)
+    items = [(f"{count} blocks", encode(request(action, blocks(action, count, first)), isight.profile),
+              {"count": count, "first": first, "last": (first + count - 1) & 0xFF}) for count in COUNTS]
+    judged = _exchange_all(isight, items)
+    # for root causes: valid requests refused from some block count on (an index counter that wraps)
+    isight.details["refused_counts"] = [c for c in COUNTS if f"{c} blocks" in judged.broken]
+    judged.finish()
 
 
 @case("B3-04", ["B3", "A3", "R1"], Level.MUST,
@@ -215,30 +223,25 @@ def test_block_count_boundaries(isight: CaseContext, action: Action) -> None:
 @pytest.mark.parametrize("action", ACTIONS, ids=ACTION_IDS)
 def test_wrong_index_positions(isight: CaseContext, action: Action) -> None:
     first = isight.profile.first_index
-    judged = Judged(isight)
-    accepted: list[str] = []
-    conn = isight.connect("malformed")
+    judged = Judged(isight, "malformed")
     plan = [(count, position) for count in COUNTS for position in wrong_positions(count)]
-    stopped = ""
+    accepted: list[dict[str, int]] = []
     for n, (count, position) in enumerate(plan):
         bad = encode(request(action, blocks(action, count, first, position)), isight.profile)
         index, expected = wrong_index(position, count, first), (first + position - 1) & 0xFF
-        label = f"block {position} of {count}"
         outcome = isight.send_malformed(bad, f"{action.name}, {count} blocks, index {index:02x} at block {position}",
-                                        conn=conn)
+                                        conn=judged.conn)
         if answered_zero(outcome):
-            accepted.append(label)
-        judged.judge(label, outcome, bad, count=count, position=position, index=index, expected=expected)
-        if isinstance(isight.last_probe, Silence):
-            stopped = (f"the box answered neither the request nor the valid probe behind it; the "
-                       f"{len(plan) - n - 1} requests after it were not sent")
+            accepted.append({"count": count, "position": position, "index": index})
+        judged.judge(f"block {position} of {count}", outcome, bad, count=count, position=position, index=index,
+                     expected=expected)
+        # the probe tells whether the box is still there: a close ends the connection, silence the case
+        after = outcome if isinstance(outcome, Closed) else isight.last_probe
+        if not judged.go_on(after, len(plan) - n - 1):
             break
-        if _gone(outcome, conn) or _gone(isight.last_probe, conn):
-            conn.close()
-            conn = isight.connect("malformed")
-    conn.close()
+    # for root causes: where a wrong index was answered 0000 (an index counter that wraps)
     isight.details["accepted_wrong_index"] = accepted
-    judged.finish(n + 1, stopped)
+    judged.finish()
 
 
 def _float_requests(action: Action, first: int) -> list[tuple[str, tuple[Block, ...], str, int]]:
@@ -269,4 +272,4 @@ def _float_requests(action: Action, first: int) -> list[tuple[str, tuple[Block, 
 def test_legal_float_values(isight: CaseContext, action: Action) -> None:
     items = [(label, encode(request(action, blks), isight.profile), {"name": label, "where": where, "bits": bits})
              for label, blks, where, bits in _float_requests(action, isight.profile.first_index)]
-    _exchange_all(isight, items)
+    _exchange_all(isight, items).finish()

@@ -75,14 +75,14 @@ def _is_probe_answer(outcome: Outcome) -> bool:
         and not outcome.frame.blocks
 
 
-def ask(conn: TcpConnection, frame: Frame, note: str) -> Probe:
-    """Send ``frame`` and a NONE probe; what the box did with ``frame``."""
+def ask(conn: TcpConnection, frame: Frame, note: str, wait_s: float) -> Probe:
+    """Send ``frame`` and a NONE probe; what the box did with ``frame`` within ``wait_s``."""
     action = Action(frame.action)
     if not conn.send(frame, note) or not conn.send(PROBE_NONE, "probe: NONE; its answer bounds the wait"):
         return Probe(action, conn.closed_by_peer or Closed(False, 0.0))
     start = time.monotonic()
     # an explicit wait: silence is a legal refusal here (A5), not a late answer (T1)
-    outcome = conn.next_outcome(conn.time_out_s, since=start)
+    outcome = conn.next_outcome(wait_s, since=start)
     if _is_probe_answer(outcome):
         return Probe(action, Silence(time.monotonic() - start, skipped=True), unanswered=True)
     return Probe(action, outcome)
@@ -92,7 +92,9 @@ def detect_extension(conn: TcpConnection) -> tuple[bool, str]:
     """(implemented, what the detection saw) from a result request (27) on ``conn``, then, when
     27 gave no positive evidence, a ProgIdx (26) on a fresh connection (``conn`` may be closed, or
     hold the probe's answer)."""
-    seen = [ask(conn, request(Action.VISION_RESULT), "detect extension E: result request (27)")]
+    # E5: 27 is bounded by vision_time_out, not time_out (a box may take that long to have a result)
+    vision_s = max(conn.time_out_s, conn.profile.vision_time_out_ms / 1000)
+    seen = [ask(conn, request(Action.VISION_RESULT), "detect extension E: result request (27)", vision_s)]
     if not seen[0].evidence:
         other = TcpConnection(conn.transcript, conn.target, conn.profile, conn.label, conn.time_out_s)
         try:
@@ -101,7 +103,7 @@ def detect_extension(conn: TcpConnection) -> tuple[bool, str]:
             pass  # the box is gone: no more evidence to gather (the cases' liveness checks report it)
         else:
             prog_idx = request(Action.PROG_IDX, value_blocks([PROG_IDX_VALUE], conn.profile.first_index))
-            seen.append(ask(other, prog_idx, f"detect extension E: ProgIdx (26) {PROG_IDX_VALUE}"))
+            seen.append(ask(other, prog_idx, f"detect extension E: ProgIdx (26) {PROG_IDX_VALUE}", other.time_out_s))
             other.close()
     return verdict(seen)
 
