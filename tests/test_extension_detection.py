@@ -33,7 +33,7 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.suite.extension import detect_extension
-from tests.boxes import ScriptedBox, answering
+from tests.boxes import ScriptedBox, answering, silent
 from tests.test_cases_extension_udp import Patch, failing, reference_box, run_suite, verdicts
 
 PROFILE = Profile(time_out_ms=2000)
@@ -200,3 +200,11 @@ def test_a_box_answering_26_but_refusing_27_fails_e3(tmp_path: Path) -> None:
     v = verdicts(results)
     assert v["E3-01"] == "FAIL" and v["E2-01"] == "PASS", v
     assert v["A5-02[26-prog-idx]"] == v["A5-02[27-vision-result]"] == "SKIP", v
+
+
+def test_a_box_silent_to_everything_is_asked_once() -> None:
+    """Neither 27 nor the probe behind it answered: no evidence, and no second wait for 26."""
+    with ScriptedBox(silent) as b:
+        found, how, transcript = detect(b.target)
+    assert found is False and "ProgIdx (26)" not in how and "result request (27): the box stayed silent" in how, how
+    assert len([c for c in transcript.connections.values() if c.transport == "tcp"]) == 1

@@ -10,7 +10,12 @@ appears to use and prints the flags to rerun the suite with:
   one is answered 0000;
 * F7 UDP CRC: a NONE datagram with the CRC of every crcmod 16-bit algorithm in both
   byte orders (common ones first, a short wait per try, stop at the first that is
-  answered 0000, confirmed by sending it again).
+  answered 0000, confirmed by sending it again); it counts only when a datagram with a
+  check no algorithm computes is refused (a box that answers any check shows no CRC).
+
+Every reading rests on positive evidence: the one reading answered 0000 where the other
+is not. A reading no answer singles out (both answered, neither, no UDP target) is
+reported as not determined, the profile's kept as a guess, never as "the profile fits".
 
 Every TCP try is bounded by an in-order probe (answers come in order, A1), so a box
 that stays silent to the wrong reading costs nothing but the probe's round trip.

@@ -90,12 +90,15 @@ def ask(conn: TcpConnection, frame: Frame, note: str, wait_s: float) -> Probe:
 
 def detect_extension(conn: TcpConnection) -> tuple[bool, str]:
     """(implemented, what the detection saw) from a result request (27) on ``conn``, then, when
-    27 gave no positive evidence, a ProgIdx (26) on a fresh connection (``conn`` may be closed, or
-    hold the probe's answer)."""
+    27 gave no positive evidence and the box is seen answering (or closing), a ProgIdx (26) on a
+    fresh connection (``conn`` may be closed, or hold the probe's answer). A box that answered
+    neither 27 nor the probe is not asked again (one wait, not two)."""
     # E5: 27 is bounded by vision_time_out, not time_out (a box may take that long to have a result)
     vision_s = max(conn.time_out_s, conn.profile.vision_time_out_ms / 1000)
     seen = [ask(conn, request(Action.VISION_RESULT), "detect extension E: result request (27)", vision_s)]
-    if not seen[0].evidence:
+    first = seen[0]
+    quiet = isinstance(first.outcome, Silence) and not first.unanswered  # not even the probe was answered
+    if not first.evidence and not quiet:
         other = TcpConnection(conn.transcript, conn.target, conn.profile, conn.label, conn.time_out_s)
         try:
             other.connect()
