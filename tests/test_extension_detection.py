@@ -208,3 +208,29 @@ def test_a_box_silent_to_everything_is_asked_once() -> None:
         found, how, transcript = detect(b.target)
     assert found is False and "ProgIdx (26)" not in how and "result request (27): the box stayed silent" in how, how
     assert len([c for c in transcript.connections.values() if c.transport == "tcp"]) == 1
+
+
+@pytest.mark.impls(seconds=30)
+def test_the_whole_suite_against_a_box_refusing_26_27_with_an_error_is_clean(tmp_path: Path) -> None:
+    """The issue-17 box end to end (about 25 s): 26/27 refused with the action echoed and error 0003,
+    no block. Every case, FUZZ included: exit 0, no root cause, the report says what detection saw."""
+    import json
+    import subprocess
+    import sys
+
+    config, patch = SUITE_REFUSALS["error-echoed-action"]
+    with reference_box(config, patch) as b:
+        proc = subprocess.run([sys.executable, "-m", "conformance", "run", "--quiet", "--target",
+                               f"127.0.0.1:{b.tcp_port}", "--udp-target", f"127.0.0.1:{b.udp_port}", "--report-dir",
+                               str(tmp_path / "r"), "--pcap-dir", str(tmp_path / "p")],
+                              capture_output=True, text=True, timeout=240, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    doc = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert doc["root_causes"] == [] and doc["totals"]["FAIL"] == doc["totals"]["NON-STRICT"] == 0, doc["totals"]
+    assert doc["suite"]["extension"].startswith("not implemented (detected"), doc["suite"]["extension"]
+    assert "action 27, error 0x0003, no block" in doc["suite"]["extension"]
+    verdicts = {c["id"]: c["verdict"] for c in doc["cases"]}
+    assert verdicts["A5-02[26-prog-idx]"] == verdicts["A5-02[27-vision-result]"] == "PASS"
+    assert {v for cid, v in verdicts.items() if cid.startswith(("E1-", "E2-", "E3-", "E4-", "E5-"))} == {"SKIP"}
+    html = (tmp_path / "r" / "report.html").read_text()
+    assert "not implemented (detected" in html and "A5-02 judges 26/27 as unknown actions" in html
