@@ -87,12 +87,12 @@ def blocks(action: Action, count: int, first: int, wrong_at: int = 0) -> tuple[B
     """``count`` blocks indexed from ``first``; block ``wrong_at`` (1-based, 0: none) with :func:`wrong_index`."""
     out = []
     for k in range(count):
-        index = wrong_index(k + 1, count, first) if k + 1 == wrong_at else (first + k) & 0xFF
+        index = wrong_index(k + 1, first) if k + 1 == wrong_at else (first + k) & 0xFF
         out.append(sample_block(action, index, k))
     return tuple(out)
 
 
-def wrong_index(position: int, count: int, first: int) -> int:
+def wrong_index(position: int, first: int) -> int:
     """The wrong index planted at ``position``: at 17 and 129 what a counter wrapping at 16 or 128
     expects there (the first index again); at the last position of a request, a gap (+1)."""
     if position in WRAP_POSITIONS:
@@ -228,7 +228,7 @@ def test_wrong_index_positions(isight: CaseContext, action: Action) -> None:
     accepted: list[dict[str, int]] = []
     for n, (count, position) in enumerate(plan):
         bad = encode(request(action, blocks(action, count, first, position)), isight.profile)
-        index, expected = wrong_index(position, count, first), (first + position - 1) & 0xFF
+        index, expected = wrong_index(position, first), (first + position - 1) & 0xFF
         outcome = isight.send_malformed(bad, f"{action.name}, {count} blocks, index {index:02x} at block {position}",
                                         conn=judged.conn)
         if answered_zero(outcome):
