@@ -215,3 +215,16 @@ def test_final_table_counts_informational_and_skip_only():
     assert "F7-01" not in out and "S3-02" not in out
     assert "No case FAIL, ERROR, NON-STRICT or INCONCLUSIVE among 3." in out
     assert "INFORMATIONAL 1 · SKIP 1 · PASS 1" in " ".join(out.split())
+
+
+def test_a_log_gets_a_plain_progress_line_at_the_interval(monkeypatch):
+    """A long run's log is never silent for long: a plain progress line per interval (here: every case)."""
+    import conformance.report.terminal as terminal
+
+    monkeypatch.setattr(terminal, "PLAIN_PROGRESS_EVERY_S", 0.0)
+    console = _console()
+    cases = sample_cases()
+    _run(Progress(console), cases)
+    lines = console.file.getvalue().splitlines()
+    assert len(lines) == len(cases) and lines[-1].startswith(f"[{len(cases)}/{len(cases)}] "), lines
+    assert not any(line.startswith(VERDICT_WORDS) for line in lines)
