@@ -47,7 +47,12 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--expected-failures", metavar="FILE", default=None,
                        help=_("case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
                             "only when the failing set equals the list"))
-    group.add_argument("--quiet", action="store_true", help=_("no live progress line (for CI logs)"))
+    group.add_argument("--quiet", action="store_true",
+                       help=_("no live progress line: only the final summary, as without a terminal (CI logs)"))
+    group.add_argument("--verbose", action="store_true",
+                       help=_("print every case as it finishes, PASS, INFORMATIONAL and SKIP included (by default "
+                            "a terminal shows only FAIL, ERROR, NON-STRICT and INCONCLUSIVE cases as they finish, "
+                            "a log none, before the final summary)"))
     group.add_argument("--baseline", metavar="OLD", default=None,
                        help=_("an earlier run (summary.json or its report directory): print what changed since it "
                             "at the end and add the comparison to report.html (see 'diff')"))
@@ -206,20 +211,21 @@ def main_run(args: argparse.Namespace) -> int:
         settings = replace(settings, target=embedded.target, udp_target=settings.udp_target or embedded.udp_target,
                            target_label=settings.target_label or embedded.label)
     try:
-        return _run(settings, expected, quiet=args.quiet, baseline=baseline, baseline_label=args.baseline)
+        return _run(settings, expected, quiet=args.quiet, baseline=baseline, baseline_label=args.baseline,
+                    verbose=args.verbose)
     finally:
         if embedded is not None:
             embedded.stop()
 
 
 def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool, baseline: dict[str, Any] | None = None,
-         baseline_label: str = "baseline") -> int:
+         baseline_label: str = "baseline", verbose: bool = False) -> int:
     from rich.console import Console
 
     from .report.terminal import Progress, print_final_table
 
     console = Console(stderr=False)
-    progress = Progress(console=console, quiet=quiet)
+    progress = Progress(console=console, quiet=quiet, verbose=verbose)
     plugin = _RunPlugin(progress)
     try:
         code = pytest.main(_pytest_args(settings), plugins=[plugin])

@@ -366,3 +366,12 @@ def test_baseline_section(tmp_path):
     assert html.index('id="findings"') < html.index('id="baseline"') < html.index('id="clauses"')
     html, _ = _render(tmp_path)
     assert 'id="baseline"' not in html
+
+
+def test_the_extension_line_says_what_detection_saw():
+    from conformance.report.html import extension_meaning
+
+    seen = "not implemented (detected: …; result request (27): transfer type 10, action 27, error 0x0003, no block)"
+    assert extension_meaning(seen).startswith(seen) and "A5-02 judges 26/27" in extension_meaning(seen)
+    assert extension_meaning("implemented (detected: 27: …)").endswith(": E cases run")
+    assert extension_meaning("off") == "switched off by the command line: E cases SKIP"

@@ -31,34 +31,54 @@ def _run(progress: Progress, cases: list[CaseResult]) -> None:
     progress.stop()
 
 
-def test_not_a_tty_prints_one_plain_line_per_non_pass_case():
+def test_not_a_tty_prints_no_line_per_case():
+    """A CI log holds the final summary only (print_final_table), not a row per INFORMATIONAL or SKIP case."""
     console = _console()
     progress = Progress(console)
     assert not progress.live_enabled
+    _run(progress, sample_cases())
+    assert console.file.getvalue() == ""
+
+
+def test_verbose_prints_every_case_with_its_clauses():
+    console = _console()
+    progress = Progress(console, verbose=True)
     cases = sample_cases()
     _run(progress, cases)
     out = console.file.getvalue()
     lines = out.splitlines()
     case_lines = [line for line in lines if line.startswith(VERDICT_WORDS)]
-    assert len(case_lines) == sum(c.verdict is not Verdict.PASS for c in cases)
+    assert len(case_lines) == len(cases)  # PASS, INFORMATIONAL and SKIP too
     assert not ANSI.search(out)
     assert lines[0].startswith("FAIL          F1-01 [F1, R1] box answered 0000")
-    # each case line is followed by the text of the clause(s) its verdict judged
+    # each non-PASS case line is followed by the text of the clause(s) its verdict judged
     assert re.match(r"^ {14}R1( \(MUST\))?: " + re.escape(clause_text("R1").text[:40]), lines[1])
     assert all(line.startswith(" " * 14) for line in lines if line not in case_lines)
     assert all(len(line) <= 120 for line in lines if line not in case_lines)  # cut to the console's width
-    assert len(lines) - len(case_lines) >= len(case_lines)
-    assert "T2-01" not in out and "B3-01" not in out  # PASS cases say nothing
+    after_pass = [lines[i + 1] for i, line in enumerate(lines[:-1]) if line.startswith("PASS")]
+    assert after_pass and all(line.startswith(VERDICT_WORDS) for line in after_pass)  # no clause text under a PASS
+    assert "T2-01" in out and "B3-01" in out
     assert "[bold]markup[/]" in out  # a box's text is never read as markup
 
 
-def test_quiet_has_no_live_line_even_on_a_tty():
+def test_quiet_has_no_live_line_and_no_line_per_case_even_on_a_tty():
     console = _console(force_terminal=True)
     progress = Progress(console, quiet=True)
     assert not progress.live_enabled
     _run(progress, sample_cases())
     out = console.file.getvalue()
-    assert "F1-01" in out and "[8/8]" not in out
+    assert "F1-01" not in out and "[8/8]" not in out
+
+
+def test_a_tty_shows_the_listed_verdicts_as_they_finish_not_informational_or_skip():
+    console = _console(force_terminal=True)
+    cases = sample_cases()
+    with Progress(console) as progress:
+        for case in cases:
+            progress.case_done(case)
+    out = console.file.getvalue()
+    for case in cases:
+        assert (case.id in out) is (case.verdict in LISTED), case.id
 
 
 def test_live_line_on_a_tty():
@@ -195,3 +215,16 @@ def test_final_table_counts_informational_and_skip_only():
     assert "F7-01" not in out and "S3-02" not in out
     assert "No case FAIL, ERROR, NON-STRICT or INCONCLUSIVE among 3." in out
     assert "INFORMATIONAL 1 · SKIP 1 · PASS 1" in " ".join(out.split())
+
+
+def test_a_log_gets_a_plain_progress_line_at_the_interval(monkeypatch):
+    """A long run's log is never silent for long: a plain progress line per interval (here: every case)."""
+    import conformance.report.terminal as terminal
+
+    monkeypatch.setattr(terminal, "PLAIN_PROGRESS_EVERY_S", 0.0)
+    console = _console()
+    cases = sample_cases()
+    _run(Progress(console), cases)
+    lines = console.file.getvalue().splitlines()
+    assert len(lines) == len(cases) and lines[-1].startswith(f"[{len(cases)}/{len(cases)}] "), lines
+    assert not any(line.startswith(VERDICT_WORDS) for line in lines)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import socket
 import subprocess
 import sys
@@ -132,3 +133,20 @@ def test_catalogue_doc_is_generated_from_the_cases() -> None:
     doc = (root / "docs" / "CATALOGUE.md").read_text(encoding="utf-8")
     assert doc == proc.stdout, "docs/CATALOGUE.md is stale: regenerate it with " \
         "`isight-conformance run --list --list-format markdown > docs/CATALOGUE.md`"
+
+
+def test_a_log_holds_the_summary_and_verbose_every_row(tmp_path: Path) -> None:
+    """Without a TTY (a pipe, as in CI) the output is the final summary: no row per INFORMATIONAL, SKIP
+    or PASS case, no clause text; --verbose prints a row per case as it finishes."""
+    cases = ["--cases", "F1-*", "--cases", "B3-01", "--cases", "SEQ-USER*"]
+    base = [sys.executable, "-m", "conformance", "run", "--report-dir", str(tmp_path / "r"), "--pcap-dir",
+            str(tmp_path / "p"), *cases]
+    plain = subprocess.run(base, capture_output=True, text=True, timeout=200, cwd=tmp_path)
+    verbose = subprocess.run([*base, "--verbose"], capture_output=True, text=True, timeout=200, cwd=tmp_path)
+    assert plain.returncode == verbose.returncode == 0, plain.stdout + plain.stderr + verbose.stderr
+    rows = [line for line in plain.stdout.splitlines() if line.startswith(("PASS", "INFORMATIONAL", "SKIP"))]
+    assert rows == [] and "B3-01" not in plain.stdout and "B3 (MUST)" not in plain.stdout, plain.stdout
+    assert "Totals:" in plain.stdout and "INFORMATIONAL 1" in plain.stdout and "SKIP 1" in plain.stdout, plain.stdout
+    out = verbose.stdout
+    assert re.search(r"^INFORMATIONAL B3-01 \[B3\]", out, re.M) and re.search(r"^SKIP +SEQ-USER", out, re.M), out
+    assert re.search(r"^PASS +F1-01", out, re.M) and "B3 (MUST)" in out and "Totals:" in out, out

@@ -10,7 +10,12 @@ appears to use and prints the flags to rerun the suite with:
   one is answered 0000;
 * F7 UDP CRC: a NONE datagram with the CRC of every crcmod 16-bit algorithm in both
   byte orders (common ones first, a short wait per try, stop at the first that is
-  answered 0000, confirmed by sending it again).
+  answered 0000, confirmed by sending it again); it counts only when a datagram with a
+  check no algorithm computes is refused (a box that answers any check shows no CRC).
+
+Every reading rests on positive evidence: the one reading answered 0000 where the other
+is not. A reading no answer singles out (both answered, neither, no UDP target) is
+reported as not determined, the profile's kept as a guess, never as "the profile fits".
 
 Every TCP try is bounded by an in-order probe (answers come in order, A1), so a box
 that stays silent to the wrong reading costs nothing but the probe's round trip.
@@ -172,34 +177,78 @@ def _udp_try(ch: UdpChannel, data: bytes, wait_s: float, note: str) -> bool:
             return True
 
 
-def discover_crc(isight: CaseContext, byte_order: str) -> dict[str, Any]:
+def _wrong_check(body: bytes, good: bytes) -> bytes:
+    """Two check bytes that no candidate algorithm computes for ``body``, in either byte order."""
+    computed = {crc_function(name)(body) for name in crc16_names()}
+    taken = {v for c in computed for v in (c, int.from_bytes(c.to_bytes(2, "big"), "little"))}
+    value = int.from_bytes(good, "big") ^ 0xFFFF
+    while value in taken:
+        value = (value + 0x0101) & 0xFFFF
+    return value.to_bytes(2, "big")
+
+
+def _checks_crc(ch: UdpChannel, body: bytes, good: bytes, wait_s: float, settle_s: float) -> bool | None:
+    """Does the box check the CRC at all? A NONE datagram with a check no algorithm computes, then one
+    with the found check as the probe: True when only the probe is answered 0000, False when both are
+    (any check passes: the found one is no evidence), None when not even the probe is."""
+    start = time.monotonic()
+    ch.send(body + _wrong_check(body, good), "NONE datagram, a check no CRC algorithm computes: is the CRC checked?")
+    ch.send(body + good, "probe: NONE datagram, the found CRC; its answer bounds the wait")
+    oks, deadline = 0, start + wait_s
+    while oks < 2:
+        outcome = ch.next_outcome(max(0.0, deadline - time.monotonic()), since=start)
+        if isinstance(outcome, (Silence, Closed)):
+            break
+        if _ok(outcome, Action.NONE):
+            oks += 1
+            deadline = min(deadline, time.monotonic() + settle_s)  # the other 0000, if any, comes right after
+    return None if oks == 0 else oks == 1
+
+
+def _crc_scan(isight: CaseContext, ch: UdpChannel, body: bytes) -> dict[str, Any]:
     """The first (algorithm, byte order) whose NONE datagram is answered 0000, confirmed by a resend."""
+    tried: dict[bytes, tuple[str, str]] = {}
+    previous: tuple[bytes, tuple[str, str]] | None = None
+    total = len(_crc_candidates(isight.profile))
+    for pair in _crc_candidates(isight.profile):
+        check = crc_function(pair[0])(body).to_bytes(2, pair[1])  # type: ignore[arg-type]
+        if check in tried:
+            continue
+        tried[check] = pair
+        if _udp_try(ch, body + check, SCAN_WAIT_S, f"NONE datagram, CRC {pair[0]} {pair[1]}-endian"):
+            # a slow box's answer may belong to the previous try: confirm this one, then that one
+            for cand_check, cand in [(check, pair), *([previous] if previous else [])]:
+                if _udp_try(ch, body + cand_check, min(CONFIRM_WAIT_S, isight.time_out_s),
+                            f"confirm: NONE datagram, CRC {cand[0]} {cand[1]}-endian"):
+                    return {"found": cand, "check": cand_check, "tries": len(tried),
+                            "note": f"{cand[0]}, {cand[1]}-endian (NONE answered 0000 at try {len(tried)} of {total})"}
+        previous = (check, pair)
+    return {"found": None, "tries": len(tried),
+            "note": f"no NONE datagram was answered 0000 under any of {len(tried)} CRC/byte-order combinations"}
+
+
+def discover_crc(isight: CaseContext, byte_order: str) -> dict[str, Any]:
+    """The CRC the box answers NONE 0000 under, when a datagram with a wrong check is refused (else
+    ``found`` is None: a box that answers any check gives no evidence of its algorithm)."""
     try:
         ch = isight.udp("discovery: CRC")
     except (Skip, Unreachable) as exc:
         return {"found": None, "note": f"not discovered: {getattr(exc, 'message', exc)}"}
     body = encode_body(request(Action.NONE), isight.profile.replace(byte_order=byte_order))
-    tried: dict[bytes, tuple[str, str]] = {}
-    previous: tuple[bytes, tuple[str, str]] | None = None
     try:
-        for pair in _crc_candidates(isight.profile):
-            check = crc_function(pair[0])(body).to_bytes(2, pair[1])  # type: ignore[arg-type]
-            if check in tried:
-                continue
-            tried[check] = pair
-            if _udp_try(ch, body + check, SCAN_WAIT_S, f"NONE datagram, CRC {pair[0]} {pair[1]}-endian"):
-                # a slow box's answer may belong to the previous try: confirm this one, then that one
-                for cand_check, cand in [(check, pair), *([previous] if previous else [])]:
-                    if _udp_try(ch, body + cand_check, min(CONFIRM_WAIT_S, isight.time_out_s),
-                                f"confirm: NONE datagram, CRC {cand[0]} {cand[1]}-endian"):
-                        return {"found": cand, "tries": len(tried),
-                                "note": f"{cand[0]}, {cand[1]}-endian (NONE answered 0000 at try {len(tried)} of "
-                                        f"{len(_crc_candidates(isight.profile))})"}
-            previous = (check, pair)
+        crc = _crc_scan(isight, ch, body)
+        if crc["found"]:
+            checked = _checks_crc(ch, body, crc["check"], min(CONFIRM_WAIT_S, isight.time_out_s),
+                                  isight.settings.settle_s)
+            if checked is False:
+                return {"found": None, "tries": crc["tries"],
+                        "note": "not determined: the box answers a NONE datagram 0000 whatever its check (a check "
+                                "no algorithm computes too; R7 judges that)"}
+            if checked is None:
+                crc["note"] += " (not confirmed: the box did not answer the wrong-check test's probe)"
     except Unreachable:
         return {"found": None, "note": f"the UDP target {ch.target} refused datagrams (ICMP port unreachable)"}
-    return {"found": None, "tries": len(tried),
-            "note": f"no NONE datagram was answered 0000 under any of {len(tried)} CRC/byte-order combinations"}
+    return crc
 
 
 @case("PROFILE-01", ["B3", "F7", "F4"], Level.MAY, "Profile discovery: first index, UDP CRC, header byte order",
@@ -208,37 +257,55 @@ def discover_crc(isight: CaseContext, byte_order: str) -> dict[str, Any]:
 def test_profile_discovery(isight: CaseContext) -> None:
     profile = isight.profile
     changes: dict[str, Any] = {}
+    #: the readings no answer singled out: the run keeps the profile's (a guess, reported as one)
+    undetermined: list[str] = []
     orders, order_seen = discover_byte_order(isight)
     accepted_orders = [o for o in ORDERS if orders[o]]
-    report = {"byte_order": {o: order_seen[o] for o in ORDERS}}
+    report: dict[str, Any] = {"byte_order": {o: order_seen[o] for o in ORDERS}}
     if len(accepted_orders) == 1:
         changes["byte_order"] = accepted_orders[0]
+    else:
+        undetermined.append("header byte order")
     order_text = (f"header fields {accepted_orders[0]}-endian" if len(accepted_orders) == 1
                   else "header fields in either byte order" if accepted_orders else
                   "NONE answered 0000 in neither byte order")
     box_order = changes.get("byte_order", profile.byte_order)
     index_text = "first index not discovered (no byte order answered)"
+    good: list[int] = []
     if accepted_orders:
         indexes, index_seen = discover_first_index(isight, profile.replace(byte_order=box_order))
         report["first_index"] = {str(i): index_seen[i] for i in (0, 1)}
         good = [i for i in (0, 1) if indexes[i]]
-        if len(good) == 1:
-            changes["first_index"] = good[0]
         index_text = (f"first block index {good[0]}" if len(good) == 1 else
                       "first block index 0 or 1 (both answered 0000)" if good else
                       "first block index: neither 0 nor 1 answered 0000")
+    if len(good) == 1:
+        changes["first_index"] = good[0]
+    else:
+        undetermined.append("first block index")
     crc = discover_crc(isight, box_order)
     report["udp_crc"] = crc["note"]
     if crc["found"]:
         changes["crc"], changes["crc_byte_order"] = crc["found"]
+    else:
+        undetermined.append("UDP CRC")
     found = profile.replace(**changes)
     flags = profile_flags(found)
     isight.details.update(report)
     isight.details["discovered"] = changes
+    isight.details["undetermined"] = undetermined
     isight.details["suggested_flags"] = flags
-    advice = (f"rerun with: {' '.join(flags)}" if found != profile
-              else f"the profile in use fits ({' '.join(flags) or 'PROTOCOL.md defaults, no flags'})")
-    isight.inform(f"{order_text}; {index_text}; UDP CRC: {crc['note']}; {advice}")
+    isight.inform(f"{order_text}; {index_text}; UDP CRC: {crc['note']}; {_advice(profile, found, flags, undetermined)}")
+
+
+def _advice(profile: Profile, found: Profile, flags: list[str], undetermined: list[str]) -> str:
+    """What to rerun with; the readings without evidence are named as guesses, never as fitting."""
+    guess = (f"; not determined (no answer singled one reading out, so the run keeps the profile's, a guess): "
+             f"{', '.join(undetermined)}" if undetermined else "")
+    if found != profile:
+        return f"rerun with: {' '.join(flags)}{guess}"
+    fits = "the profile in use fits" if not undetermined else "what was determined fits the profile in use"
+    return f"{fits} ({' '.join(flags) or 'PROTOCOL.md defaults, no flags'}){guess}"
 
 
 # -- F4 --------------------------------------------------------------------------------------

@@ -1,10 +1,10 @@
 """E: the optional extension (program index 26, vision result 27, type-03 blocks).
 
 Every case first calls ``isight.require_extension()``: a box without 26/27 SKIPs
-them (detected once per session, or forced by ``--extension on|off``). E3 alone
-also judges a box whose answer to a result request is *malformed* (e.g. result
-code 404): the session's detection counts only well-formed answers, and such a
-box clearly implements 27, badly.
+them (detected once per session on positive evidence, see
+:mod:`conformance.suite.extension`, or forced by ``--extension on|off``). A box whose
+answer to 26 or 27 carries a type-03 block counts as implementing E even when the
+answer does not parse (e.g. result code 404): the E cases then judge it.
 
 Profile settings honoured: ``progidx_conflict`` (E2: a 409 travels in the block
 with error 0000, or in the error field), ``vision_time_out_ms`` (E3, E4) and
@@ -127,31 +127,13 @@ def test_prog_idx_answer(isight: CaseContext) -> None:
 # -- E3 ------------------------------------------------------------------------------------
 
 
-def _require_27(isight: CaseContext) -> None:
-    """Skip unless the box implements 27 (detected, forced, or it answers 27 malformed)."""
-    if isight.settings.extension != "auto" or isight.session.detect_extension(isight.transcript):
-        isight.require_extension()
-        return
-    conn = isight.connect("extension check")
-    start = time.monotonic()
-    conn.send(request(Action.VISION_RESULT), "result request (27): does the box answer it at all?")
-    conn.send(request(Action.NONE), "probe: NONE; its answer bounds the wait")
-    first = conn.next_outcome(since=start)
-    conn.close()
-    header = first.error.header if isinstance(first, Malformed) else None
-    if header is not None and header.action == Action.VISION_RESULT and header.transfer_type == 0x10:
-        isight.transcript.note("the box answers 27 with a malformed frame: E3 is judged")
-        return
-    isight.require_extension()
-
-
 @case("E3-01", ["E3", "E1"], Level.MUST, "A result request is answered with a ResultCode within vision_time_out",
       "one type-03 block holding 1, 2, 10, 20, 202, 400 or 409 (never 0 or 404), within vision_time_out",
       checks={"": Requirement("E3: a result request is answered within vision_time_out ({vision_ms:.0f} ms) with one "
                               "type-03 block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; "
                               "never 0 or 404)", accept=answered(Action.VISION_RESULT, values=SENDABLE_RESULTS))})
 def test_vision_result(isight: CaseContext) -> None:
-    _require_27(isight)
+    isight.require_extension()
     vision_s = isight.profile.vision_time_out_ms / 1000
     conn = isight.connect()
     frame = request(Action.VISION_RESULT)

@@ -89,6 +89,17 @@ EXTENSION_MEANING = {
 }
 
 
+def extension_meaning(how: str) -> str:
+    """The report's extension line: what the session's detection saw, and what it means for the cases."""
+    if how in EXTENSION_MEANING:
+        return _(EXTENSION_MEANING[how])
+    if how.startswith("implemented"):
+        return _("{how}: E cases run").format(how=how)
+    if how.startswith("not implemented"):
+        return _("{how}: E cases SKIP, A5-02 judges 26/27 as unknown actions").format(how=how)
+    return how
+
+
 # -- small presentation helpers --------------------------------------------------------
 def display_time(iso: str) -> str:
     """``2026-05-09T07:35:25.123+00:00`` -> ``2026-05-09 07:35:25 UTC``; other text as given."""
@@ -250,7 +261,7 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
     profile = profile_rows(dict(suite.profile))
     return environment().get_template("report.html.j2").render(
         suite=suite, started=display_time(suite.started), duration=format_duration(suite.duration_s),
-        extension=_(EXTENSION_MEANING[suite.extension]) if suite.extension in EXTENSION_MEANING else suite.extension,
+        extension=extension_meaning(suite.extension),
         lang=i18n.current(), page_counter=page_counter(),
         profile=profile, changed=[r for r in profile if r["changed"]],
         overall=overall_line(cases, suite), overall_state=overall_state(cases, suite),

@@ -1,10 +1,12 @@
 """What the terminal shows while the suite runs and after it.
 
 * :class:`Progress`: on a TTY, one live line (cases done/total, the current case,
-  counts by verdict so far), with each non-PASS case printed above it as it finishes.
-  With ``quiet=True`` or when the console is not a terminal (CI logs, pipes) there is
-  no live line, only one plain line per non-PASS case.
-  Each such line is followed by the text of the clause(s) the verdict judged.
+  counts by verdict so far), with each FAIL, ERROR, NON-STRICT and INCONCLUSIVE case
+  printed above it as it finishes. With ``quiet=True`` or when the console is not a
+  terminal (CI logs, pipes) there is no live line and no line per case, only a plain
+  progress line once a minute: the log holds the same final summary a person sees at a
+  terminal. ``verbose=True`` prints every case as it finishes, PASS included.
+  Each printed non-PASS case line is followed by the text of the clause(s) the verdict judged.
 * :func:`print_final_table`: the root causes first, then the FAIL, ERROR, NON-STRICT and
   INCONCLUSIVE cases grouped by root cause (INFORMATIONAL and SKIP only counted), the
   totals, the overall line (INCOMPLETE with the cases not run for a run cut short) and
@@ -32,6 +34,8 @@ from .summary import format_duration, one_line, overall_line, overall_state, ran
 LISTED = (Verdict.FAIL, Verdict.ERROR, Verdict.NON_STRICT, Verdict.INCONCLUSIVE)
 ROWS_PER_ROOT_CAUSE = 10  # rows shown under a root cause; the rest are counted
 NOT_RUN_SHOWN = 10  # ids of cases not run shown for an incomplete run
+#: without a live line, a plain progress line at most this often (a CI log is never silent for long)
+PLAIN_PROGRESS_EVERY_S = 60.0
 
 STYLES: dict[Verdict, str] = {
     Verdict.PASS: "green",
@@ -92,9 +96,11 @@ class Progress:
     """Live progress of a run: ``start(total)``, ``case_started(id)`` (optional),
     ``case_done(result)`` for each case, ``stop()``. Also a context manager."""
 
-    def __init__(self, console: Console | None = None, quiet: bool = False) -> None:
+    def __init__(self, console: Console | None = None, quiet: bool = False, verbose: bool = False) -> None:
         self.console = console or Console()
         self.live_enabled = not quiet and self.console.is_terminal and not self.console.is_dumb_terminal
+        self.verbose = verbose
+        self._plain_at = 0.0
         self.total = 0
         self.done = 0
         self.current = ""
@@ -105,6 +111,7 @@ class Progress:
     # -- lifecycle ----------------------------------------------------------------
     def start(self, total: int) -> None:
         self.total, self.done, self._started = max(0, int(total)), 0, time.monotonic()
+        self._plain_at = self._started
         self.counts = {v.value: 0 for v in VERDICT_ORDER}
         if self.live_enabled and self._live is None:
             self._live = Live(console=self.console, get_renderable=self.render, refresh_per_second=8,
@@ -119,13 +126,19 @@ class Progress:
         self.done += 1
         self.counts[result.verdict.value] += 1
         self.current = result.id
-        if result.verdict is not Verdict.PASS:
-            # above the live line on a TTY; the only output otherwise
-            self.console.print(case_line(result), soft_wrap=True, highlight=False)
-            texts = clause_lines(result, self.console.width)
-            if texts:
-                self.console.print(texts, soft_wrap=True, highlight=False)
+        if self.verbose or (self.live_enabled and result.verdict in LISTED):
+            self.print_case(result)  # above the live line on a TTY
+        elif not self.live_enabled and time.monotonic() - self._plain_at >= PLAIN_PROGRESS_EVERY_S:
+            self._plain_at = time.monotonic()
+            self.console.print(self.render().plain, soft_wrap=True, highlight=False)
         self._refresh()
+
+    def print_case(self, result: CaseResult) -> None:
+        """The case's line; for a non-PASS case, the text of the clause(s) its verdict judged under it."""
+        self.console.print(case_line(result), soft_wrap=True, highlight=False)
+        texts = clause_lines(result, self.console.width) if result.verdict is not Verdict.PASS else Text()
+        if texts:
+            self.console.print(texts, soft_wrap=True, highlight=False)
 
     def stop(self) -> None:
         if self._live is not None:
