@@ -45,7 +45,7 @@ from conformance.suite.judge import (
 )
 from conformance.suite.record import record
 from conformance.suite.results import result_of
-from conformance.suite.verdicts import CaseResult, Level, SuiteInfo, Verdict
+from conformance.suite.verdicts import CaseResult, Level, SuiteInfo, Verdict, broken_verdict
 
 BOX = TransferType.BOX_TO_ROBOT
 SENT = encode_raw(Header(start_word=0xFFFE))  # not a request (A5: a wrong start word)
@@ -146,7 +146,7 @@ def test_a_non_request_answered_0000_fails(outcome: Outcome) -> None:
 @pytest.mark.parametrize(("level", "expected"), [
     (Level.MUST, Verdict.FAIL), (Level.SHOULD, Verdict.NON_STRICT), (Level.MAY, Verdict.INFORMATIONAL)])
 def test_a_broken_requirement_gets_its_levels_verdict(level: Level, expected: Verdict) -> None:
-    assert level.broken_verdict is expected
+    assert broken_verdict(level) is expected
     v = verdict(ans(Action.CYCLE_OFF, 2), answered(Action.CYCLE_OFF, [0]), level, "A3: CycleOff is answered 0000")
     assert v.verdict is expected and v.judged == ("A3",) and v.signature == "code:CYCLE_OFF:0002"
     assert v.message == "A3: CycleOff is answered 0000: expected answered CYCLE_OFF with error 0x0000 (OK); the box " \

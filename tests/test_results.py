@@ -23,7 +23,7 @@ from conformance.suite.results import (
 )
 from conformance.suite.session import SessionState
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.verdicts import Level, Verdict
+from conformance.suite.verdicts import Level, Verdict, broken_verdict
 
 POSE_CASE = record("S3-01", ["S3"], Level.MUST, "Poses before CycleOn are answered 0000", "answered POSE 0000")
 BOX = Endpoint("127.0.0.1", 9000)
@@ -172,7 +172,7 @@ def test_a_finding_without_clause_or_signature_is_the_case_own(level: Level) -> 
     info = record("R4-01", ["R4", "A1"], level, "Ten frames in one segment are each answered", "ten answers")
     exc = fail(level, "each frame of the segment is answered", "ten answers", "one answer")
     result = result_of(info, None, exc, 0.1)
-    assert result.verdict is level.broken_verdict
+    assert result.verdict is broken_verdict(level)
     assert result.judged == ("R4", "A1")  # the case's clauses
     assert result.signature == "case:R4-01"  # groups with nothing else
     assert result.requirement == "each frame of the segment is answered"

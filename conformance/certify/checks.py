@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..protocol import Action, action_name
 from ..suite.record import CaseRecord
-from ..suite.verdicts import CaseResult, Verdict, WireLine
+from ..suite.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from .catalogue import (
     ANY_FRAME,
     APPLIES,
@@ -99,7 +99,7 @@ def frame_cases(ctx: Ctx) -> list[CaseResult]:
                 out.append(ctx.result(spec, Verdict.PASS, f"{n} {what}(s) checked, none breaks {clause}"))
             continue
         first = bad[0]
-        verdict = spec.level.broken_verdict  # B4 (a SHOULD): NON-STRICT; lenient profiles accept NaN
+        verdict = broken_verdict(spec.level)  # B4 (a SHOULD): NON-STRICT; lenient profiles accept NaN
         lines = [f"+{(r.t - ctx.view.t0) * 1000:.1f} ms conn {r.conn} offset {r.offset}: {r.describe()}" for r in bad[:SHOWN]]
         if len(bad) > SHOWN:
             lines.append(f"… and {len(bad) - SHOWN} more")

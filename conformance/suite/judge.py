@@ -15,7 +15,7 @@ from typing import Any
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..protocol import Action, ErrorCode, Frame, ProtocolError, TransferType, ValueBlock
 from .record import Expect, ExpectSpec, Requirement
-from .verdicts import Level, Verdict
+from .verdicts import Level, Verdict, broken_verdict
 
 _CLAUSES = re.compile(r"^\s*\[?((?:[FBASTRE][1-7])(?:\s*[/,]\s*[FBASTRE][1-7])*)\]?\s*(?::|\(|\[| )")
 
@@ -169,7 +169,7 @@ def check(
             judged=(error.clause,), signature=answer_signature(error),
         )
     raise CaseVerdict(
-        level.broken_verdict,
+        broken_verdict(level),
         f"{requirement}: expected {expected}; the box {observed}",
         requirement=requirement,
         expected=expected,
@@ -250,7 +250,7 @@ def fail(level: Level, requirement: str, expected: str, observed: str, sent: byt
          signature: str = "") -> CaseVerdict:
     """A verdict for a requirement judged by the case's own logic (return it and raise)."""
     return CaseVerdict(
-        level.broken_verdict,
+        broken_verdict(level),
         f"{requirement}: expected {expected}; observed {observed}",
         requirement=requirement,
         expected=expected,

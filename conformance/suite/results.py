@@ -17,7 +17,7 @@ from .context import CaseContext
 from .judge import CaseVerdict, clauses_in
 from .record import CaseRecord
 from .settings import SuiteSettings
-from .verdicts import CaseResult, Verdict
+from .verdicts import CaseResult, Verdict, broken_verdict
 from .wirelog import wire_lines
 
 
@@ -74,7 +74,7 @@ def classify(exc: BaseException | None, info: CaseRecord, ctx: CaseContext | Non
         return Verdict.SKIP, {"message": str(getattr(exc, "msg", exc))}
     if isinstance(exc, AssertionError):
         message = str(exc).splitlines()[0] if str(exc) else "assertion failed"
-        return info.level.broken_verdict, {"message": message, "judged": clauses_in(message)}
+        return broken_verdict(info.level), {"message": message, "judged": clauses_in(message)}
     tb = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-3:])
     return Verdict.ERROR, {"message": f"suite error: {type(exc).__name__}: {exc}", "observed": tb}
 

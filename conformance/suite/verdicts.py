@@ -10,6 +10,8 @@ import enum
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ..protocol.levels import Level
+
 
 class Verdict(str, enum.Enum):
     PASS = "PASS"
@@ -25,15 +27,13 @@ class Verdict(str, enum.Enum):
         return self in (Verdict.FAIL, Verdict.ERROR)
 
 
-class Level(str, enum.Enum):
-    MUST = "MUST"
-    SHOULD = "SHOULD"
-    MAY = "MAY"
+#: The verdict when a box breaks a requirement of each level (RFC 2119's levels: :mod:`conformance.protocol.levels`).
+BROKEN = {Level.MUST: Verdict.FAIL, Level.SHOULD: Verdict.NON_STRICT, Level.MAY: Verdict.INFORMATIONAL}
 
-    @property
-    def broken_verdict(self) -> Verdict:
-        """The verdict when a box breaks a requirement of this level."""
-        return {Level.MUST: Verdict.FAIL, Level.SHOULD: Verdict.NON_STRICT, Level.MAY: Verdict.INFORMATIONAL}[self]
+
+def broken_verdict(level: Level) -> Verdict:
+    """The verdict when a box breaks a requirement of ``level``."""
+    return BROKEN[level]
 
 
 #: Order in which reports list verdicts (worst first).
