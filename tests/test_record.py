@@ -13,6 +13,7 @@ from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silen
 from conformance.protocol import Action, Header, ProtocolError, TransferType, answer, encode, encode_raw, parse_frame
 from conformance.suite.judge import CLOSED, NOT_OK, SILENCE, CaseVerdict, Inconclusive, answered, broken, judge, words
 from conformance.suite.record import MARKER, CaseRecord, Expect, Requirement, case, info_of, record
+from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import Level, Verdict
 
 pytest_plugins = ["pytester"]
@@ -204,7 +205,7 @@ def test_judge_should_breaks_non_strict_after_accept_passes() -> None:
     assert judge(ans(Action.POSE, 0x1001), req, Level.MUST) is None
     v = _verdict(Silence(0.5), req, Level.MUST)
     assert v.verdict is Verdict.NON_STRICT and v.requirement == "A3: a bad pose SHOULD be answered 1001"
-    assert v.signature == "silence:POSE"
+    assert str(v.signature) == "silence:POSE"
     assert _verdict(ans(Action.POSE), req, Level.MUST).verdict is Verdict.FAIL  # the accept check comes first
 
 
@@ -212,7 +213,7 @@ def test_judge_fails_a_malformed_answer_on_its_format_even_under_should() -> Non
     req = Requirement("A4: NONE is answered 0000", should=answered(Action.NONE, [0]))
     bad = encode_raw(Header(version=0x0100, transfer_type=TransferType.BOX_TO_ROBOT))
     v = _verdict(malformed(bad), req, Level.MAY)
-    assert v.verdict is Verdict.FAIL and v.judged == ("F2",) and v.signature == "answer:F2:version=0100"
+    assert v.verdict is Verdict.FAIL and v.judged == ("F2",) and str(v.signature) == "answer:F2:version=0100"
     assert v.received == bad and v.sent == SENT
 
 
@@ -228,7 +229,7 @@ def test_judge_resolves_expectations_from_the_case_values() -> None:
     assert seen == [{"action": Action.CYCLE_OFF, "n": 2}]
     assert judge(Closed(False, 0.0), req, Level.MUST, {"action": Action.NONE}) is None  # None: nothing to judge
     v = _verdict(ans(Action.CYCLE_ON), req, action=Action.CYCLE_OFF)
-    assert v.requirement == "A1: 0x02 is answered" and v.signature == "code:CYCLE_ON:0000"
+    assert v.requirement == "A1: 0x02 is answered" and str(v.signature) == "code:CYCLE_ON:0000"
 
 
 def test_judge_returns_the_informational_words_only_when_they_match() -> None:
@@ -247,10 +248,11 @@ def test_words_fill_values_and_leave_unknown_names() -> None:
 
 def test_broken_carries_the_record_words_level_and_evidence() -> None:
     req = Requirement("S6: pose {n} is answered", level=Level.SHOULD)
-    v = broken(req, Level.MUST, "an answer", "silence", {"n": 7}, sent=SENT, received=b"\xfe", signature="lost:7")
+    lost = Signature(Sig.SILENCE, "7")
+    v = broken(req, Level.MUST, "an answer", "silence", {"n": 7}, sent=SENT, received=b"\xfe", signature=lost)
     assert isinstance(v, CaseVerdict) and v.verdict is Verdict.NON_STRICT
     assert (v.requirement, v.expected, v.observed, v.sent, v.received, v.signature, v.judged) == (
-        "S6: pose 7 is answered", "an answer", "silence", SENT, b"\xfe", "lost:7", ("S6",))
+        "S6: pose 7 is answered", "an answer", "silence", SENT, b"\xfe", lost, ("S6",))
     assert v.message == "S6: pose 7 is answered: expected an answer; observed silence"
     assert broken(Requirement("T1: late"), Level.MAY, "e", "o").verdict is Verdict.INFORMATIONAL
 

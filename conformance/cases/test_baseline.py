@@ -14,6 +14,7 @@ from conformance.suite.context import CaseContext, answers_none
 from conformance.suite.judge import answered
 from conformance.suite.record import Requirement, case
 from conformance.suite.session import responsive
+from conformance.suite.signature import Signature
 from conformance.suite.verdicts import Level
 
 
@@ -36,4 +37,4 @@ def test_baseline(isight: CaseContext) -> None:
     if responsive(outcome):  # it answers, wrongly: judged like any answer (a malformed one fails on its format)
         isight.judge(outcome)
     raise isight.broken("unanswered", expected="NONE answered 0000 within time_out", observed=outcome.describe(),
-                        sent=isight.last_sent, received=outcome.raw, signature="unreachable:session start")
+                        sent=isight.last_sent, received=outcome.raw, signature=Signature.unreachable("session start"))

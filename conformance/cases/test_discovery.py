@@ -41,6 +41,7 @@ from conformance.protocol import (
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, Skip
 from conformance.suite.record import Requirement, case
+from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import Level
 
 ORDERS = ("big", "little")
@@ -277,7 +278,8 @@ def test_answer_byte_order(isight: CaseContext) -> None:
             isight.details.setdefault("not_judged", []).append(f"{what}: read {got.hex(' ')} (not F4's business)")
             return
         # the same defect as every other case sees in those answers: group them under one root cause
-        signature = {2: f"answer:F2:version={got.hex()}", 10: "swapped:error-code"}.get(offset, "")
+        signature = {2: Signature(Sig.ANSWER, clause="F2", field="version", value=got.hex()),
+                     10: Signature(Sig.SWAPPED, "error-code")}.get(offset)
         raise isight.broken(expected=want.hex(" "), observed=f"{got.hex(' ')}: {what} in the other byte order",
                             sent=sent, received=raw, signature=signature, order=order, what=what)
 

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..protocol import Action, action_name
 from ..suite.record import CaseRecord
+from ..suite.signature import Sig, Signature
 from ..suite.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from .catalogue import (
     ANY_FRAME,
@@ -176,7 +177,7 @@ def order_case(ctx: Ctx) -> CaseResult:
         # a close missing only because the robot left the connection open is the S5 defect seen from S1
         left_open = not order.violations and all(LEFT_OPEN in line for line in order.missing)
         return ctx.result(spec, Verdict.FAIL, "; ".join(lines), observed, **common,
-                          signature=left_open_signature(ctx) if left_open else "")
+                          signature=left_open_signature(ctx) if left_open else None)
     if order.not_judged:
         cut = view.cut
         return ctx.result(spec, Verdict.INCONCLUSIVE,
@@ -226,10 +227,10 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
     return out
 
 
-def left_open_signature(ctx: Ctx) -> str:
-    """``left-open:stream`` (or ``command``, ``command+stream``): the robot's connections the suite had to close."""
+def left_open_signature(ctx: Ctx) -> Signature | None:
+    """Left open ``stream`` (or ``command``, ``command+stream``): the robot's connections the suite had to close."""
     kinds = sorted({c.role for c in ctx.session.tcp if c.closed_by == BY_SUITE})
-    return "left-open:" + "+".join(kinds) if kinds else ""
+    return Signature(Sig.LEFT_OPEN, "+".join(kinds)) if kinds else None
 
 
 def close_case(ctx: Ctx) -> CaseResult:

@@ -26,6 +26,7 @@ from ..protocol.framings import End, Explanation, embedded_actions
 from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
+from .signature import Sig, Signature
 
 PROBE_POSE_VALUES = (100.25, -200.5, 300.75, 0.0, 90.0, -180.0)
 PROBE_NONE = request(Action.NONE)
@@ -201,7 +202,7 @@ class CaseContext:
         cases = self.session.known_late(name)
         if cases is not None:
             raise Inconclusive(f"{name} is not answered within time_out (cases {', '.join(cases[:3])}): this case "
-                               f"depends on it and is not run again", signature=f"silence:{name}")
+                               f"depends on it and is not run again", signature=Signature(Sig.SILENCE, name))
 
     def check_alive(self) -> Outcome:
         """R2: a fresh connection still gets NONE answered."""
@@ -218,7 +219,7 @@ class CaseContext:
             self.inform(note)
 
     def broken(self, check: str = "", *, expected: str, observed: str, sent: bytes = b"", received: bytes = b"",
-               signature: str = "", **values: Any) -> CaseVerdict:
+               signature: Signature | None = None, **values: Any) -> CaseVerdict:
         """The verdict of a requirement the case judged by its own logic (raise it): the record
         gives the words and the level, the case what it expected and what it saw."""
         return broken(self.info.check(check), self.info.level, expected, observed, {**self.params, **values},

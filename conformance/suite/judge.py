@@ -15,6 +15,7 @@ from typing import Any
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..protocol import Action, ErrorCode, Frame, ProtocolError, TransferType, ValueBlock
 from .record import Expect, ExpectSpec, Requirement
+from .signature import Reply, Sig, Signature
 from .verdicts import Level, Verdict, broken_verdict
 
 _CLAUSES = re.compile(r"^\s*\[?((?:[FBASTRE][1-7])(?:\s*[/,]\s*[FBASTRE][1-7])*)\]?\s*(?::|\(|\[| )")
@@ -40,7 +41,7 @@ class CaseVerdict(Exception):
         sent: bytes = b"",
         received: bytes = b"",
         judged: tuple[str, ...] = (),
-        signature: str = "",
+        signature: Signature | None = None,
     ) -> None:
         super().__init__(message)
         self.verdict = verdict
@@ -166,7 +167,7 @@ def check(
             f"meet \"{requirement}\"",
             requirement=f"{error.clause}: the box's answers are conforming frames",
             expected=expected, observed=observed, sent=sent, received=received,
-            judged=(error.clause,), signature=answer_signature(error),
+            judged=(error.clause,), signature=answer_signature(error, _asked(options)),
         )
     raise CaseVerdict(
         broken_verdict(level),
@@ -198,38 +199,45 @@ def answer_view(outcome: Malformed) -> Answer | None:
     return Answer(Frame(TransferType.BOX_TO_ROBOT, action, blocks, header.error_code), outcome.latency_s, raw)
 
 
-def answer_signature(error: ProtocolError) -> str:
+def _asked(options: list[Expect]) -> int | None:
+    return next((int(e.action) for e in options if e.action is not None), None)
+
+
+def answer_signature(error: ProtocolError, asked: int | None = None) -> Signature:
     """What is wrong with a malformed answer, the same for every answer malformed the same way."""
     h, raw, clause = error.header, error.raw, error.clause
     if h is None:
-        return f"answer:{clause}:not-a-frame"
-    detail = {
-        "F1": f"start={raw[:2].hex()}",
-        "F2": f"version={h.version:04x}",
-        "F3": f"transfer-type={h.transfer_type:02x}",
-        "F6": f"check={raw[-2:].hex() if len(raw) >= 14 else ''}",
-        "F5": "length",
-        "A4": f"none-error={h.error_code:04x}",
-    }.get(clause, f"shape={h.block_type:02x}/{h.block_count}/{h.block_length}")
-    return f"answer:{clause}:{detail}"
+        return Signature(Sig.ANSWER, clause=clause, field="not-a-frame")
+    field, value = {
+        "F1": ("start", raw[:2].hex()),
+        "F2": ("version", f"{h.version:04x}"),
+        "F3": ("transfer-type", f"{h.transfer_type:02x}"),
+        "F6": ("check", raw[-2:].hex() if len(raw) >= 14 else ""),
+        "F5": ("length", ""),
+        "A4": ("none-error", f"{h.error_code:04x}"),
+    }.get(clause, ("shape", f"{h.block_type:02x}/{h.block_count}/{h.block_length}"))
+    reply = Reply(asked, h.action, h.error_code, h.transfer_type) if h.start_word == 0xFEFE else None
+    return Signature(Sig.ANSWER, clause=clause, field=field, value=value, reply=reply)
 
 
-def outcome_signature(outcome: Outcome, options: list[Expect]) -> str:
+def outcome_signature(outcome: Outcome, options: list[Expect]) -> Signature:
     """What the box did instead of an acceptable outcome, for grouping like failures."""
-    action = next((e.action for e in options if e.action is not None), None)
-    name = _action_name(action)
+    asked = _asked(options)
+    name = _action_name(asked)
     if isinstance(outcome, Silence):
-        return f"skipped:{name}" if outcome.skipped else f"silence:{name}"
+        return Signature(Sig.SKIPPED if outcome.skipped else Sig.SILENCE, name)
     if isinstance(outcome, Closed):
-        return f"closed:{name}"
+        return Signature(Sig.CLOSED, name)
     if isinstance(outcome, Malformed):
-        return answer_signature(outcome.error)
-    code = outcome.frame.error_code
+        return answer_signature(outcome.error, asked)
+    f = outcome.frame
+    code = f.error_code
+    reply = Reply(asked, int(f.action), code, int(f.transfer_type))
     swapped = ((code & 0xFF) << 8) | (code >> 8)
     wanted = [e for e in options if e.action is not None]
     if wanted and code and swapped != code and any(e.matches(_with_code(outcome, swapped)) for e in wanted):
-        return "swapped:error-code"
-    return f"code:{_action_name(int(outcome.frame.action))}:{code:04x}"
+        return Signature(Sig.SWAPPED, "error-code", reply=reply)
+    return Signature(Sig.CODE, _action_name(int(f.action)), value=f"{code:04x}", reply=reply)
 
 
 def _with_code(outcome: Answer, code: int) -> Answer:
@@ -247,7 +255,7 @@ def _action_name(action: int | None) -> str:
 
 
 def fail(level: Level, requirement: str, expected: str, observed: str, sent: bytes = b"", received: bytes = b"",
-         signature: str = "") -> CaseVerdict:
+         signature: Signature | None = None) -> CaseVerdict:
     """A verdict for a requirement judged by the case's own logic (return it and raise)."""
     return CaseVerdict(
         broken_verdict(level),
@@ -308,7 +316,7 @@ def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapp
 
 
 def broken(requirement: Requirement, level: Level, expected: str, observed: str, values: Mapping[str, Any] | None = None,
-           *, sent: bytes = b"", received: bytes = b"", signature: str = "") -> CaseVerdict:
+           *, sent: bytes = b"", received: bytes = b"", signature: Signature | None = None) -> CaseVerdict:
     """The verdict for a requirement judged by the case's own logic (raise it)."""
     return fail(requirement.level or level, words(requirement.text, dict(values or {})), expected, observed, sent,
                 received, signature)

@@ -17,6 +17,7 @@ from .context import CaseContext
 from .judge import CaseVerdict, clauses_in
 from .record import CaseRecord
 from .settings import SuiteSettings
+from .signature import Signature
 from .verdicts import CaseResult, Verdict, broken_verdict
 from .wirelog import wire_lines
 
@@ -86,7 +87,7 @@ def result_of(info: CaseRecord, ctx: CaseContext | None, exc: BaseException | No
     which ``clauses`` then also names (so the clause table marks what was judged)."""
     verdict, fields = classify(exc, info, ctx, skipped)
     judged = tuple(c for c in fields.pop("judged", ()) if c)
-    signature = fields.pop("signature", "") or ""
+    signature: Signature | None = fields.pop("signature", None)
     if verdict is not Verdict.PASS:
         fields["requirement"] = fields.get("requirement") or info.words
         if ctx is not None and not fields.get("sent_hex") and ctx.last_sent:
@@ -94,7 +95,7 @@ def result_of(info: CaseRecord, ctx: CaseContext | None, exc: BaseException | No
         if verdict in (Verdict.FAIL, Verdict.NON_STRICT) and not judged:
             judged = info.clauses
         if not signature and verdict in (Verdict.FAIL, Verdict.NON_STRICT):
-            signature = f"case:{info.id}"
+            signature = Signature.own(info.id)
     result = CaseResult(
         id=info.id, title=info.title, clauses=tuple(dict.fromkeys((*info.clauses, *judged))), level=info.level,
         verdict=verdict, duration_s=duration_s, expected=fields.pop("expected", "") or info.expect,

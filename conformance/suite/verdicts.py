@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from ..protocol.levels import Level
+from .signature import Signature
 
 
 class Verdict(str, enum.Enum):
@@ -79,8 +80,8 @@ class CaseResult:
     #: the clause(s) the verdict judged (for a non-PASS verdict; also in ``clauses``): the clause
     #: table marks these, not every clause the case names
     judged: tuple[str, ...] = ()
-    #: what the defect looks like, for grouping verdicts under one root cause ("" when unknown)
-    signature: str = ""
+    #: what the defect looks like, for grouping verdicts under one root cause (None when unknown)
+    signature: Signature | None = None
 
     def to_summary(self) -> dict[str, Any]:
         """The case's entry in summary.json."""
@@ -107,6 +108,7 @@ class CaseResult:
         out["verdict"] = self.verdict.value
         out["clauses"] = list(self.clauses)
         out["judged"] = list(self.judged)
+        out["signature"] = None if self.signature is None else self.signature.to_dict()
         return out
 
     @classmethod
@@ -118,6 +120,8 @@ class CaseResult:
         fields["clauses"] = tuple(fields["clauses"])
         fields["judged"] = tuple(fields.get("judged", ()))
         fields["wire"] = [WireLine(**w) for w in fields.get("wire", [])]
+        sig = fields.get("signature")
+        fields["signature"] = Signature.from_dict(sig) if sig else None
         return cls(**fields)
 
 
