@@ -28,7 +28,7 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Skip, answered
+from conformance.suite.judge import NOT_OK, Skip, answered, reply_signature
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 
@@ -75,7 +75,8 @@ def _judge_sequence(isight: CaseContext, conn: TcpConnection, frames: list[Frame
             before = ", ".join(_name(action_of(o)) for o in outcomes[max(0, i - 2): i + 1])
             raise isight.broken("order", expected=f"answer {i + 1} of {len(frames)} echoes {frame.action.name}",
                                 observed=f"{outcome.describe()} (answers {max(1, i - 1)}..{i + 1}: {before})",
-                                sent=sent, received=isight.transcript.received(conn.conn_id))
+                                sent=sent, received=isight.transcript.received(conn.conn_id),
+                                signature=reply_signature(outcome, frame.action))
     extra = conn.drain(isight.settings.settle_s)
     if any(not isinstance(o, Closed) for o in extra):
         raise isight.broken("once", expected=f"{len(frames)} answers and nothing more",
@@ -177,13 +178,14 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
             if not problems:  # the shape is right; what is wrong (e.g. A4) is judged elsewhere
                 continue
             raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00",
-                                observed="; ".join(problems) or str(outcome.error), sent=sent, received=raw)
+                                observed="; ".join(problems) or str(outcome.error), sent=sent, received=raw,
+                                signature=reply_signature(outcome, action))
         isight.judge(outcome, "answered", sent=sent, action=action)
         assert isinstance(outcome, Answer)
         problems = _shape_problems(outcome.raw, action)
         if problems:
             raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00 (14 bytes)", observed="; ".join(problems),
-                                sent=sent, received=outcome.raw)
+                                sent=sent, received=outcome.raw, signature=reply_signature(outcome, action))
 
 
 # -- A3: error codes ----------------------------------------------------------------------------

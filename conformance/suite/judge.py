@@ -240,6 +240,12 @@ def outcome_signature(outcome: Outcome, options: list[Expect]) -> Signature:
     return Signature(Sig.CODE, _action_name(int(f.action)), value=f"{code:04x}", reply=reply)
 
 
+def reply_signature(outcome: Outcome, asked: int) -> Signature:
+    """The signature of ``outcome`` as the answer to an ``asked`` request a case judged by its own logic
+    (with the answer's fields, for the root causes read across every answer)."""
+    return outcome_signature(outcome, [Expect(f"answered {_action_name(asked)}", lambda o: False, int(asked))])
+
+
 def _with_code(outcome: Answer, code: int) -> Answer:
     f = outcome.frame
     return Answer(Frame(f.transfer_type, f.action, f.blocks, code), outcome.latency_s, outcome.raw)
