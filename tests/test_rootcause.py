@@ -7,14 +7,17 @@ expectation as the matrix reads it from summary.json."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
 from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
 from conformance.report.summary import write_summary
-from conformance.suite.judge import CLOSED, NOT_OK, CaseVerdict, Inconclusive, answered, answered_error, fail, judge
+from conformance.suite.judge import CLOSED, NOT_OK, CaseVerdict, Inconclusive, answered, answered_error, judge
+from conformance.suite.judge import fail as own_verdict
 from conformance.suite.record import CaseRecord, Requirement, record
 from conformance.suite.results import result_of
 from conformance.suite.rootcause import SessionFacts, find_root_causes
@@ -25,7 +28,7 @@ from tests.impls.expectations import EXPECTATIONS
 from tests.impls.expectations import judge as blame
 
 NONE, CYCLE_ON, POSE, TOLERANCE = Action.NONE, Action.CYCLE_ON, Action.POSE, Action.TOLERANCE
-PARSE_ERROR = "A3/R1: a request that is a parse error MUST NOT be answered 0000"
+PARSE_ERROR = "a request that is a parse error MUST NOT be answered 0000"  # A3/R1
 
 
 # -- building a run ------------------------------------------------------------------------------------
@@ -71,14 +74,26 @@ def reply(action: Action, error: int = 0) -> Answer:
     return Answer(answer(action, error), 0.002, encode(answer(action, error)))
 
 
-def ok(action: Action, text: str) -> Requirement:
-    return Requirement(text, accept=answered(action, [0]))
+def named(words: str) -> tuple[str, ...]:
+    """The clauses a test's requirement words start with ("A4/T1: ...", "F2, A1: ...", "[R6] ...")."""
+    head = words[1:].partition("]")[0] if words.startswith("[") else words.partition(":")[0]
+    return tuple(c.strip() for c in re.split("[/,]", head))
+
+
+def fail(level: Level, words: str, expected: str, observed: str, **kw: Any) -> CaseVerdict:
+    """A case's own verdict, judging the clauses its words name."""
+    return own_verdict(level, words, expected, observed, judged=named(words), **kw)
+
+
+def ok(action: Action, words: str) -> Requirement:
+    clauses, _, text = words.partition(": ")
+    return Requirement(tuple(clauses.split("/")), text, accept=answered(action, [0]))
 
 
 def parse_error(action: Action, code: int) -> Requirement:
     """What B1-02, B2-02, B3-02 ... judge: never 0000 (MUST), the action's error (SHOULD)."""
-    return Requirement(PARSE_ERROR, accept=NOT_OK, should=answered(action, [code]),
-                       should_text="A3: a parse error SHOULD be answered with its action's error")
+    return Requirement(("A3", "R1"), PARSE_ERROR, accept=NOT_OK, should=answered(action, [code]),
+                       should_clauses=("A3",), should_text="a parse error SHOULD be answered with its action's error")
 
 
 def ids(cases: list[CaseResult], *verdicts: Verdict) -> list[str]:
@@ -128,8 +143,8 @@ def version_0100(action: Action, error: int = 0) -> Malformed:
 
 def swapped_version_run() -> list[CaseResult]:
     """Every answer carries version 01 00: FAILs in every family (and a case or two that pass)."""
-    not_zero = Requirement(PARSE_ERROR, accept=answered_error(POSE))
-    cycle_on = Requirement("S2: CycleOn is answered 0000 or 0001", accept=answered(CYCLE_ON, [0, 1]))
+    not_zero = Requirement(("A3", "R1"), PARSE_ERROR, accept=answered_error(POSE))
+    cycle_on = Requirement(("S2",), "CycleOn is answered 0000 or 0001", accept=answered(CYCLE_ON, [0, 1]))
     variants = {  # case: (clauses, action, error code the answer carries, requirement, parameters)
         "B1-01": ("B1 B3 A1 S3", POSE, 0, ok(POSE, "B1: poses are answered 0000"), "1-pose 3-pose 255-pose 1-reg"),
         "B3-02": ("B3 A3 R1", POSE, 0x1001, not_zero, "gap-pose repeat-pose wrong-start-pose descending-pose"),
@@ -266,7 +281,7 @@ def one_at_a_time_run() -> list[CaseResult]:
                                         signature=Signature.fuzz("S4")), max_open=2),
         # a finding of its own on one connection: not explained by S4
         judged("B4-01[pose-qnan-x]", "B4 A3", reply(POSE), Requirement(
-            "B4: NaN SHOULD be a parse error", accept=answered_error(POSE)), level="SHOULD"),
+            ("B4",), "NaN SHOULD be a parse error", accept=answered_error(POSE)), level="SHOULD"),
     ]
 
 
@@ -336,7 +351,7 @@ def test_each_death_explains_the_cases_after_it_most_explanatory_first() -> None
 
 # -- silences, and what to fix first -------------------------------------------------------------------
 def late_cycle_on_run() -> list[CaseResult]:
-    cycle_on = Requirement("S2: CycleOn is answered 0000 or 0001 within time_out", accept=answered(CYCLE_ON, [0, 1]))
+    cycle_on = Requirement(("S2",), "CycleOn is answered 0000 or 0001 within time_out", accept=answered(CYCLE_ON, [0, 1]))
     sent = encode(request(CYCLE_ON))
     known = "CYCLE_ON is not answered within time_out (cases S2-01, A3-02): this case depends on it"
     return [
@@ -378,7 +393,7 @@ def test_a_must_root_cause_comes_before_a_larger_should_one(tmp_path: Path) -> N
 def test_a_non_strict_only_run_names_the_should_it_broke(tmp_path: Path) -> None:
     """The no-resync box hangs after garbage: R6 (SHOULD) is broken, not T1 (a MUST)."""
     def resync(action: Action) -> Requirement:
-        return Requirement("R6: after garbage the box SHOULD resynchronise or close", accept=answered(action, [0]) | CLOSED)
+        return Requirement(("R6",), "after garbage the box SHOULD resynchronise or close", accept=answered(action, [0]) | CLOSED)
 
     cases = [judged(f"R6-01[{kind}]", "R6", Silence(5.0), resync(action), level="SHOULD")
              for kind, action in (("ascii", NONE), ("zeros", POSE), ("bad-start-word", POSE), ("bad-version", POSE))]

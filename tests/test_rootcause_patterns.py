@@ -29,7 +29,7 @@ from tests.test_rootcause import PARSE_ERROR, judged, malformed, marked, ok, par
 
 NONE, ON, OFF, POSE, REG, TOL = (Action.NONE, Action.CYCLE_ON, Action.CYCLE_OFF, Action.POSE, Action.REGISTER_POSE,
                                  Action.TOLERANCE)
-CYCLE_ON = Requirement("S2: CycleOn is answered 0000, or 0001 when not ready", accept=answered(ON, [0, 1]))
+CYCLE_ON = Requirement(("S2",), "CycleOn is answered 0000, or 0001 when not ready", accept=answered(ON, [0, 1]))
 
 
 def poses(action: Action, n: int, first: int = 0, wrong_at: int | None = None) -> bytes:
@@ -60,7 +60,7 @@ def action_00_run() -> list[CaseResult]:
     return [
         passed("T1-00", "A4 T1"), passed("A4-01", "A4"),
         judged("S2-01", "S2 A1", none_answer(0), CYCLE_ON),
-        judged("S1-01", "S1", none_answer(0), Requirement("S1: CycleOff is answered", accept=answered(OFF))),
+        judged("S1-01", "S1", none_answer(0), Requirement(("S1",), "CycleOff is answered", accept=answered(OFF))),
         *[judged(f"B1-01[{n}-pose]", "B1 B3 A1 S3", none_answer(0), ok(POSE, "A1/B1: poses are answered 0000"),
                  sent=poses(POSE, n)) for n in (1, 3, 255)],
         judged("B2-01[1]", "B2 B3 A1 S3", none_answer(0), ok(TOL, "A1/B2: tolerances are answered 0000"),
@@ -68,7 +68,7 @@ def action_00_run() -> list[CaseResult]:
         *[judged(f"B3-02[{p}-pose]", "B3 A3 R1", none_answer(0x1001), parse_error(POSE, 0x1001),
                  sent=poses(POSE, 3, wrong_at=1)) for p in ("gap", "repeat")],
         judged("B2-02[L4]", "B2 B5 A3 R1", none_answer(0x1002), parse_error(TOL, 0x1002)),
-        judged("A5-01[0x30]", "A5 R1", none_answer(0), Requirement("A5/R1: never 0000", accept=NOT_OK)),
+        judged("A5-01[0x30]", "A5 R1", none_answer(0), Requirement(("A5", "R1"), "never 0000", accept=NOT_OK)),
     ]
 
 
@@ -237,4 +237,4 @@ def test_facts_cross_pytest_xdist_as_json() -> None:
         "NONE unanswered", "one at a time", ["B1-02", "C-3"])
     sig = Signature(Sig.CODE, "NONE", value="0000")
     assert Signature.from_dict(json.loads(json.dumps(sig.to_dict()))) == sig and str(sig) == "code:NONE:0000"
-    assert PARSE_ERROR.startswith("A3/R1")
+    assert PARSE_ERROR.startswith("a request that is a parse error")

@@ -20,9 +20,9 @@ from conformance.suite.verdicts import Level
 
 @case("T1-00", ["A4", "T1"], Level.MUST, "Baseline: NONE is answered 0000 on a fresh connection within time_out",
       "NONE answered with action 00 and error 0000 within time_out", needs=("any-profile", "always"),
-      checks={"": Requirement("A4/T1: action 00 is answered with action 00 and error 0000 within time_out",
+      checks={"": Requirement(("A4", "T1"), "action 00 is answered with action 00 and error 0000 within time_out",
                               accept=answered(Action.NONE, [0])),
-              "unanswered": Requirement("A4/T1: the box does not answer a NONE request in this profile, so every "
+              "unanswered": Requirement(("A4", "T1"), "the box does not answer a NONE request in this profile, so every "
                                         "other case is INCONCLUSIVE (if the box is up, PROFILE-01 tells which profile "
                                         "it appears to use)")})
 def test_baseline(isight: CaseContext) -> None:

@@ -262,8 +262,8 @@ def _answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
 @case("F4-01", ["F4"], Level.MUST, "Answers' multi-byte fields are in the profile's byte order (big-endian)",
       "the version reads 00 01, the error code of an answer to a malformed pose reads 10 01 (not 01 10), the "
       "block length of a ProgIdx answer reads 00 05 (extension only); little-endian under --byte-order=little",
-      checks={"header-order": Requirement("F4: multi-byte header fields are {order}-endian"),
-              "": Requirement("F4: multi-byte fields are {order}-endian ({what})")})
+      checks={"header-order": Requirement(("F4",), "multi-byte header fields are {order}-endian"),
+              "": Requirement(("F4",), "multi-byte fields are {order}-endian ({what})")})
 def test_answer_byte_order(isight: CaseContext) -> None:
     order = isight.profile.byte_order
     judged: list[str] = []

@@ -23,7 +23,7 @@ from ..protocol import Action, Frame, Profile, encode, pose_blocks, request, tol
 from ..protocol.answers import Seen
 from ..protocol.explain import explain
 from ..protocol.framings import End, Explanation, embedded_actions
-from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
+from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
 from .signature import Sig, Signature
@@ -232,8 +232,9 @@ class CaseContext:
         from .pose_stream import judge_stream
 
         requirement = self.info.check(check)
-        judge_stream(result, requirement.level or self.info.level, words(requirement.text, {**self.params, **values}),
-                     max_lost=max_lost, backlog=backlog)
+        values = {**self.params, **values}
+        judge_stream(result, requirement.level or self.info.level, words(requirement.text, values), max_lost=max_lost,
+                     backlog=backlog, clauses=judged_clauses(requirement, values) or self.info.clauses)
 
     def inform(self, text: str) -> None:
         """Record behaviour that is reported, never judged (INFORMATIONAL)."""

@@ -8,7 +8,6 @@ verdict of the requirement's level, with expected, observed and the bytes.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -17,14 +16,6 @@ from ..protocol import Action, ErrorCode, Frame, ProtocolError, TransferType, Va
 from .record import Expect, ExpectSpec, Requirement
 from .signature import Reply, Sig, Signature
 from .verdicts import Level, Verdict, broken_verdict
-
-_CLAUSES = re.compile(r"^\s*\[?((?:[FBASTRE][1-7])(?:\s*[/,]\s*[FBASTRE][1-7])*)\]?\s*(?::|\(|\[| )")
-
-
-def clauses_in(text: str) -> tuple[str, ...]:
-    """The clause IDs a requirement starts with: ``"A3/R1: a parse error ..."`` -> ("A3", "R1")."""
-    m = _CLAUSES.match(text or "")
-    return tuple(c.strip() for c in re.split("[/,]", m.group(1))) if m else ()
 
 
 class CaseVerdict(Exception):
@@ -51,8 +42,8 @@ class CaseVerdict(Exception):
         self.observed = observed
         self.sent = sent
         self.received = received
-        #: the clause(s) this verdict judged (default: the ones its requirement starts with)
-        self.judged = judged or clauses_in(requirement) or clauses_in(message)
+        #: the clause(s) this verdict judged, as the requirement names them (none: the case's clauses)
+        self.judged = judged
         #: what the defect looks like, for grouping verdicts under one root cause
         self.signature = signature
 
@@ -146,8 +137,9 @@ def check(
     requirement: str,
     *,
     sent: bytes = b"",
+    judged: tuple[str, ...] = (),
 ) -> None:
-    """Raise the level's verdict unless ``outcome`` is one of the ``acceptable`` ones.
+    """Raise the level's verdict unless ``outcome`` is one of the ``acceptable`` ones (judging ``judged``).
 
     A malformed answer that would be acceptable if it were a conforming frame fails on
     its format alone: FAIL, judging the clause the answer breaks (F1-F6, A2, ...), not
@@ -177,6 +169,7 @@ def check(
         observed=observed,
         sent=sent,
         received=received,
+        judged=judged,
         signature=outcome_signature(outcome, options),
     )
 
@@ -261,7 +254,7 @@ def _action_name(action: int | None) -> str:
 
 
 def fail(level: Level, requirement: str, expected: str, observed: str, sent: bytes = b"", received: bytes = b"",
-         signature: Signature | None = None) -> CaseVerdict:
+         signature: Signature | None = None, judged: tuple[str, ...] = ()) -> CaseVerdict:
     """A verdict for a requirement judged by the case's own logic (return it and raise)."""
     return CaseVerdict(
         broken_verdict(level),
@@ -272,6 +265,7 @@ def fail(level: Level, requirement: str, expected: str, observed: str, sent: byt
         sent=sent,
         received=received,
         signature=signature,
+        judged=judged,
     )
 
 
@@ -305,16 +299,21 @@ def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapp
                                requirement.informational)):  # judged by nothing: it could never fail
         raise ValueError(f"requirement {requirement.text[:80]!r} names no outcome to judge by: the case is misdeclared")
     values = dict(values or {})
+    clauses = judged_clauses(requirement, values)
     unjudgeable = resolve(requirement.inconclusive, values)
     if unjudgeable is not None and unjudgeable.matches(outcome):
-        why = words(requirement.inconclusive_text or requirement.text, values)
-        raise Inconclusive(f"{why} (the box {outcome.describe()})")
+        why = words(requirement.inconclusive_text, values) or requirement.words(words(requirement.text, values))
+        raise Inconclusive(f"{why} (the box {outcome.describe()})", judged=clauses)
     accept = resolve(requirement.accept, values)
     if accept is not None:
-        check(outcome, accept, requirement.level or level, words(requirement.text, values), sent=sent)
+        check(outcome, accept, requirement.level or level, requirement.words(words(requirement.text, values)),
+              sent=sent, judged=clauses)
     should = resolve(requirement.should, values)
     if should is not None:
-        check(outcome, should, Level.SHOULD, words(requirement.should_text or requirement.text, values), sent=sent)
+        named = requirement.should_clauses or clauses
+        text = words(requirement.should_text or requirement.text, values)
+        check(outcome, should, Level.SHOULD, requirement.words(text, requirement.should_clauses), sent=sent,
+              judged=named)
     note = resolve(requirement.informational, values)
     if note is not None and note.matches(outcome):
         return f"{words(requirement.informational_text, {**values, 'outcome': outcome.describe()})}"
@@ -324,5 +323,14 @@ def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapp
 def broken(requirement: Requirement, level: Level, expected: str, observed: str, values: Mapping[str, Any] | None = None,
            *, sent: bytes = b"", received: bytes = b"", signature: Signature | None = None) -> CaseVerdict:
     """The verdict for a requirement judged by the case's own logic (raise it)."""
-    return fail(requirement.level or level, words(requirement.text, dict(values or {})), expected, observed, sent,
-                received, signature)
+    values = dict(values or {})
+    clauses = judged_clauses(requirement, values)
+    return fail(requirement.level or level, requirement.words(words(requirement.text, values)), expected,
+                observed, sent, received, signature, clauses)
+
+
+def judged_clauses(requirement: Requirement, values: Mapping[str, Any]) -> tuple[str, ...]:
+    """The clauses a verdict of ``requirement`` judges: its own, or those its ``judged_from`` value holds."""
+    if requirement.clauses or not requirement.judged_from:
+        return requirement.clauses
+    return tuple(str(c) for c in values.get(requirement.judged_from, ()))

@@ -14,7 +14,7 @@ from typing import Any
 from ..harness.target import Unreachable
 from ..harness.transcript import Kind, Transcript
 from .context import CaseContext
-from .judge import CaseVerdict, clauses_in
+from .judge import CaseVerdict
 from .record import CaseRecord
 from .settings import SuiteSettings
 from .signature import Signature
@@ -75,7 +75,7 @@ def classify(exc: BaseException | None, info: CaseRecord, ctx: CaseContext | Non
         return Verdict.SKIP, {"message": str(getattr(exc, "msg", exc))}
     if isinstance(exc, AssertionError):
         message = str(exc).splitlines()[0] if str(exc) else "assertion failed"
-        return broken_verdict(info.level), {"message": message, "judged": clauses_in(message)}
+        return broken_verdict(info.level), {"message": message}  # judged: the case's clauses
     tb = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-3:])
     return Verdict.ERROR, {"message": f"suite error: {type(exc).__name__}: {exc}", "observed": tb}
 
