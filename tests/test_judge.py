@@ -14,6 +14,7 @@ from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silen
 from conformance.protocol import (
     Action,
     Header,
+    Profile,
     ProtocolError,
     TransferType,
     ValueBlock,
@@ -201,6 +202,23 @@ def test_answer_view_reads_a_malformed_answer_leniently() -> None:
     assert echoed is not None and echoed.frame == answer(Action.CYCLE_ON)
     for unreadable in (UNKNOWN_ZERO, bad(start_word=0xFFFE), b"\xfe\xfe\x00\x01"):
         assert answer_view(malformed(unreadable)) is None
+
+
+def test_answer_view_reads_a_value_in_the_profiles_float_byte_order() -> None:
+    """The codec reads a type-03 value in float_byte_order; so does the lenient view (it read big-endian: a bug
+    that turned a little-endian box's ResultCode 202 into 0xCA000000 and judged E3 on the wrong value)."""
+    little = Profile(float_byte_order="little")
+    raw = encode_raw(Header(transfer_type=BOX, action=Action.VISION_RESULT, block_type=3, block_count=1, block_length=5),
+                     bytes([0]) + (202).to_bytes(4, "little", signed=True), b"\x00\x01", profile=little)
+    view = answer_view(malformed(raw), little)
+    assert view is not None and view.frame.blocks == (ValueBlock(0, 202),)
+    results = answered(Action.VISION_RESULT, values=[202])
+    with pytest.raises(CaseVerdict) as caught:  # read leniently it is acceptable: FAIL on its format (F6) alone
+        check(malformed(raw), results, Level.MUST, "E3: a result", judged=("E3",), profile=little)
+    assert caught.value.judged == ("F6",)
+    with pytest.raises(CaseVerdict) as big:  # read big-endian it would not be: the case's own requirement
+        check(malformed(raw), results, Level.MUST, "E3: a result", judged=("E3",))
+    assert big.value.judged == ("E3",)
 
 
 # -- signatures ------------------------------------------------------------------------------------------

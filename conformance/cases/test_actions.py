@@ -17,6 +17,7 @@ from conformance.protocol import (
     ACTION_ERROR,
     Action,
     Block,
+    ErrorCode,
     Frame,
     Header,
     Profile,
@@ -27,8 +28,9 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
+from conformance.protocol.answers import Cycle
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Skip, answered, reply_signature
+from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed, reply_signature
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 
@@ -233,11 +235,11 @@ NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
       "from an idle box: CycleOn answered 0000 (or 0001: not ready, then INCONCLUSIVE); CycleOff then answered 0000 or 0002",
       checks={"idle": Requirement(("S3",), "a CycleOff first brings the box to idle (its answer is not judged)",
                                   inconclusive=NOT_ANSWERED, inconclusive_text="could not bring the box to idle"),
-              "on": Requirement(("S2", "A3"), "CycleOn is answered 0000, or 0001 when not ready", accept=answered(ON, [0, 1]),
-                                inconclusive=answered(ON, [1]),
+              "on": Requirement(("S2", "A3"), "CycleOn is answered 0000, or 0001 when not ready", accept=answered_allowed(ON, Cycle.IDLE),
+                                inconclusive=answered(ON, [ErrorCode.NOT_READY]),
                                 inconclusive_text="S2: CycleOn answered 0001 (box not ready): CycleOff after it is not judged"),
               "off": Requirement(("A3",), "CycleOff is answered 0000, or 0002 when the detection could not be closed",
-                                 accept=answered(OFF, [0, 2]), informational=answered(OFF, [2]),
+                                 accept=answered_allowed(OFF, Cycle.ON), informational=answered(OFF, [ErrorCode.CYCLE_OFF_FAILED]),
                                  informational_text="CycleOff answered 0002: the box could not close the detection (A3)")})
 def test_cycle_codes(isight: CaseContext) -> None:
     conn = isight.connect()
@@ -251,7 +253,7 @@ def test_cycle_codes(isight: CaseContext) -> None:
 
 @case("A4-01", ["A4"], Level.MUST, "NONE (action 00) is answered NONE with 0000",
       "each NONE request, on a fresh connection and three in a row on one connection, is answered NONE 0000",
-      checks={"": Requirement(("A4",), "action 00 is answered with action 00 and error 0000", accept=answered(NONE, [0]))})
+      checks={"": Requirement(("A4",), "action 00 is answered with action 00 and error 0000", accept=answered_allowed(NONE))})
 def test_none_answered(isight: CaseContext) -> None:
     isight.judge(isight.exchange(request(NONE), "NONE request on a fresh connection"))
     conn = isight.connect()

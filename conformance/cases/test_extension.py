@@ -30,9 +30,9 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
-from conformance.protocol.answers import CONFLICT, SENDABLE_RESULTS
+from conformance.protocol.answers import CONFLICT, Cycle
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, answered
+from conformance.suite.judge import Inconclusive, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 from conformance.trajectory import PrimerTrajectory
@@ -149,7 +149,7 @@ def _require_27(isight: CaseContext) -> None:
       "one type-03 block holding 1, 2, 10, 20, 202, 400 or 409 (never 0 or 404), within vision_time_out",
       checks={"": Requirement(("E3",), "a result request is answered within vision_time_out ({vision_ms:.0f} ms) with one "
                               "type-03 block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; "
-                              "never 0 or 404)", accept=answered(Action.VISION_RESULT, values=SENDABLE_RESULTS))})
+                              "never 0 or 404)", accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
 def test_vision_result(isight: CaseContext) -> None:
     _require_27(isight)
     vision_s = isight.profile.vision_time_out_ms / 1000
@@ -208,18 +208,18 @@ def _request_result(isight: CaseContext, conn: TcpConnection) -> int:
       "INFORMATIONAL; ProgIdx 409, CycleOn 0001 or CycleOff 0002 make the rest INCONCLUSIVE)",
       checks={**prog_idx_checks("E4", "E2"),
               "pose": Requirement(("E4", "S3"), "every pose of the stream is answered 0000 ({phase})",
-                                  accept=answered(Action.POSE, [0])),
-              "on": Requirement(("E4", "S2"), "CycleOn is answered 0000 (or 0001)", accept=answered(Action.CYCLE_ON, [0, 1]),
+                                  accept=answered_allowed(Action.POSE)),
+              "on": Requirement(("E4", "S2"), "CycleOn is answered 0000 (or 0001)", accept=answered_allowed(Action.CYCLE_ON, Cycle.IDLE),
                                 inconclusive=answered(Action.CYCLE_ON, [ErrorCode.NOT_READY]),
                                 inconclusive_text="CycleOn answered 0001 (box not ready): the rest of the session is "
                                                   "not judged (S2)"),
-              "off": Requirement(("E4", "S1"), "CycleOff is answered 0000", accept=answered(Action.CYCLE_OFF, [0, 2]),
+              "off": Requirement(("E4", "S1"), "CycleOff is answered 0000", accept=answered_allowed(Action.CYCLE_OFF, Cycle.ON),
                                  inconclusive=answered(Action.CYCLE_OFF, [ErrorCode.CYCLE_OFF_FAILED]),
                                  inconclusive_text="CycleOff answered 0002 (detection not closed): the result is not "
                                                    "judged (A3)"),
               "result": Requirement(("E4", "E3"), "the result request is answered within vision_time_out with a ResultCode "
                                     "(1, 2, 10, 20, 202, 400, 409)",
-                                    accept=answered(Action.VISION_RESULT, values=SENDABLE_RESULTS))})
+                                    accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
 def test_extended_session(isight: CaseContext) -> None:
     isight.require_extension()
     conn = isight.connect("command")

@@ -28,8 +28,10 @@ from .frames import Frame, Header, ToleranceBlock, ValueBlock
 from .levels import Level
 from .profile import Profile
 
-#: Result codes a box may send (E3); 0 and 404 are the robot's own values.
-SENDABLE_RESULTS: tuple[int, ...] = (1, 2, 10, 20, 202, 400, 409)
+#: E3: ResultCodes only the robot writes (its initial value, and "no answer" on vision_time_out).
+ROBOT_RESULTS = frozenset({ResultCode.EMPTY, ResultCode.NO_ANSWER})
+#: Result codes a box may send (E3): every ResultCode but the robot's own.
+SENDABLE_RESULTS: tuple[int, ...] = tuple(int(r) for r in ResultCode if r not in ROBOT_RESULTS)
 #: E3: the ResultCode of a 26/27 request the box did not understand.
 NOT_UNDERSTOOD = int(ResultCode.NOT_UNDERSTOOD)
 #: E2: resource conflict / not ready.
@@ -59,6 +61,8 @@ for _state in Cycle:
     # E3: the result travels in the block; the error field is not judged
     ALLOWED_CODES[(_state, Action.VISION_RESULT)] = _ANY
 del _state, _action
+#: S1: on a ready box the canonical session completes with every answer 0000 (its CycleOff too)
+CANONICAL_CODES = frozenset({0})
 
 
 def allowed_codes(action: int, cycle: Cycle = Cycle.UNKNOWN) -> frozenset[int] | None:
@@ -214,11 +218,8 @@ class Finding:
 def _key(exp: Expectation, what: str) -> str:
     if exp.probe:
         return f"probe/{what}"
-    action = f"{exp.action:02X}" if exp.action is not None and exp.action in _KNOWN else "-"
+    action = f"{exp.action:02X}" if exp.action is not None and exp.action in _ACTIONS else "-"
     return f"{exp.clause or 'valid'}/{exp.rule.value}/{action}/{what}"
-
-
-_KNOWN = frozenset({0x00, 0x01, 0x02, 0x23, 0x24, 0x25, 0x26, 0x27})
 
 
 def judge_answer(exp: Expectation, seen: Seen) -> list[Finding]:

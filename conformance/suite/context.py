@@ -214,7 +214,7 @@ class CaseContext:
         SHOULD and unjudgeable outcomes, its level): return for PASS, raise the verdict otherwise.
         ``values`` (with the case's parameters) fill the requirement's words and expectations."""
         note = judge(outcome, self.info.check(check), self.info.level, {**self.params, **values},
-                     sent=self.last_sent if sent is None else sent)
+                     sent=self.last_sent if sent is None else sent, profile=self.profile)
         if note:
             self.inform(note)
 

@@ -12,7 +12,18 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
-from ..protocol import Action, ErrorCode, Frame, ProtocolError, TransferType, ValueBlock
+from ..protocol import (
+    DEFAULT_PROFILE,
+    Action,
+    ErrorCode,
+    Frame,
+    Profile,
+    ProtocolError,
+    TransferType,
+    ValueBlock,
+    codec_for,
+)
+from ..protocol.answers import Cycle, allowed_codes, allowed_values
 from .record import Expect, ExpectSpec, Requirement
 from .signature import Reply, Sig, Signature
 from .verdicts import Level, Verdict, broken_verdict
@@ -104,6 +115,13 @@ def answered(action: int | None = None, errors: Iterable[int] | None = None, val
     return Expect(text, match, action)
 
 
+def answered_allowed(action: int, cycle: Cycle = Cycle.UNKNOWN, request: Frame | None = None) -> Expect:
+    """What a conforming box may answer a well-formed ``action`` request in ``cycle``: the error codes
+    of the answer table (:mod:`conformance.protocol.answers`; any code where it allows any) and, for
+    the ``request`` given, the block values (E2/E3)."""
+    return answered(action, allowed_codes(action, cycle), None if request is None else allowed_values(request))
+
+
 def answered_error(action: int | None = None) -> Expect:
     """Answered with any non-zero error code (never 0000)."""
     text = "answered with a non-zero error" + (f" to {Action(action).name}" if action is not None else "")
@@ -138,6 +156,7 @@ def check(
     *,
     sent: bytes = b"",
     judged: tuple[str, ...] = (),
+    profile: Profile = DEFAULT_PROFILE,
 ) -> None:
     """Raise the level's verdict unless ``outcome`` is one of the ``acceptable`` ones (judging ``judged``).
 
@@ -150,7 +169,7 @@ def check(
     expected = "; or ".join(e.text for e in options)
     received = outcome.raw
     observed = outcome.describe()
-    view = answer_view(outcome) if isinstance(outcome, Malformed) else None
+    view = answer_view(outcome, profile) if isinstance(outcome, Malformed) else None
     if isinstance(outcome, Malformed) and view is not None and any(e.matches(view) for e in options):
         error = outcome.error
         raise CaseVerdict(
@@ -174,10 +193,11 @@ def check(
     )
 
 
-def answer_view(outcome: Malformed) -> Answer | None:
+def answer_view(outcome: Malformed, profile: Profile = DEFAULT_PROFILE) -> Answer | None:
     """A malformed answer read leniently: its header's action, error code and first
-    type-03 value as a conforming answer would carry them (None when it has no readable
-    header or an unknown action)."""
+    type-03 value as a conforming answer would carry them (the value in the profile's
+    float_byte_order, as the codec reads it; None when it has no readable header or an
+    unknown action)."""
     header = outcome.error.header
     if header is None or header.start_word != 0xFEFE:
         return None
@@ -188,7 +208,8 @@ def answer_view(outcome: Malformed) -> Answer | None:
     raw = outcome.raw
     blocks: tuple[ValueBlock, ...] = ()
     if header.block_type == 3 and header.block_count >= 1 and len(raw) >= 17:
-        blocks = (ValueBlock(raw[12], int.from_bytes(raw[13:17], "big", signed=True)),)
+        index, value = codec_for(profile).value.unpack_from(raw, 12)  # the codec's layout of a type-03 block
+        blocks = (ValueBlock(index, value),)
     return Answer(Frame(TransferType.BOX_TO_ROBOT, action, blocks, header.error_code), outcome.latency_s, raw)
 
 
@@ -288,7 +309,7 @@ def words(text: str, values: Mapping[str, Any]) -> str:
 
 
 def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapping[str, Any] | None = None, *,
-          sent: bytes = b"") -> str | None:
+          sent: bytes = b"", profile: Profile = DEFAULT_PROFILE) -> str | None:
     """Turn ``outcome`` into the requirement's verdict: raise it unless PASS.
 
     First the outcomes that leave it unjudgeable (INCONCLUSIVE), then the acceptable ones
@@ -307,13 +328,13 @@ def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapp
     accept = resolve(requirement.accept, values)
     if accept is not None:
         check(outcome, accept, requirement.level or level, requirement.words(words(requirement.text, values)),
-              sent=sent, judged=clauses)
+              sent=sent, judged=clauses, profile=profile)
     should = resolve(requirement.should, values)
     if should is not None:
         named = requirement.should_clauses or clauses
         text = words(requirement.should_text or requirement.text, values)
         check(outcome, should, Level.SHOULD, requirement.words(text, requirement.should_clauses), sent=sent,
-              judged=named)
+              judged=named, profile=profile)
     note = resolve(requirement.informational, values)
     if note is not None and note.matches(outcome):
         return f"{words(requirement.informational_text, {**values, 'outcome': outcome.describe()})}"

@@ -173,7 +173,8 @@ class SequenceRunner:
             if not expect.matches(outcome):
                 self.isight.inform(f"{path}: the box {outcome.describe()} (expected {expect.text})")
             return
-        check(outcome, expect, level, requirement, sent=sent, judged=tuple(self.seq.clauses))
+        check(outcome, expect, level, requirement, sent=sent, judged=tuple(self.seq.clauses),
+              profile=self.isight.profile)
 
     def _record(self, outcome: Outcome) -> None:
         self.figures["requests"] += 1
