@@ -14,6 +14,7 @@ from typing import Any
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..protocol import (
     DEFAULT_PROFILE,
+    START_WORD,
     Action,
     ErrorCode,
     Frame,
@@ -140,7 +141,7 @@ def answered_zero(outcome: Outcome) -> bool:
     if isinstance(outcome, Answer):
         return outcome.frame.error_code == 0
     header = outcome.error.header if isinstance(outcome, Malformed) else None
-    return header is not None and header.start_word == 0xFEFE and header.error_code == 0
+    return header is not None and header.start_word == START_WORD and header.error_code == 0
 
 
 #: A5/R1: what a box may do with a frame that is not a request: anything but 0000.
@@ -199,7 +200,7 @@ def answer_view(outcome: Malformed, profile: Profile = DEFAULT_PROFILE) -> Answe
     float_byte_order, as the codec reads it; None when it has no readable header or an
     unknown action)."""
     header = outcome.error.header
-    if header is None or header.start_word != 0xFEFE:
+    if header is None or header.start_word != START_WORD:
         return None
     try:
         action = Action(header.action)
@@ -230,7 +231,7 @@ def answer_signature(error: ProtocolError, asked: int | None = None) -> Signatur
         "F5": ("length", ""),
         "A4": ("none-error", f"{h.error_code:04x}"),
     }.get(clause, ("shape", f"{h.block_type:02x}/{h.block_count}/{h.block_length}"))
-    reply = Reply(asked, h.action, h.error_code, h.transfer_type) if h.start_word == 0xFEFE else None
+    reply = Reply(asked, h.action, h.error_code, h.transfer_type) if h.start_word == START_WORD else None
     return Signature(Sig.ANSWER, clause=clause, field=field, value=value, reply=reply)
 
 

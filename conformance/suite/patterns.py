@@ -17,8 +17,8 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from ..protocol import Action
-from ..protocol.constants import HEADER_LEN, POSE_BLOCK_LEN, START_WORD, TOLERANCE_BLOCK_LEN, TransferType
+from ..protocol import Action, parse_header
+from ..protocol.constants import CHECK_LEN, HEADER_LEN, POSE_BLOCK_LEN, START_WORD, TOLERANCE_BLOCK_LEN, TransferType
 from .signature import Reply, Sig
 from .verdicts import CaseResult, RootCause, Verdict
 
@@ -104,11 +104,14 @@ def blocks_of(sent_hex: str, first_index: int) -> Blocks | None:
     except ValueError:
         return None
     total = int(m.group(1)) if (m := _IN_ALL.search(tail)) else len(raw)
-    if len(raw) < HEADER_LEN or int.from_bytes(raw[:2], "big") != START_WORD or raw[4] != TransferType.ROBOT_TO_BOX:
+    if len(raw) < HEADER_LEN:
         return None
-    action, block_type, count = raw[5], raw[6], raw[7]
+    header = parse_header(raw)  # only its one-byte fields (and the symmetric start word) are read: any byte order
+    if header.start_word != START_WORD or header.transfer_type != TransferType.ROBOT_TO_BOX:
+        return None
+    action, block_type, count = header.action, header.block_type, header.block_count
     size = _BLOCK_LEN.get(block_type)
-    if size is None or count == 0 or total != HEADER_LEN + count * size + 2:
+    if size is None or count == 0 or total != HEADER_LEN + count * size + CHECK_LEN:
         return None
     wrong = [i for i in range(count) if HEADER_LEN + i * size < len(raw) and raw[HEADER_LEN + i * size] !=
              (first_index + i) & 0xFF]
