@@ -14,7 +14,6 @@ from typing import Any
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..protocol import (
     DEFAULT_PROFILE,
-    START_WORD,
     Action,
     ErrorCode,
     Frame,
@@ -25,6 +24,7 @@ from ..protocol import (
     codec_for,
 )
 from ..protocol.answers import Cycle, allowed_codes, allowed_values
+from ..protocol.constants import START_WORD
 from .record import Expect, ExpectSpec, Requirement
 from .signature import Reply, Sig, Signature
 from .verdicts import Level, Verdict, broken_verdict
