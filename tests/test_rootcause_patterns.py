@@ -238,3 +238,17 @@ def test_facts_cross_pytest_xdist_as_json() -> None:
     sig = Signature(Sig.CODE, "NONE", value="0000")
     assert Signature.from_dict(json.loads(json.dumps(sig.to_dict()))) == sig and str(sig) == "code:NONE:0000"
     assert PARSE_ERROR.startswith("a request that is a parse error")
+
+
+def test_a_field_wrong_in_every_answer_comes_before_a_larger_case_level_group() -> None:
+    """A constant transfer type (F3) in every answer is named first, before a case-level group that happens to
+    hold more cases (tolerances refused with 0001): the field is what the vendor fixes first."""
+    def type_01(case_id: str) -> CaseResult:
+        return judged(case_id, "A4", malformed(encode(request(NONE))), ok(NONE, "A4: NONE is answered NONE 0000"))
+
+    cases = [type_01("F3-01"), type_01("A4-01"),
+             *[judged(f"B2-01[{n}]", "B2 A1", reply(TOL, 1), ok(TOL, "A1/B2: tolerances are answered 0000"),
+                      sent=tolerances(n)) for n in (1, 3, 255)]]
+    causes = find_root_causes(cases)
+    assert [(c.kind, c.clauses) for c in causes] == [("malformed-answers", ("F3",)), ("wrong-code", ("A1", "B2"))]
+    assert causes[0].title == "Every answer of the box is malformed the same way: transfer type 01 (F3)"
