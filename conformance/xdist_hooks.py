@@ -68,10 +68,7 @@ class XdistHooks:
             config.stash[RESULTS].setdefault(key, []).extend(CaseResult.from_dict(r) for r in box["results"])
             facts = box["facts"]
             known = config.stash[FACTS].get(key)
-            deaths = tuple(tuple(d) for d in facts["deaths"]) + (known.deaths if known is not None else ())
-            config.stash[FACTS][key] = SessionFacts(facts["unresponsive"] or (known.unresponsive if known else ""),
-                                                    facts["one_at_a_time"] or (known.one_at_a_time if known else ""),
-                                                    deaths)
+            config.stash[FACTS][key] = SessionFacts.from_dict(facts).merged(known)
             state = config.stash[SESSIONS].get(key)
             if state is not None and box["extension_how"]:
                 state.extension_how = box["extension_how"]
@@ -93,8 +90,7 @@ class XdistHooks:
             state = config.stash[SESSIONS][key]
             facts = facts_of(state)
             boxes[key] = {"results": [r.to_dict() for r in results], "extension_how": state.extension_how,
-                          "facts": {"unresponsive": facts.unresponsive, "one_at_a_time": facts.one_at_a_time,
-                                    "deaths": [list(d) for d in facts.deaths]}}
+                          "facts": facts.to_dict()}
         config.workeroutput[OUTPUT] = json.dumps({"boxes": boxes, "selected": config.stash.get(SELECTED, [])},
                                                  default=str)
 

@@ -381,3 +381,37 @@ def test_keys_tell_different_failures_apart_and_the_same_failure_together() -> N
     # the same clause on another action: another key
     tol_b3 = expectation(raw(bytes([1]) + bytes(4), action=A.TOLERANCE, block_type=2, block_count=1, block_length=5))
     assert judge_answer(tol_b3, seen(0x25, 0))[0].key == "B3/reject/25/0000"
+
+
+def test_the_catalogue_reads_its_expectations_from_the_answer_table() -> None:
+    """One answer table: the cases' acceptable codes and values come from protocol/answers, never literals."""
+    import re
+    from pathlib import Path
+
+    from conformance.harness.client import Answer
+    from conformance.protocol import Action, ErrorCode, ResultCode, answer, request
+    from conformance.protocol.answers import ALLOWED_CODES, ROBOT_RESULTS, SENDABLE_RESULTS, Cycle
+    from conformance.protocol.frames import value_blocks
+    from conformance.suite.judge import answered_allowed
+
+    def got(action: Action, code: int, value: int | None = None) -> Answer:
+        blocks = value_blocks([value]) if value is not None else ()
+        return Answer(answer(action, code, blocks), 0.001, b"")
+
+    assert SENDABLE_RESULTS == (1, 2, 10, 20, 202, 400, 409)  # every ResultCode but the robot's own
+    assert set(SENDABLE_RESULTS) | set(ROBOT_RESULTS) == {int(r) for r in ResultCode}
+    on = answered_allowed(Action.CYCLE_ON, Cycle.IDLE)
+    assert on.matches(got(Action.CYCLE_ON, 0)) and on.matches(got(Action.CYCLE_ON, ErrorCode.NOT_READY))
+    assert not on.matches(got(Action.CYCLE_ON, 2)) and not on.matches(got(Action.NONE, 0))
+    off = answered_allowed(Action.CYCLE_OFF, Cycle.ON)
+    assert off.matches(got(Action.CYCLE_OFF, ErrorCode.CYCLE_OFF_FAILED)) and not off.matches(got(Action.CYCLE_OFF, 1))
+    assert answered_allowed(Action.CYCLE_ON, Cycle.ON).matches(got(Action.CYCLE_ON, 0x7777))  # S3: a MAY
+    for (cycle, action), codes in ALLOWED_CODES.items():
+        exp = answered_allowed(action, cycle)
+        for code in (0, 1, 2, 0x1001, 0x1002, 409):
+            assert exp.matches(got(action, code)) == (codes is None or code in codes), (cycle, action, code)
+    result = answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT))
+    assert result.matches(got(Action.VISION_RESULT, 0, 202)) and not result.matches(got(Action.VISION_RESULT, 0, 404))
+    cases = Path(__file__).resolve().parents[1] / "conformance" / "cases"
+    literal = re.compile(r"answered\([^()]*\[\s*\d")
+    assert [p.name for p in cases.glob("*.py") if literal.search(p.read_text())] == []

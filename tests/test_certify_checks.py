@@ -16,6 +16,7 @@ from conformance.protocol import DEFAULT_PROFILE, Action, ErrorCode, encode, pos
 from conformance.report import render_html
 from conformance.report.svg import histogram_svg
 from conformance.suite.rootcause import find_root_causes
+from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import SuiteInfo, Verdict
 from tests.test_certify_session import POSE, Fake, canonical, frame
 
@@ -119,7 +120,7 @@ def test_a_stream_left_open_is_one_root_cause_s5_first_for_the_s1_and_s5_cases()
     got = by_id(cases)
     assert got["RB-S1-01"].verdict is Verdict.FAIL and "stream close missing" in got["RB-S1-01"].message
     assert got["RB-S5-01"].verdict is Verdict.FAIL
-    assert got["RB-S1-01"].signature == got["RB-S5-01"].signature == "left-open:stream"
+    assert got["RB-S1-01"].signature == got["RB-S5-01"].signature == Signature(Sig.LEFT_OPEN, "stream")
     causes = find_root_causes(cases)
     assert len(causes) == 1 and causes[0].clauses[0] == "S5" and set(causes[0].cases) == {"RB-S1-01", "RB-S5-01"}
     assert "stream connection open" in causes[0].title
@@ -128,7 +129,7 @@ def test_a_stream_left_open_is_one_root_cause_s5_first_for_the_s1_and_s5_cases()
 def test_an_s1_failure_with_its_own_defect_is_not_blamed_on_a_left_open_connection():
     fake, cmd, stream = canonical(cycle_on=0.85, cycle_off=0.2)  # CycleOff before CycleOn: an S1 defect of its own
     got = by_id(judge(run_of(fake, jitter_tolerance=0.5)))
-    assert got["RB-S1-01"].verdict is Verdict.FAIL and got["RB-S1-01"].signature == ""
+    assert got["RB-S1-01"].verdict is Verdict.FAIL and got["RB-S1-01"].signature is None
     assert got["RB-S5-01"].verdict is Verdict.PASS
 
 

@@ -197,3 +197,16 @@ def test_protocol_doc_quotes_come_with_a_translation():
     for cid, (_, _, body) in _doc_sections().items():  # a clause whose registry entry quotes the source quotes it too
         if re.search(r"[\u4e00-\u9fff]", clause(cid).source) and cid != "S1":
             assert "> 原文：" in body, f"{cid}: the registry quotes the source, PROTOCOL.md does not"
+
+
+def test_one_level_vocabulary_for_the_registry_the_verdicts_and_the_findings() -> None:
+    from conformance.protocol.answers import Expectation, Rule, Seen, judge_answer
+    from conformance.protocol.clauses import LEVELS, all_clauses
+    from conformance.protocol.levels import Level
+    from conformance.suite import verdicts
+
+    assert verdicts.Level is Level and LEVELS == (Level.MUST, Level.SHOULD, Level.MAY)
+    assert all(isinstance(c.level, Level) and all(isinstance(lv, Level) for lv in c.levels) for c in all_clauses().values())
+    finding, = judge_answer(Expectation(Rule.REJECT, "B3", 0x23, "a wrong index"), Seen(0x23, 0))
+    assert finding.level is Level.MUST and verdicts.broken_verdict(finding.level) is verdicts.Verdict.FAIL
+    assert f"{Level.SHOULD}" == "SHOULD" and "/".join(Level) == "MUST/SHOULD/MAY"

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from conformance.protocol import Action, Header, Profile, answer, encode, encode_raw, pose_blocks, request
 from conformance.protocol.answers import Cycle, Expectation, Finding, Rule
 from conformance.protocol.framings import BAD, PENDING, VALID, End, Event, Explanation, Reader, embedded_actions
+from conformance.protocol.levels import Level
 
 P = Profile()
 NONE = encode(request(Action.NONE))
@@ -233,8 +234,8 @@ def test_end_values() -> None:
 
 def test_an_explanation_files_findings_by_level_and_answers_by_event() -> None:
     exp = Expectation(Rule.ANSWER, "", 0, "none")
-    must = Finding("MUST", "A1", "r", "o", "k1")
-    should = Finding("SHOULD", "R6", "r", "o", "k2")
+    must = Finding(Level.MUST, "A1", "r", "o", "k1")
+    should = Finding(Level.SHOULD, "R6", "r", "o", "k2")
     events = [Event(0, 5, exp, None), Event(5, 19, exp, 0), Event(19, 33, exp, 1), Event(33, 47, exp, 2)]
     ex = Explanation([should, must], events)
     assert ex.must == [must] and ex.should == [should] and ex.framing == "reference" and ex.unasked == []

@@ -13,6 +13,7 @@ from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silen
 from conformance.protocol import Action, Header, ProtocolError, TransferType, answer, encode, encode_raw, parse_frame
 from conformance.suite.judge import CLOSED, NOT_OK, SILENCE, CaseVerdict, Inconclusive, answered, broken, judge, words
 from conformance.suite.record import MARKER, CaseRecord, Expect, Requirement, case, info_of, record
+from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import Level, Verdict
 
 pytest_plugins = ["pytester"]
@@ -50,7 +51,7 @@ def test_expect_is_frozen_data_and_or_joins_texts_predicates_and_the_first_actio
 
 
 def test_requirement_defaults_judge_nothing_and_it_is_frozen() -> None:
-    req = Requirement("A4: NONE is answered 0000")
+    req = Requirement(("A4",), "NONE is answered 0000")
     assert (req.accept, req.level, req.should, req.inconclusive, req.informational) == (None, None, None, None, None)
     assert req.should_text == req.inconclusive_text == req.informational_text == ""
     with pytest.raises(dataclasses.FrozenInstanceError):
@@ -61,14 +62,14 @@ def test_requirement_defaults_judge_nothing_and_it_is_frozen() -> None:
 
 
 def test_record_builds_an_immutable_checked_record() -> None:
-    checks = {"answer": Requirement("A4: NONE is answered 0000", accept=answered(Action.NONE, [0]))}
+    checks = {"answer": Requirement(("A4",), "NONE is answered 0000", accept=answered(Action.NONE, [0]))}
     rec = record("A4-01", ["A4", "A2"], "MUST", "NONE answered", "answered NONE 0000", needs=("always",), checks=checks)
     assert rec.clauses == ("A4", "A2") and isinstance(rec.clauses, tuple)
     assert rec.level is Level.MUST and rec.needs == ("always",) and rec.family == "A"
-    checks["other"] = Requirement("changed later")  # the record took a copy
+    checks["other"] = Requirement(("A4",), "changed later")  # the record took a copy
     assert list(rec.checks) == ["answer"]
     with pytest.raises(TypeError):
-        rec.checks["x"] = Requirement("x")  # type: ignore[index]
+        rec.checks["x"] = Requirement((), "x")  # type: ignore[index]
     assert record("F1-01", ("F1",), Level.SHOULD, "t", "e").checks == {}
 
 
@@ -96,12 +97,13 @@ def test_record_refuses_an_unknown_level() -> None:
 
 def test_words_check_and_with_param() -> None:
     rec = record("B3-01", ["B3", "A3"], "MUST", "indexes rise", "answered 1001",
-                 checks={"pose": Requirement("B3: {what}"), "": Requirement("B3/A3: the default")})
+                 checks={"pose": Requirement(("B3",), "{what}"), "": Requirement(("B3", "A3"), "the default")})
     assert rec.words == "B3, A3 (MUST): indexes rise"
     assert record("B3-01", ["B3"], "MUST", "t", "e", requirement="B3: given").words == "B3: given"
-    assert rec.check("pose").text == "B3: {what}" and rec.check().text == "B3/A3: the default"
+    assert rec.check("pose").words() == "B3: {what}" and rec.check().words() == "B3/A3: the default"
+    assert rec.check("pose").clauses == ("B3",) and rec.check().text == "the default"
     bare = record("B3-02", ["B3"], "SHOULD", "t", "e")
-    assert bare.check() == Requirement("B3 (SHOULD): t")  # the default requirement always exists
+    assert bare.check() == Requirement((), "B3 (SHOULD): t")  # the default requirement always exists: the case's clauses
     with pytest.raises(KeyError, match="has no requirement 'posse'.*pose"):
         rec.check("posse")
     with pytest.raises(KeyError, match="it has: none"):
@@ -172,7 +174,7 @@ def _verdict(outcome: Outcome, req: Requirement, level: Level = Level.MUST, **va
 
 
 def test_judge_passes_an_acceptable_outcome_and_breaks_at_the_level() -> None:
-    req = Requirement("A5/R1: a {what} is never answered 0000", accept=NOT_OK)
+    req = Requirement(("A5", "R1"), "a {what} is never answered 0000", accept=NOT_OK)
     assert judge(Silence(0.5), req, Level.MUST, {"what": "non-request"}) is None
     assert judge(ans(Action.CYCLE_ON, 1), req, Level.MUST) is None
     v = _verdict(ans(Action.NONE), req, what="non-request")
@@ -185,7 +187,7 @@ def test_judge_passes_an_acceptable_outcome_and_breaks_at_the_level() -> None:
 
 
 def test_judge_inconclusive_comes_first() -> None:
-    req = Requirement("S2: CycleOn is answered 0000", accept=answered(Action.CYCLE_ON, [0]),
+    req = Requirement(("S2",), "CycleOn is answered 0000", accept=answered(Action.CYCLE_ON, [0]),
                       inconclusive=CLOSED, inconclusive_text="the box closed before {step}")
     with pytest.raises(Inconclusive) as exc:
         judge(Closed(True, 0.001), req, Level.MUST, {"step": "CycleOn"})
@@ -199,20 +201,20 @@ def test_judge_inconclusive_comes_first() -> None:
 
 
 def test_judge_should_breaks_non_strict_after_accept_passes() -> None:
-    req = Requirement("A3: a bad pose is not answered 0000", accept=answered(Action.POSE, [0x1001]) | SILENCE | CLOSED,
-                      should=answered(Action.POSE, [0x1001]), should_text="A3: a bad pose SHOULD be answered 1001")
+    req = Requirement(("A3",), "a bad pose is not answered 0000", accept=answered(Action.POSE, [0x1001]) | SILENCE | CLOSED,
+                      should=answered(Action.POSE, [0x1001]), should_clauses=("A3",), should_text="a bad pose SHOULD be answered 1001")
     assert judge(ans(Action.POSE, 0x1001), req, Level.MUST) is None
     v = _verdict(Silence(0.5), req, Level.MUST)
     assert v.verdict is Verdict.NON_STRICT and v.requirement == "A3: a bad pose SHOULD be answered 1001"
-    assert v.signature == "silence:POSE"
+    assert str(v.signature) == "silence:POSE"
     assert _verdict(ans(Action.POSE), req, Level.MUST).verdict is Verdict.FAIL  # the accept check comes first
 
 
 def test_judge_fails_a_malformed_answer_on_its_format_even_under_should() -> None:
-    req = Requirement("A4: NONE is answered 0000", should=answered(Action.NONE, [0]))
+    req = Requirement(("A4",), "NONE is answered 0000", should=answered(Action.NONE, [0]))
     bad = encode_raw(Header(version=0x0100, transfer_type=TransferType.BOX_TO_ROBOT))
     v = _verdict(malformed(bad), req, Level.MAY)
-    assert v.verdict is Verdict.FAIL and v.judged == ("F2",) and v.signature == "answer:F2:version=0100"
+    assert v.verdict is Verdict.FAIL and v.judged == ("F2",) and str(v.signature) == "answer:F2:version=0100"
     assert v.received == bad and v.sent == SENT
 
 
@@ -223,16 +225,16 @@ def test_judge_resolves_expectations_from_the_case_values() -> None:
         seen.append({"action": action, **rest})
         return None if action == Action.NONE else answered(action, [0])
 
-    req = Requirement("A1: {action:#04x} is answered", accept=accept)
+    req = Requirement(("A1",), "{action:#04x} is answered", accept=accept)
     assert judge(ans(Action.CYCLE_OFF), req, Level.MUST, {"action": Action.CYCLE_OFF, "n": 2}) is None
     assert seen == [{"action": Action.CYCLE_OFF, "n": 2}]
     assert judge(Closed(False, 0.0), req, Level.MUST, {"action": Action.NONE}) is None  # None: nothing to judge
     v = _verdict(ans(Action.CYCLE_ON), req, action=Action.CYCLE_OFF)
-    assert v.requirement == "A1: 0x02 is answered" and v.signature == "code:CYCLE_ON:0000"
+    assert v.requirement == "A1: 0x02 is answered" and str(v.signature) == "code:CYCLE_ON:0000"
 
 
 def test_judge_returns_the_informational_words_only_when_they_match() -> None:
-    req = Requirement("A3: CycleOff", accept=answered(Action.CYCLE_OFF, [0, 2]), informational=answered(Action.CYCLE_OFF, [2]),
+    req = Requirement(("A3",), "CycleOff", accept=answered(Action.CYCLE_OFF, [0, 2]), informational=answered(Action.CYCLE_OFF, [2]),
                       informational_text="CycleOff at {when}: the box {outcome}")
     note = judge(ans(Action.CYCLE_OFF, 2), req, Level.MUST, {"when": "start"})
     assert note == "CycleOff at start: the box answered " + ans(Action.CYCLE_OFF, 2).frame.describe()
@@ -246,16 +248,17 @@ def test_words_fill_values_and_leave_unknown_names() -> None:
 
 
 def test_broken_carries_the_record_words_level_and_evidence() -> None:
-    req = Requirement("S6: pose {n} is answered", level=Level.SHOULD)
-    v = broken(req, Level.MUST, "an answer", "silence", {"n": 7}, sent=SENT, received=b"\xfe", signature="lost:7")
+    req = Requirement(("S6",), "pose {n} is answered", level=Level.SHOULD)
+    lost = Signature(Sig.SILENCE, "7")
+    v = broken(req, Level.MUST, "an answer", "silence", {"n": 7}, sent=SENT, received=b"\xfe", signature=lost)
     assert isinstance(v, CaseVerdict) and v.verdict is Verdict.NON_STRICT
     assert (v.requirement, v.expected, v.observed, v.sent, v.received, v.signature, v.judged) == (
-        "S6: pose 7 is answered", "an answer", "silence", SENT, b"\xfe", "lost:7", ("S6",))
+        "S6: pose 7 is answered", "an answer", "silence", SENT, b"\xfe", lost, ("S6",))
     assert v.message == "S6: pose 7 is answered: expected an answer; observed silence"
-    assert broken(Requirement("T1: late"), Level.MAY, "e", "o").verdict is Verdict.INFORMATIONAL
+    assert broken(Requirement(("T1",), "late"), Level.MAY, "e", "o").verdict is Verdict.INFORMATIONAL
 
 
 def test_a_requirement_without_any_acceptable_outcome_cannot_judge() -> None:
     """A case that judges by a requirement naming no outcome could never fail: the suite refuses it (ERROR)."""
     with pytest.raises(ValueError, match="names no outcome to judge by"):
-        judge(Silence(1.0), Requirement("A1: something"), Level.MUST)
+        judge(Silence(1.0), Requirement(("A1",), "something"), Level.MUST)

@@ -23,7 +23,8 @@ from conformance.suite.results import (
 )
 from conformance.suite.session import SessionState
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.verdicts import Level, Verdict
+from conformance.suite.signature import Sig, Signature
+from conformance.suite.verdicts import Level, Verdict, broken_verdict
 
 POSE_CASE = record("S3-01", ["S3"], Level.MUST, "Poses before CycleOn are answered 0000", "answered POSE 0000")
 BOX = Endpoint("127.0.0.1", 9000)
@@ -143,7 +144,7 @@ def test_hundreds_of_idle_connections_are_counted() -> None:
 def test_a_case_that_returns_passes_with_no_finding() -> None:
     result = result_of(POSE_CASE, None, None, 0.25)
     assert (result.verdict, result.message, result.requirement) == (Verdict.PASS, "", "")
-    assert (result.judged, result.signature, result.root_cause) == ((), "", None)
+    assert (result.judged, result.signature, result.root_cause) == ((), None, None)
     assert (result.clauses, result.expected, result.duration_s) == (("S3",), "answered POSE 0000", 0.25)
     assert result.sent_hex == "" and result.details == {} and result.pcap is None
 
@@ -154,7 +155,7 @@ def test_a_malformed_answer_fails_on_its_format_and_names_the_clause_it_judged()
     assert result.verdict is Verdict.FAIL
     assert result.judged == ("F2",)
     assert result.clauses == ("S3", "F2")  # what it judged joins the clauses the case names
-    assert result.signature == "answer:F2:version=0100"
+    assert str(result.signature) == "answer:F2:version=0100"
     assert result.requirement == "F2: the box's answers are conforming frames"
     assert result.message.startswith("F2: the box's answer is not a conforming frame")
     assert result.expected == "answered POSE with error 0x0000 (OK)"
@@ -172,22 +173,22 @@ def test_a_finding_without_clause_or_signature_is_the_case_own(level: Level) -> 
     info = record("R4-01", ["R4", "A1"], level, "Ten frames in one segment are each answered", "ten answers")
     exc = fail(level, "each frame of the segment is answered", "ten answers", "one answer")
     result = result_of(info, None, exc, 0.1)
-    assert result.verdict is level.broken_verdict
+    assert result.verdict is broken_verdict(level)
     assert result.judged == ("R4", "A1")  # the case's clauses
-    assert result.signature == "case:R4-01"  # groups with nothing else
+    assert result.signature == Signature.own("R4-01")  # groups with nothing else
     assert result.requirement == "each frame of the segment is answered"
 
 
 def test_an_inconclusive_verdict_keeps_the_signature_that_explains_it() -> None:
     refused = Inconclusive("box unreachable since case B1-02 (a fresh connection stayed silent)",
-                           signature="unreachable:B1-02")
+                           signature=Signature.unreachable("B1-02"))
     result = result_of(POSE_CASE, None, refused, 0.0)
-    assert (result.verdict, result.signature, result.judged) == (Verdict.INCONCLUSIVE, "unreachable:B1-02", ())
+    assert (result.verdict, result.signature, result.judged) == (Verdict.INCONCLUSIVE, Signature.unreachable("B1-02"), ())
     assert result.requirement == POSE_CASE.words == "S3 (MUST): Poses before CycleOn are answered 0000"
     unexplained = result_of(POSE_CASE, None, Inconclusive("the box is not ready (CycleOn answered 0001)"), 0.0)
-    assert unexplained.signature == ""  # not a FAIL: no case signature of its own
-    late = Inconclusive("CYCLE_ON is not answered within time_out (cases S2-01, A3-02)", signature="silence:CYCLE_ON")
-    assert result_of(POSE_CASE, None, late, 0.0).signature == "silence:CYCLE_ON"
+    assert unexplained.signature is None  # not a FAIL: no case signature of its own
+    late = Inconclusive("CYCLE_ON is not answered within time_out (cases S2-01, A3-02)", signature=Signature(Sig.SILENCE, "CYCLE_ON"))
+    assert result_of(POSE_CASE, None, late, 0.0).signature == Signature(Sig.SILENCE, "CYCLE_ON")
 
 
 def test_an_unreachable_box_is_inconclusive_with_what_was_sent() -> None:
@@ -197,7 +198,7 @@ def test_an_unreachable_box_is_inconclusive_with_what_was_sent() -> None:
     assert result.verdict is Verdict.INCONCLUSIVE
     assert result.message == "box unreachable: 127.0.0.1:9: connection refused"
     assert result.sent_hex == "fe fe 00 01" and result.requirement == POSE_CASE.words
-    assert result.judged == () and result.signature == ""
+    assert result.judged == () and result.signature is None
 
 
 def test_skips() -> None:
@@ -216,13 +217,14 @@ def test_a_failed_assert_is_the_level_verdict(level: Level, verdict: Verdict) ->
     result = result_of(info, None, exc, 0.1)
     assert result.verdict is verdict
     assert result.message == "A3/R1: a parse error was answered 0000"  # the first line only
-    assert result.judged == ("A3", "R1")
+    # an assert names no clause: the case's own (nothing is read out of its words)
+    assert result.judged == (("B3", "A3", "R1") if verdict in (Verdict.FAIL, Verdict.NON_STRICT) else ())
 
 
 def test_a_bare_assert_judges_the_case_clauses() -> None:
     result = result_of(POSE_CASE, None, AssertionError(), 0.1)
     assert (result.verdict, result.message, result.judged) == (Verdict.FAIL, "assertion failed", ("S3",))
-    assert result.signature == "case:S3-01"
+    assert result.signature == Signature.own("S3-01")
 
 
 def test_any_other_exception_is_the_suite_own_error() -> None:
@@ -235,12 +237,12 @@ def test_any_other_exception_is_the_suite_own_error() -> None:
     assert result.verdict is Verdict.ERROR
     assert result.message == "suite error: ValueError: boom"
     assert "broken_case" in result.observed and "ValueError: boom" in result.observed
-    assert (result.judged, result.signature) == ((), "")  # never a finding about the box
+    assert (result.judged, result.signature) == ((), None)  # never a finding about the box
 
 
 def test_a_flood_is_quoted_bounded() -> None:
     flood = b"\x9c\x41" * (4 * QUOTED_BYTES)
-    exc = fail(Level.MUST, "R5: resources are bounded", "answers", "a flood", received=flood, signature="closed:NONE")
+    exc = fail(Level.MUST, "R5: resources are bounded", "answers", "a flood", received=flood, signature=Signature(Sig.CLOSED, "NONE"))
     result = result_of(POSE_CASE, None, exc, 0.1)
     assert result.received_hex == bounded_hex(flood)
     assert result.received_hex.endswith(f"({len(flood)} bytes in all)")
@@ -273,7 +275,7 @@ def test_an_informational_case_reports_what_it_recorded() -> None:
     assert result.verdict is Verdict.INFORMATIONAL
     assert result.message == result.observed == "the box expects first index 01"
     assert result.sent_hex == "fe fe" and result.requirement == POSE_CASE.words
-    assert result.judged == () and result.signature == ""
+    assert result.judged == () and result.signature is None
 
 
 def test_the_verdict_own_bytes_win_over_the_last_sent() -> None:

@@ -7,24 +7,28 @@ expectation as the matrix reads it from summary.json."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
 from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
 from conformance.report.summary import write_summary
-from conformance.suite.judge import CLOSED, NOT_OK, CaseVerdict, Inconclusive, answered, answered_error, fail, judge
+from conformance.suite.judge import CLOSED, NOT_OK, CaseVerdict, Inconclusive, answered, answered_error, judge
+from conformance.suite.judge import fail as own_verdict
 from conformance.suite.record import CaseRecord, Requirement, record
 from conformance.suite.results import result_of
 from conformance.suite.rootcause import SessionFacts, find_root_causes
 from conformance.suite.session import S5_TEXT
+from conformance.suite.signature import Death, DeathKind, Sig, Signature
 from conformance.suite.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from tests.impls.expectations import EXPECTATIONS
 from tests.impls.expectations import judge as blame
 
 NONE, CYCLE_ON, POSE, TOLERANCE = Action.NONE, Action.CYCLE_ON, Action.POSE, Action.TOLERANCE
-PARSE_ERROR = "A3/R1: a request that is a parse error MUST NOT be answered 0000"
+PARSE_ERROR = "a request that is a parse error MUST NOT be answered 0000"  # A3/R1
 
 
 # -- building a run ------------------------------------------------------------------------------------
@@ -54,7 +58,7 @@ def passed(case_id: str, clauses: str = "A1", max_open: int = 1) -> CaseResult:
 
 def unreachable(case_id: str, since: str) -> CaseResult:
     """A case refused at once: the box has been unreachable since case ``since``."""
-    return raised(case_id, "A1", Inconclusive(f"box unreachable since case {since}", signature=f"unreachable:{since}"))
+    return raised(case_id, "A1", Inconclusive(f"box unreachable since case {since}", signature=Signature.unreachable(since)))
 
 
 def malformed(raw: bytes) -> Malformed:
@@ -70,14 +74,26 @@ def reply(action: Action, error: int = 0) -> Answer:
     return Answer(answer(action, error), 0.002, encode(answer(action, error)))
 
 
-def ok(action: Action, text: str) -> Requirement:
-    return Requirement(text, accept=answered(action, [0]))
+def named(words: str) -> tuple[str, ...]:
+    """The clauses a test's requirement words start with ("A4/T1: ...", "F2, A1: ...", "[R6] ...")."""
+    head = words[1:].partition("]")[0] if words.startswith("[") else words.partition(":")[0]
+    return tuple(c.strip() for c in re.split("[/,]", head))
+
+
+def fail(level: Level, words: str, expected: str, observed: str, **kw: Any) -> CaseVerdict:
+    """A case's own verdict, judging the clauses its words name."""
+    return own_verdict(level, words, expected, observed, judged=named(words), **kw)
+
+
+def ok(action: Action, words: str) -> Requirement:
+    clauses, _, text = words.partition(": ")
+    return Requirement(tuple(clauses.split("/")), text, accept=answered(action, [0]))
 
 
 def parse_error(action: Action, code: int) -> Requirement:
     """What B1-02, B2-02, B3-02 ... judge: never 0000 (MUST), the action's error (SHOULD)."""
-    return Requirement(PARSE_ERROR, accept=NOT_OK, should=answered(action, [code]),
-                       should_text="A3: a parse error SHOULD be answered with its action's error")
+    return Requirement(("A3", "R1"), PARSE_ERROR, accept=NOT_OK, should=answered(action, [code]),
+                       should_clauses=("A3",), should_text="a parse error SHOULD be answered with its action's error")
 
 
 def ids(cases: list[CaseResult], *verdicts: Verdict) -> list[str]:
@@ -113,7 +129,7 @@ def test_a_conforming_run_and_findings_that_share_nothing_have_no_root_cause() -
         # the box looked unreachable to two cases, but the session recorded no death: nothing to blame
         unreachable("R3-01[none]", "R2-02"), unreachable("R3-01[pose]", "R2-02"),
     ]
-    assert {c.signature for c in cases[1:3]} == {"case:R4-01", "case:S5-02"}  # a case's own finding
+    assert {str(c.signature) for c in cases[1:3]} == {"case:R4-01", "case:S5-02"}  # a case's own finding
     assert find_root_causes(cases, SessionFacts()) == []
     assert all(c.root_cause is None for c in clean + cases)
 
@@ -127,8 +143,8 @@ def version_0100(action: Action, error: int = 0) -> Malformed:
 
 def swapped_version_run() -> list[CaseResult]:
     """Every answer carries version 01 00: FAILs in every family (and a case or two that pass)."""
-    not_zero = Requirement(PARSE_ERROR, accept=answered_error(POSE))
-    cycle_on = Requirement("S2: CycleOn is answered 0000 or 0001", accept=answered(CYCLE_ON, [0, 1]))
+    not_zero = Requirement(("A3", "R1"), PARSE_ERROR, accept=answered_error(POSE))
+    cycle_on = Requirement(("S2",), "CycleOn is answered 0000 or 0001", accept=answered(CYCLE_ON, [0, 1]))
     variants = {  # case: (clauses, action, error code the answer carries, requirement, parameters)
         "B1-01": ("B1 B3 A1 S3", POSE, 0, ok(POSE, "B1: poses are answered 0000"), "1-pose 3-pose 255-pose 1-reg"),
         "B3-02": ("B3 A3 R1", POSE, 0x1001, not_zero, "gap-pose repeat-pose wrong-start-pose descending-pose"),
@@ -143,12 +159,12 @@ def swapped_version_run() -> list[CaseResult]:
         judged("S2-01", "S2 A1", version_0100(CYCLE_ON), cycle_on),
         judged("S3-01", "S3", version_0100(POSE), ok(POSE, "S3: poses before CycleOn are answered 0000")),
         raised("F4-01", "F4", fail(Level.MUST, "F4: multi-byte fields are big-endian", "00 01", "01 00",
-                                   signature="answer:F2:version=0100")),
+                                   signature=Signature(Sig.ANSWER, clause="F2", field="version", value="0100"))),
         *[judged(f"{case}[{p}]", clauses, version_0100(action, code), requirement)
           for case, (clauses, action, code, requirement, params) in variants.items() for p in params.split()],
         passed("S5-02", "S5"),
         raised("FUZZ-01", "R1 A5", fail(Level.MUST, "F2, A1: the box's answers are conforming frames",
-                                        "no failure", "fuzz failure", signature="fuzz:answer/F2")),
+                                        "no failure", "fuzz failure", signature=Signature.fuzz("F2", malformed_answer=True))),
     ]
 
 
@@ -175,7 +191,7 @@ def test_a_fuzz_finding_joins_only_an_unambiguous_malformation(tmp_path: Path) -
 
     def fuzz(case_id: str) -> CaseResult:
         return raised(case_id, "R1 A5", fail(Level.MUST, "F3: conforming frames", "no failure", "fuzz failure",
-                                             signature="fuzz:answer/F3"))
+                                             signature=Signature.fuzz("F3", malformed_answer=True)))
 
     one = [type_01("F3-01", 0x01), type_01("A4-01", 0x01), fuzz("FUZZ-01")]
     causes = find_root_causes(one)
@@ -192,7 +208,7 @@ def test_a_fuzz_finding_joins_only_an_unambiguous_malformation(tmp_path: Path) -
 def test_error_codes_in_the_other_byte_order(tmp_path: Path) -> None:
     cases = [
         raised("F4-01", "F4", fail(Level.MUST, "F4: multi-byte fields are big-endian (error code)", "10 01",
-                                   "01 10: error code in the other byte order", signature="swapped:error-code")),
+                                   "01 10: error code in the other byte order", signature=Signature(Sig.SWAPPED, "error-code"))),
         *[judged(f"B3-02[{p}]", "B3 A3 R1", reply(POSE, 0x0110), parse_error(POSE, 0x1001))
           for p in ("gap-pose", "repeat-pose", "wrong-start-pose")],
         judged("B2-02[L4]", "B2 B5 A3 R1", reply(TOLERANCE, 0x0210), parse_error(TOLERANCE, 0x1002)),
@@ -233,7 +249,7 @@ def test_a_flood_of_random_bytes_is_blamed_on_its_start_word(tmp_path: Path) -> 
 def test_a_box_that_never_answers_none_is_one_root_cause(detail: str, tmp_path: Path) -> None:
     """The dead box (accepts, never answers) and a target nobody listens on."""
     t1 = raised("T1-00", "A4 T1", fail(Level.MUST, "A4/T1: the box does not answer a NONE request", "NONE answered",
-                                       detail, signature="unreachable:session start"))
+                                       detail, signature=Signature.unreachable("session start")))
     refused = [unreachable(i, "session start") for i in ("F1-01", "F2-01", "A4-01", "S1-01", "R2-01[random-bytes]")]
     profile = raised("PROFILE-01", "B3 F7 F4", Inconclusive("box unreachable: connection refused"), level="MAY")
     cases = [t1, profile, *refused]
@@ -245,7 +261,7 @@ def test_a_box_that_never_answers_none_is_one_root_cause(detail: str, tmp_path: 
     assert profile.root_cause is None  # unreachable for its own reason: not refused because of the baseline
     marked(cases, causes)
     assert verdict_of("dead", cases, causes, tmp_path) == "ok"
-    t1.signature = "silence:NONE"  # the baseline case is explained by it whatever its verdict's signature
+    t1.signature = Signature(Sig.SILENCE, "NONE")  # the baseline case is explained by it whatever its verdict's signature
     assert find_root_causes(cases, SessionFacts(unresponsive=detail))[0].cases[0] == "T1-00"
 
 
@@ -262,10 +278,10 @@ def one_at_a_time_run() -> list[CaseResult]:
         judged("R5-01", "R5 T1", late, ok(NONE, "R5: idle connections do not stop the box answering"), max_open=301),
         judged("SEQ-S4", "S4 S6 T1", late, ok(POSE, "S4: command requests answered while streaming"), max_open=2),
         raised("FUZZ-02", "S4 A1", fail(Level.MUST, "S4: fuzzed sessions", "no failure", "fuzz failure",
-                                        signature="fuzz:S4"), max_open=2),
+                                        signature=Signature.fuzz("S4")), max_open=2),
         # a finding of its own on one connection: not explained by S4
         judged("B4-01[pose-qnan-x]", "B4 A3", reply(POSE), Requirement(
-            "B4: NaN SHOULD be a parse error", accept=answered_error(POSE)), level="SHOULD"),
+            ("B4",), "NaN SHOULD be a parse error", accept=answered_error(POSE)), level="SHOULD"),
     ]
 
 
@@ -286,7 +302,7 @@ def test_a_box_serving_one_connection_at_a_time_is_blamed_on_s4(tmp_path: Path) 
 def test_a_second_connection_refused_is_explained_by_s4_too() -> None:
     """An embedded stack that refuses the second connection: the case ends INCONCLUSIVE at its connect."""
     cases = [*one_at_a_time_run(),
-             raised("S4-03", "S4 T1", Inconclusive("box unreachable: connection refused", signature="unreachable:connect"))]
+             raised("S4-03", "S4 T1", Inconclusive("box unreachable: connection refused", signature=Signature.unreachable("connect")))]
     [rc] = find_root_causes(cases, SessionFacts(one_at_a_time=ONE_AT_A_TIME))
     assert rc.clauses == ("S4",) and "S4-03" in rc.cases and cases[-1].root_cause == rc.id
 
@@ -298,11 +314,11 @@ LEAK = ("a fresh connection was reset, yet it answers on a connection it accepte
 def test_a_box_that_never_frees_connections_is_blamed_on_s5(tmp_path: Path) -> None:
     killer = "R2-01[random-bytes]"
     s5 = CaseVerdict(Verdict.FAIL, f"S5: the box stopped accepting new connections ({LEAK})", requirement=S5_TEXT,
-                     observed=LEAK, judged=("S5",), signature="not-accepting")
+                     observed=LEAK, judged=("S5",), signature=Signature(Sig.NOT_ACCEPTING))
     after = ["R2-01[64k-of-fe]", "R2-02", "R3-01[none]", "R4-01", "SEQ-S1"]
     cases = [passed("A4-01", "A4"), passed("S5-01", "S5 T1"), raised(killer, "R2 A5", s5),
              *[unreachable(i, killer) for i in after]]
-    causes = find_root_causes(cases, SessionFacts(deaths=((killer, "not-accepting", LEAK, 64, 62),)))
+    causes = find_root_causes(cases, SessionFacts(deaths=(Death(killer, DeathKind.CONNECTION_LEAK, LEAK, 64, 62),)))
     [rc] = causes
     assert (rc.clauses, rc.level, rc.kind, rc.evidence) == (("S5", "R2"), Level.MUST, "connection-leak", LEAK)
     assert "after the suite has opened 64 and closed 62" in rc.title
@@ -314,15 +330,15 @@ def test_a_box_that_never_frees_connections_is_blamed_on_s5(tmp_path: Path) -> N
 def test_each_death_explains_the_cases_after_it_most_explanatory_first() -> None:
     first, second = "B5-01[none-with-pose-block]", "R2-01[64k-of-fe]"
     r2 = CaseVerdict(Verdict.FAIL, "R2: after this case's input the box no longer answers a fresh connection",
-                     judged=("R2",), signature=f"dead:{second}")
+                     judged=("R2",), signature=Signature(Sig.DEAD, second))
     cases = [
         passed(first, "B5 A3 R1"),  # it waited out a time_out; the box was gone after it, its own verdict PASS
         unreachable("B5-01[tolerance-type-1]", first),
         passed("F1-01", "F1"),  # re-probed: the box answers again
         raised(second, "R2 A5", r2), *[unreachable(i, second) for i in ("R2-02", "R3-01[none]", "R4-01")],
     ]
-    facts = SessionFacts(deaths=((first, "dead", "a fresh connection stayed silent", 40, 40),
-                                 (second, "dead", "a fresh connection was refused", 51, 51)))
+    facts = SessionFacts(deaths=(Death(first, DeathKind.DEAD_AFTER_INPUT, "a fresh connection stayed silent", 40, 40),
+                                 Death(second, DeathKind.DEAD_AFTER_INPUT, "a fresh connection was refused", 51, 51)))
     causes = find_root_causes(cases, facts)
     assert [(c.kind, c.clauses, c.cases) for c in causes] == [
         ("dead-after-input", ("R2",), [second, "R2-02", "R3-01[none]", "R4-01"]),
@@ -335,13 +351,13 @@ def test_each_death_explains_the_cases_after_it_most_explanatory_first() -> None
 
 # -- silences, and what to fix first -------------------------------------------------------------------
 def late_cycle_on_run() -> list[CaseResult]:
-    cycle_on = Requirement("S2: CycleOn is answered 0000 or 0001 within time_out", accept=answered(CYCLE_ON, [0, 1]))
+    cycle_on = Requirement(("S2",), "CycleOn is answered 0000 or 0001 within time_out", accept=answered(CYCLE_ON, [0, 1]))
     sent = encode(request(CYCLE_ON))
     known = "CYCLE_ON is not answered within time_out (cases S2-01, A3-02): this case depends on it"
     return [
         judged("S2-01", "S2 A1", Silence(5.0), cycle_on, sent=sent),
         judged("A3-02", "A3 S2", Silence(5.0), cycle_on, sent=sent),
-        *[raised(i, "S1 S2 T1", Inconclusive(known, signature="silence:CYCLE_ON")) for i in ("S1-01", "SEQ-S1")],
+        *[raised(i, "S1 S2 T1", Inconclusive(known, signature=Signature(Sig.SILENCE, "CYCLE_ON"))) for i in ("S1-01", "SEQ-S1")],
         passed("T1-00", "A4 T1"),
     ]
 
@@ -377,7 +393,7 @@ def test_a_must_root_cause_comes_before_a_larger_should_one(tmp_path: Path) -> N
 def test_a_non_strict_only_run_names_the_should_it_broke(tmp_path: Path) -> None:
     """The no-resync box hangs after garbage: R6 (SHOULD) is broken, not T1 (a MUST)."""
     def resync(action: Action) -> Requirement:
-        return Requirement("R6: after garbage the box SHOULD resynchronise or close", accept=answered(action, [0]) | CLOSED)
+        return Requirement(("R6",), "after garbage the box SHOULD resynchronise or close", accept=answered(action, [0]) | CLOSED)
 
     cases = [judged(f"R6-01[{kind}]", "R6", Silence(5.0), resync(action), level="SHOULD")
              for kind, action in (("ascii", NONE), ("zeros", POSE), ("bad-start-word", POSE), ("bad-version", POSE))]
@@ -397,7 +413,7 @@ def test_parse_errors_left_unanswered_are_one_root_cause_whatever_the_action() -
     cases = [judged("B3-02[gap-pose]", "B3 A3 R1", skipped, parse_error(POSE, 0x1001)),
              judged("B3-02[gap-tolerance]", "B3 A3 R1", skipped, parse_error(TOLERANCE, 0x1002)),
              judged("B1-02[L24-pose]", "B1 B5 A3 R1", skipped, parse_error(POSE, 0x1001))]
-    assert [c.signature for c in cases] == ["skipped:POSE", "skipped:TOLERANCE", "skipped:POSE"]
+    assert [str(c.signature) for c in cases] == ["skipped:POSE", "skipped:TOLERANCE", "skipped:POSE"]
     causes = find_root_causes(cases)
     assert [(c.kind, c.level, c.clauses, c.cases) for c in causes] == [
         ("unanswered-errors", Level.SHOULD, ("A3",), [c.id for c in cases])]
@@ -405,24 +421,25 @@ def test_parse_errors_left_unanswered_are_one_root_cause_whatever_the_action() -
 
 
 def test_fuzz_findings_that_repeat_are_one_root_cause() -> None:
-    def finding(case_id: str, level: Level, signature: str) -> CaseResult:
+    def finding(case_id: str, level: Level, key: str) -> CaseResult:
+        signature = Signature.fuzz(key) if "/" not in key else Signature.fuzz("R6", key=key)
         words = "R1, A5: 0000 to a frame that is not a request" if level is Level.MUST else "[R6] hangs after garbage"
         return raised(case_id, "R1 A5", fail(level, words, "no failure", "fuzz failure", signature=signature))
 
-    alone = [finding("FUZZ-01", Level.MUST, "fuzz:R1")]
+    alone = [finding("FUZZ-01", Level.MUST, "R1")]
     assert find_root_causes(alone) == [] and alone[0].root_cause is None
-    both = [finding("FUZZ-01", Level.MUST, "fuzz:R1"), finding("FUZZ-02", Level.MUST, "fuzz:R1")]
+    both = [finding("FUZZ-01", Level.MUST, "R1"), finding("FUZZ-02", Level.MUST, "R1")]
     causes = find_root_causes(both)
     assert [(c.kind, c.title, c.clauses, c.level, c.cases) for c in causes] == [
         ("fuzz", "Fuzzing finds the same defect (R1)", ("R1", "A5"), Level.MUST, ["FUZZ-01", "FUZZ-02"])]
-    strict = [finding("FUZZ-01", Level.SHOULD, "fuzz:end/hang"), finding("FUZZ-02", Level.SHOULD, "fuzz:end/hang")]
+    strict = [finding("FUZZ-01", Level.SHOULD, "end/hang"), finding("FUZZ-02", Level.SHOULD, "end/hang")]
     assert [(c.level, c.clauses) for c in find_root_causes(strict)] == [(Level.SHOULD, ("R6",))]
 
 
 def test_evidence_quotes_a_bounded_slice_of_what_the_box_did() -> None:
     long = "the box answered " + "x" * 400
     exc = fail(Level.MUST, "S3: poses are answered 0000", "0000", long, sent=b"\x01" * 10,
-               received=bytes(range(256)), signature="code:POSE:0001")
+               received=bytes(range(256)), signature=Signature(Sig.CODE, "POSE", value="0001"))
     cases = [raised("S3-01", "S3", exc), raised("S3-02", "S3", exc)]
     rc = find_root_causes(cases)[0]
     head, received = rc.evidence.split("; received ")
@@ -434,8 +451,8 @@ def test_on_a_tie_the_cases_defect_comes_before_what_fuzzing_found() -> None:
     """drops-coalesced: two fuzz failures (T1) and two R4 silences: the R4 one names the defect."""
     late = Silence(2.0)
     cases = [
-        raised("FUZZ-01", "R1 A1", fail(Level.MUST, "fuzz", "no failure", "fuzz failure", signature="fuzz:T1")),
-        raised("FUZZ-02", "S4 A1", fail(Level.MUST, "fuzz", "no failure", "fuzz failure", signature="fuzz:T1")),
+        raised("FUZZ-01", "R1 A1", fail(Level.MUST, "fuzz", "no failure", "fuzz failure", signature=Signature.fuzz("T1"))),
+        raised("FUZZ-02", "S4 A1", fail(Level.MUST, "fuzz", "no failure", "fuzz failure", signature=Signature.fuzz("T1"))),
         judged("R4-01", "R4 A1", late, ok(POSE, "R4: request 2 of 10 in one segment is answered")),
         judged("SEQ-R4", "R4 A1", late, ok(POSE, "R4: several frames in one segment are each answered")),
     ]

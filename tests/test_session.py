@@ -31,6 +31,7 @@ from conformance.suite.session import (
     responsive,
 )
 from conformance.suite.settings import SuiteSettings
+from conformance.suite.signature import DeathKind, Sig, Signature
 from conformance.suite.verdicts import Verdict
 
 PROFILE = Profile(time_out_ms=500)  # every silence in these tests costs at most this
@@ -218,10 +219,10 @@ def test_a_box_that_never_answers_ends_every_case_inconclusive_at_once(boxed: Ma
     box, state = boxed(**how)
     with pytest.raises(Inconclusive) as raised:
         ready(state, "C-1")
-    assert raised.value.signature == "unreachable:session start"
+    assert str(raised.value.signature) == "unreachable:session start"
     assert isinstance(state.baseline, kind) and not state.baseline_ok()
     assert state.concurrent is None and box.accepted <= 1  # no preflight on a box that never answered
-    assert [(d.case_id, d.kind) for d in state.deaths] == [("session start", "unresponsive")]
+    assert [(d.case_id, d.kind) for d in state.deaths] == [("session start", DeathKind.UNRESPONSIVE)]
     assert words in state.deaths[0].detail
     later = Transcript("C-2")
     with pytest.raises(Inconclusive):
@@ -258,7 +259,7 @@ def test_a_clean_case_is_not_probed_and_its_connections_are_counted(boxed: Make)
     transcript = ready(state)  # the case shares the transcript, as under the plugin
     case_connection(state, transcript).close()
     left_open = case_connection(state, transcript)
-    error = CaseVerdict(Verdict.FAIL, "A3: wrong answer", signature="answer:A3")
+    error = CaseVerdict(Verdict.FAIL, "A3: wrong answer", signature=Signature(Sig.ANSWER, clause="A3"))
     assert state.after_case("C-0", transcript, malformed_input=False, last_sent=b"", error=error) is error
     left_open.close()
     assert box.accepted == 5  # baseline, two preflight, two of the case: no liveness probe
@@ -292,7 +293,7 @@ def test_case_connections_are_closed_before_the_liveness_check(boxed: Make) -> N
     conn = case_connection(state, left_open)
     verdict = state.after_case("C-2", left_open, malformed_input=True, last_sent=b"", error=None)
     conn.close()
-    assert isinstance(verdict, CaseVerdict) and verdict.signature == "dead:C-2"
+    assert isinstance(verdict, CaseVerdict) and str(verdict.signature) == "dead:C-2"
 
 
 def test_a_box_gone_after_malformed_input_is_an_r2_failure(boxed: Make) -> None:
@@ -301,14 +302,14 @@ def test_a_box_gone_after_malformed_input_is_an_r2_failure(boxed: Make) -> None:
     box.close()  # killed by the case: refuses new connections, closed the witness too
     verdict = state.after_case("C-1", Transcript("C-1"), malformed_input=True, last_sent=b"\xfe\xfe\x00", error=None)
     assert isinstance(verdict, CaseVerdict) and verdict.verdict is Verdict.FAIL
-    assert verdict.judged == ("R2",) and verdict.signature == "dead:C-1" and verdict.sent == b"\xfe\xfe\x00"
-    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", "dead")]
+    assert verdict.judged == ("R2",) and str(verdict.signature) == "dead:C-1" and verdict.sent == b"\xfe\xfe\x00"
+    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", DeathKind.DEAD_AFTER_INPUT)]
     assert re.search(r"and a connection it accepted earlier (closed|reset) the connection too$", state.deaths[0].detail)
     assert state._witness is None and state.health.dead_since_case == "C-1"
     later = Transcript("C-2")
     with pytest.raises(Inconclusive) as raised:
         state.before_case("C-2", later)
-    assert raised.value.signature == "unreachable:C-1" and later.connections == {}
+    assert str(raised.value.signature) == "unreachable:C-1" and later.connections == {}
     again = Transcript("C-2")  # already known unreachable: no second probe, no second death
     assert state.after_case("C-2", again, malformed_input=True, last_sent=b"", error=None) is None
     assert again.connections == {} and len(state.deaths) == 1
@@ -320,9 +321,9 @@ def test_a_box_that_stops_accepting_but_answers_the_witness_breaks_s5(boxed: Mak
     assert state.concurrent is True
     verdict = state.after_case("C-1", Transcript("C-1"), malformed_input=True, last_sent=b"\x00", error=None)
     assert isinstance(verdict, CaseVerdict) and verdict.verdict is Verdict.FAIL
-    assert verdict.judged == ("S5",) and verdict.signature == "not-accepting" and verdict.requirement == S5_TEXT
+    assert verdict.judged == ("S5",) and str(verdict.signature) == "not-accepting" and verdict.requirement == S5_TEXT
     death = state.deaths[-1]
-    assert (death.case_id, death.kind) == ("C-1", "not-accepting")
+    assert (death.case_id, death.kind) == ("C-1", DeathKind.CONNECTION_LEAK)
     assert "yet it answers on a connection it accepted earlier" in death.detail
     assert state._witness is not None and box.accepted == 3
 
@@ -333,11 +334,11 @@ def test_a_case_that_could_not_connect_looks_for_the_death_and_is_explained_by_i
     ready(state)
     refused = Inconclusive("box unreachable: connect timed out", signature=UNREACHABLE_AT_CONNECT)
     assert state.after_case("C-1", Transcript("C-1"), malformed_input=False, last_sent=b"", error=refused) is refused
-    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", "not-accepting")]
+    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", DeathKind.CONNECTION_LEAK)]
     assert state.health.dead_since_case == "C-1"
     with pytest.raises(Inconclusive) as later:  # the later cases are refused at once, blamed on C-1
         state.before_case("C-2", Transcript("C-2"))
-    assert later.value.signature == "unreachable:C-1"
+    assert str(later.value.signature) == "unreachable:C-1"
 
 
 def test_an_ordinary_inconclusive_case_does_not_probe(boxed: Make) -> None:
@@ -417,9 +418,10 @@ def test_a_case_keeps_its_own_failure_and_the_death_is_added(boxed: Make,
     box.close()
     transcript = Transcript("C-1")
     transcript.timeouts = 1  # without malformed input, a time_out alone: the death is recorded, not judged
-    error = CaseVerdict(Verdict.FAIL, "R1: answered 0000 to a bad frame", judged=("R1",), signature="r1")
+    error = CaseVerdict(Verdict.FAIL, "R1: answered 0000 to a bad frame", judged=("R1",), signature=Signature.own("r1"))
     assert state.after_case("C-1", transcript, malformed_input=malformed, last_sent=b"", error=error) is error
-    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", "dead")] and state.health.dead_since_case == "C-1"
+    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", DeathKind.DEAD_AFTER_INPUT)]
+    assert state.health.dead_since_case == "C-1"
     assert error.judged == (("R1", "R2") if malformed else ("R1",))
     assert error.message.startswith("R1: answered 0000 to a bad frame (and then R2: after this case's input") is malformed
 
@@ -436,7 +438,7 @@ def test_deaths_accumulate_with_what_the_suite_had_opened_and_closed(boxed: Make
     assert state.after_case("C-2", second_case, malformed_input=False, last_sent=b"", error=None) is None
     box.mute.set()
     state.after_case("C-3", Transcript("C-3"), malformed_input=True, last_sent=b"", error=None)
-    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", "dead"), ("C-3", "dead")]
+    assert [(d.case_id, d.kind) for d in state.deaths] == [("C-1", DeathKind.DEAD_AFTER_INPUT), ("C-3", DeathKind.DEAD_AFTER_INPUT)]
     assert "stayed silent" in state.deaths[0].detail and "a connection it accepted earlier stayed silent" in \
         state.deaths[0].detail
     first, second = state.deaths
@@ -481,7 +483,7 @@ def test_a_box_that_comes_back_runs_cases_again(boxed: Make) -> None:
 
 
 def silence_fail(action: str) -> CaseVerdict:
-    return CaseVerdict(Verdict.FAIL, f"T1: {action} unanswered", signature=f"silence:{action}")
+    return CaseVerdict(Verdict.FAIL, f"T1: {action} unanswered", signature=Signature(Sig.SILENCE, action))
 
 
 def settle(state: SessionState, case_id: str, error: BaseException) -> None:
@@ -493,8 +495,8 @@ def test_an_action_is_known_late_after_enough_failed_cases(boxed: Make) -> None:
     assert LATE_CASES == 2
     settle(state, "A-1", silence_fail("CYCLE_ON"))
     assert state.known_late("CYCLE_ON") is None
-    settle(state, "A-2", Inconclusive("CYCLE_ON is not answered", signature="silence:CYCLE_ON"))  # not evidence
-    settle(state, "A-3", CaseVerdict(Verdict.NON_STRICT, "slow", signature="silence:CYCLE_ON"))  # nor this
+    settle(state, "A-2", Inconclusive("CYCLE_ON is not answered", signature=Signature(Sig.SILENCE, "CYCLE_ON")))  # not evidence
+    settle(state, "A-3", CaseVerdict(Verdict.NON_STRICT, "slow", signature=Signature(Sig.SILENCE, "CYCLE_ON")))  # nor this
     assert state.known_late("CYCLE_ON") is None
     settle(state, "A-4", silence_fail("CYCLE_ON"))
     assert state.known_late("CYCLE_ON") == ["A-1", "A-4"]

@@ -137,7 +137,7 @@ def spec_for(clause: str, side: str) -> CaseRecord:
     found = SPECS.get((clause, side))
     if found is None:
         known = clause in clause_ids()
-        level = Level(registry_clause(clause).level) if known else MUST
+        level = registry_clause(clause).level if known else MUST
         # not checked against the registry: the clause may be one it lacks (never drop a finding)
         found = CaseRecord(case_id(clause, side), (clause,), level,
                            f"{registry_clause(clause).title if known else clause} ({side})",

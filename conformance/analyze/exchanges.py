@@ -30,7 +30,7 @@ from ..observed.frames import FrameRecord
 from ..protocol import Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
-from ..suite.verdicts import Verdict
+from ..suite.verdicts import Verdict, broken_verdict
 from .catalogue import spec_for
 from .context import Context
 from .findings import BOX, ROBOT, Series, frames_text
@@ -181,7 +181,7 @@ class ConnJudge:
                      offset: int) -> Any:
         self.robot_errors += 1
         clause = err.clause
-        self.findings.add(clause, ROBOT, spec_for(clause, ROBOT).level.broken_verdict,
+        self.findings.add(clause, ROBOT, broken_verdict(spec_for(clause, ROBOT).level),
                           f"{self.label}, offset {offset}: {err.message}", (first, last), robot=raw)
         if clause in ("F2", "F1") and self.f4[ROBOT] < F4_SAMPLE:
             byte_order(self, ROBOT, err, raw, offset, t, last)
@@ -224,7 +224,7 @@ class ConnJudge:
         else:
             self.box_errors += 1
             clause = _BOX_CLAUSE.get(event.clause, event.clause)
-            self.findings.add(clause, BOX, spec_for(clause, BOX).level.broken_verdict,
+            self.findings.add(clause, BOX, broken_verdict(spec_for(clause, BOX).level),
                               f"{self.label}, offset {offset}: {event.message}", (first, last), box=raw)
             if event.clause in ("F2", "F1") and self.f4[BOX] < F4_SAMPLE:
                 byte_order(self, BOX, event, raw, offset, t, last)

@@ -31,7 +31,7 @@ from ..protocol.answers import (
     rule_for_error,
     rule_for_frame,
 )
-from ..suite.verdicts import Verdict
+from ..suite.verdicts import Level, Verdict, broken_verdict
 from .findings import BOX, ROBOT
 from .timing import backlog
 
@@ -89,7 +89,7 @@ def _case(finding: Any, exp: Expectation, action: int | None) -> str | None:
         return _CODE_CASE.get(Action(action), "A3") if action in _ACTIONS else "A3"
     if exp.rule is Rule.DROP:
         return "R7"
-    if exp.rule in (Rule.REJECT, Rule.NOT_REQUEST) and finding.level == "MUST":
+    if exp.rule in (Rule.REJECT, Rule.NOT_REQUEST) and finding.level is Level.MUST:
         return "R1"
     return str(finding.clause)
 
@@ -115,7 +115,7 @@ def judge_pair(j: ConnJudge, exp: Expectation | None, r_action: int | None, r_ev
         case = _case(finding, exp, r_action)
         if case is None or (case in ("S3", "S2", "A3", "A4") and not answered_ok):
             continue
-        verdict = Verdict.FAIL if finding.level == "MUST" else Verdict.NON_STRICT
+        verdict = broken_verdict(finding.level)
         f.add(case, BOX, verdict, f"{label}: {finding.requirement}; got {text}", frames, robot=r_raw, box=raw)
         filed = True
     if not filed:

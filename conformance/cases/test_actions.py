@@ -17,6 +17,7 @@ from conformance.protocol import (
     ACTION_ERROR,
     Action,
     Block,
+    ErrorCode,
     Frame,
     Header,
     Profile,
@@ -27,8 +28,9 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
+from conformance.protocol.answers import Cycle
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Skip, answered
+from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed, reply_signature
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 
@@ -36,9 +38,9 @@ POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
 ON, OFF, NONE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE
 #: A1-01/A1-02: what a sequence of requests is judged by
 SEQUENCE = {
-    "order": Requirement("A1: every well-formed request is answered with exactly one frame, in request order"),
-    "once": Requirement("A1: exactly one answer per request"),
-    "taken": Requirement("A1: the box answers every request"),
+    "order": Requirement(("A1",), "every well-formed request is answered with exactly one frame, in request order"),
+    "once": Requirement(("A1",), "exactly one answer per request"),
+    "taken": Requirement(("A1",), "the box answers every request"),
 }
 
 
@@ -75,7 +77,8 @@ def _judge_sequence(isight: CaseContext, conn: TcpConnection, frames: list[Frame
             before = ", ".join(_name(action_of(o)) for o in outcomes[max(0, i - 2): i + 1])
             raise isight.broken("order", expected=f"answer {i + 1} of {len(frames)} echoes {frame.action.name}",
                                 observed=f"{outcome.describe()} (answers {max(1, i - 1)}..{i + 1}: {before})",
-                                sent=sent, received=isight.transcript.received(conn.conn_id))
+                                sent=sent, received=isight.transcript.received(conn.conn_id),
+                                signature=reply_signature(outcome, frame.action))
     extra = conn.drain(isight.settings.settle_s)
     if any(not isinstance(o, Closed) for o in extra):
         raise isight.broken("once", expected=f"{len(frames)} answers and nothing more",
@@ -148,8 +151,8 @@ A2_ACTIONS = [
 
 @case("A2-01", ["A2", "F3"], Level.MUST, "Answers carry transfer type 10, echo the action and carry no blocks",
       "every answer's bytes 4..9 are 10, the action, 00, 00, 00 00, and it is 14 bytes long",
-      checks={"shape": Requirement("A2: an answer has transfer type 10, echoes the action and carries no blocks"),
-              "answered": Requirement("A1: the {action.name} request is answered",
+      checks={"shape": Requirement(("A2",), "an answer has transfer type 10, echoes the action and carries no blocks"),
+              "answered": Requirement(("A1",), "the {action.name} request is answered",
                                       accept=lambda action, **_: answered(action))})
 @pytest.mark.parametrize("actions", [a for _, a in A2_ACTIONS], ids=[i for i, _ in A2_ACTIONS])
 def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None:
@@ -177,13 +180,14 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
             if not problems:  # the shape is right; what is wrong (e.g. A4) is judged elsewhere
                 continue
             raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00",
-                                observed="; ".join(problems) or str(outcome.error), sent=sent, received=raw)
+                                observed="; ".join(problems) or str(outcome.error), sent=sent, received=raw,
+                                signature=reply_signature(outcome, action))
         isight.judge(outcome, "answered", sent=sent, action=action)
         assert isinstance(outcome, Answer)
         problems = _shape_problems(outcome.raw, action)
         if problems:
             raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00 (14 bytes)", observed="; ".join(problems),
-                                sent=sent, received=outcome.raw)
+                                sent=sent, received=outcome.raw, signature=reply_signature(outcome, action))
 
 
 # -- A3: error codes ----------------------------------------------------------------------------
@@ -206,8 +210,8 @@ def _malformed_set(action: Action, first: int, profile: Profile) -> list[tuple[s
 
 @case("A3-01", ["A3", "B3", "B5"], Level.MUST, "Malformed 23/24/25 requests get the action's error, never 0000",
       "on one connection, each is not answered 0000 (MUST) and is answered 1001 (23/24) or 1002 (25) (SHOULD)",
-      checks={"no-0000": Requirement("A3: a {action.name} request with {what} MUST NOT be answered 0000", accept=NOT_OK),
-              "code": Requirement("A3: a {action.name} request with {what} SHOULD be answered {error:04X}",
+      checks={"no-0000": Requirement(("A3",), "a {action.name} request with {what} MUST NOT be answered 0000", accept=NOT_OK),
+              "code": Requirement(("A3",), "a {action.name} request with {what} SHOULD be answered {error:04X}",
                                   level=Level.SHOULD,
                                   accept=lambda action, **_: answered(action, [ACTION_ERROR[action]]))})
 @pytest.mark.parametrize("action", [POSE, REG, TOL], ids=["pose", "register-pose", "tolerance"])
@@ -229,13 +233,13 @@ NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
 
 @case("A3-02", ["A3", "S2"], Level.MUST, "CycleOn is answered 0000 or 0001, CycleOff 0000 or 0002",
       "from an idle box: CycleOn answered 0000 (or 0001: not ready, then INCONCLUSIVE); CycleOff then answered 0000 or 0002",
-      checks={"idle": Requirement("S3: a CycleOff first brings the box to idle (its answer is not judged)",
+      checks={"idle": Requirement(("S3",), "a CycleOff first brings the box to idle (its answer is not judged)",
                                   inconclusive=NOT_ANSWERED, inconclusive_text="could not bring the box to idle"),
-              "on": Requirement("S2/A3: CycleOn is answered 0000, or 0001 when not ready", accept=answered(ON, [0, 1]),
-                                inconclusive=answered(ON, [1]),
+              "on": Requirement(("S2", "A3"), "CycleOn is answered 0000, or 0001 when not ready", accept=answered_allowed(ON, Cycle.IDLE),
+                                inconclusive=answered(ON, [ErrorCode.NOT_READY]),
                                 inconclusive_text="S2: CycleOn answered 0001 (box not ready): CycleOff after it is not judged"),
-              "off": Requirement("A3: CycleOff is answered 0000, or 0002 when the detection could not be closed",
-                                 accept=answered(OFF, [0, 2]), informational=answered(OFF, [2]),
+              "off": Requirement(("A3",), "CycleOff is answered 0000, or 0002 when the detection could not be closed",
+                                 accept=answered_allowed(OFF, Cycle.ON), informational=answered(OFF, [ErrorCode.CYCLE_OFF_FAILED]),
                                  informational_text="CycleOff answered 0002: the box could not close the detection (A3)")})
 def test_cycle_codes(isight: CaseContext) -> None:
     conn = isight.connect()
@@ -249,7 +253,7 @@ def test_cycle_codes(isight: CaseContext) -> None:
 
 @case("A4-01", ["A4"], Level.MUST, "NONE (action 00) is answered NONE with 0000",
       "each NONE request, on a fresh connection and three in a row on one connection, is answered NONE 0000",
-      checks={"": Requirement("A4: action 00 is answered with action 00 and error 0000", accept=answered(NONE, [0]))})
+      checks={"": Requirement(("A4",), "action 00 is answered with action 00 and error 0000", accept=answered_allowed(NONE))})
 def test_none_answered(isight: CaseContext) -> None:
     isight.judge(isight.exchange(request(NONE), "NONE request on a fresh connection"))
     conn = isight.connect()
@@ -298,7 +302,7 @@ def not_request(fields: dict[str, int], body: str, isight: CaseContext) -> bytes
 
 @case("A5-01", ["A5", "R1", "F1", "F2", "F3"], Level.MUST, "A frame that is not a request is never answered 0000",
       "silence, a non-zero error, or a close; never 0000",
-      checks={"": Requirement("A5: a frame that is not a request MUST NOT be answered 0000", accept=NOT_OK)})
+      checks={"": Requirement(("A5",), "a frame that is not a request MUST NOT be answered 0000", accept=NOT_OK)})
 @pytest.mark.parametrize("fields,body", [c[1:] for c in NOT_REQUESTS], ids=[c[0] for c in NOT_REQUESTS])
 def test_not_a_request(isight: CaseContext, fields: dict[str, int], body: str) -> None:
     bad = not_request(fields, body, isight)
@@ -315,7 +319,7 @@ def _type03_answer(action: Action, **_: object) -> Expect:
 
 @case("A5-02", ["A5", "R1", "E2", "E3"], Level.MUST, "Without extension E, actions 26 and 27 are unknown and never answered 0000",
       "SKIP when the box implements E; else silence, a non-zero error, or a close to 26 and 27; never 0000",
-      checks={"": Requirement("A5: without E, action {action:02x} is unknown and MUST NOT be answered 0000", accept=NOT_OK,
+      checks={"": Requirement(("A5",), "without E, action {action:02x} is unknown and MUST NOT be answered 0000", accept=NOT_OK,
                               inconclusive=_type03_answer,
                               inconclusive_text="the box answers {action:02x} with a type-03 block (it seems to implement "
                                                 "E), but the answer does not parse under this run's profile; check the "

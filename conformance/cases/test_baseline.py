@@ -11,17 +11,18 @@ from __future__ import annotations
 from conformance.harness.client import Answer
 from conformance.protocol import Action, encode, request
 from conformance.suite.context import CaseContext, answers_none
-from conformance.suite.judge import answered
+from conformance.suite.judge import answered_allowed
 from conformance.suite.record import Requirement, case
 from conformance.suite.session import responsive
+from conformance.suite.signature import Signature
 from conformance.suite.verdicts import Level
 
 
 @case("T1-00", ["A4", "T1"], Level.MUST, "Baseline: NONE is answered 0000 on a fresh connection within time_out",
       "NONE answered with action 00 and error 0000 within time_out", needs=("any-profile", "always"),
-      checks={"": Requirement("A4/T1: action 00 is answered with action 00 and error 0000 within time_out",
-                              accept=answered(Action.NONE, [0])),
-              "unanswered": Requirement("A4/T1: the box does not answer a NONE request in this profile, so every "
+      checks={"": Requirement(("A4", "T1"), "action 00 is answered with action 00 and error 0000 within time_out",
+                              accept=answered_allowed(Action.NONE)),
+              "unanswered": Requirement(("A4", "T1"), "the box does not answer a NONE request in this profile, so every "
                                         "other case is INCONCLUSIVE (if the box is up, PROFILE-01 tells which profile "
                                         "it appears to use)")})
 def test_baseline(isight: CaseContext) -> None:
@@ -36,4 +37,4 @@ def test_baseline(isight: CaseContext) -> None:
     if responsive(outcome):  # it answers, wrongly: judged like any answer (a malformed one fails on its format)
         isight.judge(outcome)
     raise isight.broken("unanswered", expected="NONE answered 0000 within time_out", observed=outcome.describe(),
-                        sent=isight.last_sent, received=outcome.raw, signature="unreachable:session start")
+                        sent=isight.last_sent, received=outcome.raw, signature=Signature.unreachable("session start"))

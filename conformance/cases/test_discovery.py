@@ -46,6 +46,7 @@ from conformance.protocol import (
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, Skip
 from conformance.suite.record import Requirement, case
+from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import Level
 
 ORDERS = ("big", "little")
@@ -328,8 +329,8 @@ def _answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
 @case("F4-01", ["F4"], Level.MUST, "Answers' multi-byte fields are in the profile's byte order (big-endian)",
       "the version reads 00 01, the error code of an answer to a malformed pose reads 10 01 (not 01 10), the "
       "block length of a ProgIdx answer reads 00 05 (extension only); little-endian under --byte-order=little",
-      checks={"header-order": Requirement("F4: multi-byte header fields are {order}-endian"),
-              "": Requirement("F4: multi-byte fields are {order}-endian ({what})")})
+      checks={"header-order": Requirement(("F4",), "multi-byte header fields are {order}-endian"),
+              "": Requirement(("F4",), "multi-byte fields are {order}-endian ({what})")})
 def test_answer_byte_order(isight: CaseContext) -> None:
     order = isight.profile.byte_order
     judged: list[str] = []
@@ -344,7 +345,8 @@ def test_answer_byte_order(isight: CaseContext) -> None:
             isight.details.setdefault("not_judged", []).append(f"{what}: read {got.hex(' ')} (not F4's business)")
             return
         # the same defect as every other case sees in those answers: group them under one root cause
-        signature = {2: f"answer:F2:version={got.hex()}", 10: "swapped:error-code"}.get(offset, "")
+        signature = {2: Signature(Sig.ANSWER, clause="F2", field="version", value=got.hex()),
+                     10: Signature(Sig.SWAPPED, "error-code")}.get(offset)
         raise isight.broken(expected=want.hex(" "), observed=f"{got.hex(' ')}: {what} in the other byte order",
                             sent=sent, received=raw, signature=signature, order=order, what=what)
 

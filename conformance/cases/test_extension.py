@@ -30,9 +30,9 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
-from conformance.protocol.answers import CONFLICT, SENDABLE_RESULTS
+from conformance.protocol.answers import CONFLICT, Cycle
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, answered
+from conformance.suite.judge import Inconclusive, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 from conformance.trajectory import PrimerTrajectory
@@ -51,14 +51,14 @@ def _err(code: int) -> str:
     return f"0x{code:04X}"
 
 
-def prog_idx_checks(clause: str) -> dict[str, Requirement]:
-    """E2's requirements for ProgIdx, under the clause label the case judges it with."""
+def prog_idx_checks(*clauses: str) -> dict[str, Requirement]:
+    """E2's requirements for ProgIdx, under the clauses the case judges it with."""
     return {
-        "prog-idx": Requirement(f"{clause}: ProgIdx (26) is answered with one type-03 block (index + int32, L = 5)",
+        "prog-idx": Requirement(clauses, "ProgIdx (26) is answered with one type-03 block (index + int32, L = 5)",
                                 accept=answered(Action.PROG_IDX)),
-        "prog-idx-block": Requirement(f"{clause}: ProgIdx is answered with the same index ({{value}}) or 409 in the "
+        "prog-idx-block": Requirement(clauses, "ProgIdx is answered with the same index ({value}) or 409 in the "
                                       "block; the error field stays 0000 (profile progidx_conflict=block)"),
-        "prog-idx-error-code": Requirement(f"{clause}: ProgIdx is answered with the same index ({{value}}) and error "
+        "prog-idx-error-code": Requirement(clauses, "ProgIdx is answered with the same index ({value}) and error "
                                            "0000, or with 409 in the error field (profile progidx_conflict=error-code)"),
     }
 
@@ -102,7 +102,7 @@ def judge_prog_idx(isight: CaseContext, outcome: Outcome, value: int, sent: byte
 @pytest.mark.parametrize("value", [-1, -(2**31), 2**31 - 1, 0x01020304], ids=["negative", "int32-min", "int32-max", "bytes"])
 @case("E1-01", ["E1", "E2"], Level.MUST, "A ProgIdx block holds any signed big-endian int32",
       "a ProgIdx with a negative or large int32 is well-formed: answered with one type-03 block holding the "
-      "same value (or 409 per the profile's progidx_conflict)", checks=prog_idx_checks("E1/E2"))
+      "same value (or 409 per the profile's progidx_conflict)", checks=prog_idx_checks("E1", "E2"))
 def test_prog_idx_int32_range(isight: CaseContext, value: int) -> None:
     isight.require_extension()
     frame = _prog_idx(isight, value)
@@ -129,9 +129,9 @@ def test_prog_idx_answer(isight: CaseContext) -> None:
 
 @case("E3-01", ["E3", "E1"], Level.MUST, "A result request is answered with a ResultCode within vision_time_out",
       "one type-03 block holding 1, 2, 10, 20, 202, 400 or 409 (never 0 or 404), within vision_time_out",
-      checks={"": Requirement("E3: a result request is answered within vision_time_out ({vision_ms:.0f} ms) with one "
+      checks={"": Requirement(("E3",), "a result request is answered within vision_time_out ({vision_ms:.0f} ms) with one "
                               "type-03 block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; "
-                              "never 0 or 404)", accept=answered(Action.VISION_RESULT, values=SENDABLE_RESULTS))})
+                              "never 0 or 404)", accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
 def test_vision_result(isight: CaseContext) -> None:
     isight.require_extension()
     vision_s = isight.profile.vision_time_out_ms / 1000
@@ -188,20 +188,20 @@ def _request_result(isight: CaseContext, conn: TcpConnection) -> int:
       "ProgIdx → stream on → CycleOn → trajectory → CycleOff → stream off → 1 s → result request: ProgIdx "
       "echoed, every other answer 0000, a ResultCode within vision_time_out (202 retried; still busy is "
       "INFORMATIONAL; ProgIdx 409, CycleOn 0001 or CycleOff 0002 make the rest INCONCLUSIVE)",
-      checks={**prog_idx_checks("E4/E2"),
-              "pose": Requirement("E4/S3: every pose of the stream is answered 0000 ({phase})",
-                                  accept=answered(Action.POSE, [0])),
-              "on": Requirement("E4/S2: CycleOn is answered 0000 (or 0001)", accept=answered(Action.CYCLE_ON, [0, 1]),
+      checks={**prog_idx_checks("E4", "E2"),
+              "pose": Requirement(("E4", "S3"), "every pose of the stream is answered 0000 ({phase})",
+                                  accept=answered_allowed(Action.POSE)),
+              "on": Requirement(("E4", "S2"), "CycleOn is answered 0000 (or 0001)", accept=answered_allowed(Action.CYCLE_ON, Cycle.IDLE),
                                 inconclusive=answered(Action.CYCLE_ON, [ErrorCode.NOT_READY]),
                                 inconclusive_text="CycleOn answered 0001 (box not ready): the rest of the session is "
                                                   "not judged (S2)"),
-              "off": Requirement("E4/S1: CycleOff is answered 0000", accept=answered(Action.CYCLE_OFF, [0, 2]),
+              "off": Requirement(("E4", "S1"), "CycleOff is answered 0000", accept=answered_allowed(Action.CYCLE_OFF, Cycle.ON),
                                  inconclusive=answered(Action.CYCLE_OFF, [ErrorCode.CYCLE_OFF_FAILED]),
                                  inconclusive_text="CycleOff answered 0002 (detection not closed): the result is not "
                                                    "judged (A3)"),
-              "result": Requirement("E4/E3: the result request is answered within vision_time_out with a ResultCode "
+              "result": Requirement(("E4", "E3"), "the result request is answered within vision_time_out with a ResultCode "
                                     "(1, 2, 10, 20, 202, 400, 409)",
-                                    accept=answered(Action.VISION_RESULT, values=SENDABLE_RESULTS))})
+                                    accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
 def test_extended_session(isight: CaseContext) -> None:
     isight.require_extension()
     conn = isight.connect("command")
@@ -227,7 +227,7 @@ def test_extended_session(isight: CaseContext) -> None:
 
 @case("E5-01", ["E5", "T1"], Level.MUST, "time_out bounds every action except 27",
       "ProgIdx and every core action (00, 01, 23, 24, 25, 02) are answered within time_out",
-      checks={"": Requirement("E5/T1: time_out ({time_out_ms:.0f} ms) bounds {name}: it is answered within time_out",
+      checks={"": Requirement(("E5", "T1"), "time_out ({time_out_ms:.0f} ms) bounds {name}: it is answered within time_out",
                               accept=Expect("an answer within time_out",
                                             lambda o: not isinstance(o, (Silence, Closed))))})
 def test_time_out_bounds_actions(isight: CaseContext) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 from conformance.fuzz.campaign import Campaign, CampaignConfig
 from conformance.suite.context import CaseContext
 from conformance.suite.record import Requirement, case
+from conformance.suite.signature import Signature
 from conformance.suite.verdicts import Level
 
 FRAMES_S = 2.0
@@ -49,8 +50,9 @@ def _campaign(isight: CaseContext, name: str, seconds: float, stateful_share: fl
     return summary
 
 
-#: what a campaign's failures judge: the words come from the oracle's findings
-FINDINGS = {"failure": Requirement("{finding}"), "non-strict": Requirement("{finding}", level=Level.SHOULD)}
+#: what a campaign's failures judge: the words and the clauses come from the oracle's findings
+FINDINGS = {"failure": Requirement((), "{finding}", judged_from="clauses"),
+            "non-strict": Requirement((), "{finding}", level=Level.SHOULD, judged_from="clauses")}
 
 
 def _judge(isight: CaseContext, summary: dict[str, Any]) -> None:
@@ -62,15 +64,17 @@ def _judge(isight: CaseContext, summary: dict[str, Any]) -> None:
         sent = bytes.fromhex(first["cases"][0]["hex"]) if first["cases"] else b""
         clause = first["clauses"][0] if first["clauses"] else "R1"
         # a malformed answer found by fuzzing groups with the cases that found the same malformation
-        signature = f"fuzz:answer/{clause}" if "conforming frames" in first["message"] else f"fuzz:{clause}"
+        signature = Signature.fuzz(clause, malformed_answer="conforming frames" in first["message"])
         raise isight.broken("failure", expected="no failure: every example answered as PROTOCOL.md allows",
                             observed=f"fuzz failure ({first['kind']}, seed {summary['seed']}){where}", sent=sent,
-                            signature=signature, finding=f"{', '.join(first['clauses'])}: {first['message']}{more}")
+                            signature=signature, finding=f"{', '.join(first['clauses'])}: {first['message']}{more}",
+                            clauses=tuple(first["clauses"]))
     if summary["non_strict"]:
         obs = summary["non_strict"][0]
         raise isight.broken("non-strict", expected="every SHOULD of PROTOCOL.md kept",
                             observed=f"the box {obs['observed']} (×{obs['count']})", sent=bytes.fromhex(obs["hex"]),
-                            signature=f"fuzz:{obs['key']}", finding=f"[{obs['clause']}] {obs['requirement']}")
+                            signature=Signature.fuzz(obs["clause"], key=obs["key"]), finding=f"[{obs['clause']}] {obs['requirement']}",
+                            clauses=(obs["clause"],))
 
 
 @case("FUZZ-01", ["R1", "R2", "A1", "A3", "A5", "B3", "B4", "B5", "F5", "R6"], Level.MUST,

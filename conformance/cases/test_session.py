@@ -7,9 +7,10 @@ import time
 
 from conformance.harness.client import Answer, Closed, Outcome, Silence, TcpConnection
 from conformance.harness.transcript import Kind
-from conformance.protocol import Action, Frame, pose_blocks, request, tolerance_blocks
+from conformance.protocol import Action, ErrorCode, Frame, pose_blocks, request, tolerance_blocks
+from conformance.protocol.answers import CANONICAL_CODES, Cycle
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import CLOSED, answered
+from conformance.suite.judge import CLOSED, answered, answered_allowed
 from conformance.suite.record import Requirement, case
 from conformance.suite.sequence import PoseStream, latency_figures, percentile
 from conformance.suite.verdicts import Level
@@ -17,12 +18,12 @@ from conformance.suite.verdicts import Level
 HOME = (800.0, -100.0, 300.0, 180.0, 0.0, 0.0)
 ON, OFF, NONE, POSE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE, Action.POSE
 #: what the session cases judge
-ANSWERED = Requirement("A1: a well-formed {action.name} request is answered", accept=lambda action, **_: answered(action))
-NONE_0 = Requirement("A1: NONE is answered 0000", accept=answered(NONE, [0]))
-CYCLE_ON = Requirement("S2: CycleOn is answered 0000, or 0001 when not ready", accept=answered(ON, [0, 1]))
-READY = Requirement("S2: the box is ready for a cycle", inconclusive=answered(ON, [1]),
+ANSWERED = Requirement(("A1",), "a well-formed {action.name} request is answered", accept=lambda action, **_: answered(action))
+NONE_0 = Requirement(("A1",), "NONE is answered 0000", accept=answered_allowed(NONE))
+CYCLE_ON = Requirement(("S2",), "CycleOn is answered 0000, or 0001 when not ready", accept=answered_allowed(ON, Cycle.IDLE))
+READY = Requirement(("S2",), "the box is ready for a cycle", inconclusive=answered(ON, [ErrorCode.NOT_READY]),
                     inconclusive_text="CycleOn answered 0001 (box not ready): the rest of the cycle cannot be judged (S2)")
-POSES_0 = Requirement("S3: poses are answered 0000 whether or not a cycle is on", accept=answered(POSE, [0]))
+POSES_0 = Requirement(("S3",), "poses are answered 0000 whether or not a cycle is on", accept=answered_allowed(POSE))
 
 
 def _frame(isight: CaseContext, action: Action) -> Frame:
@@ -78,10 +79,10 @@ def _not_delayed(isight: CaseContext, base: list[float], during: list[float]) ->
 @case("S1-01", ["S1", "S2", "S3", "A1", "T1"], Level.MUST, "The canonical session completes with every answer 0000",
       "every answer 0000 within time_out and every streamed pose answered 0000; CycleOn 0001 → INCONCLUSIVE",
       checks={"answered": ANSWERED, "cycle-on": CYCLE_ON, "ready": READY,
-              "configure": Requirement("S1: configure step {action.name} is answered 0000",
-                                       accept=lambda action, **_: answered(action, [0])),
-              "cycle-off": Requirement("S1: CycleOff is answered 0000 on a ready box", accept=answered(OFF, [0])),
-              "stream": Requirement("S1/S6: the stream of the canonical session")})
+              "configure": Requirement(("S1",), "configure step {action.name} is answered 0000",
+                                       accept=lambda action, **_: answered_allowed(action)),
+              "cycle-off": Requirement(("S1",), "CycleOff is answered 0000 on a ready box", accept=answered(OFF, CANONICAL_CODES)),
+              "stream": Requirement(("S1", "S6"), "the stream of the canonical session")})
 def test_canonical_session(isight: CaseContext) -> None:
     command = isight.connect("command")
     for action in (Action.NONE, Action.TOLERANCE, Action.REGISTER_POSE):
@@ -105,7 +106,7 @@ def test_canonical_session(isight: CaseContext) -> None:
 @case("S2-01", ["S2", "A1"], Level.MUST, "CycleOn is answered 0000, or 0001 when the box is not ready",
       "CycleOn answered with 0000 or 0001 (0001 is reported)",
       checks={"answered": ANSWERED,
-              "cycle-on": Requirement(CYCLE_ON.text, accept=CYCLE_ON.accept, informational=answered(ON, [1]),
+              "cycle-on": Requirement(CYCLE_ON.clauses, CYCLE_ON.text, accept=CYCLE_ON.accept, informational=answered(ON, [ErrorCode.NOT_READY]),
                                       informational_text="CycleOn answered 0001: the box says it is not ready; cycle "
                                                          "cases are INCONCLUSIVE")})
 def test_cycle_on(isight: CaseContext) -> None:
@@ -138,8 +139,8 @@ def test_poses_after_cycle_off(isight: CaseContext) -> None:
 @case("S3-03", ["S3", "A1"], Level.MUST, "CycleOff without CycleOn is answered (0000 or an error: MAY)",
       "answered; what it answered is INFORMATIONAL",
       checks={"answered": ANSWERED,
-              "again": Requirement("A1: CycleOff with no cycle on is answered (0000 or an error: MAY, S3)",
-                                   accept=answered(OFF), informational=answered(OFF),
+              "again": Requirement(("A1",), "CycleOff with no cycle on is answered (0000 or an error: MAY, S3)",
+                                   accept=answered_allowed(OFF, Cycle.IDLE), informational=answered(OFF),
                                    informational_text="CycleOff with no cycle on: the box {outcome}")})
 def test_cycle_off_without_cycle_on(isight: CaseContext) -> None:
     conn = isight.connect()
@@ -150,7 +151,7 @@ def test_cycle_off_without_cycle_on(isight: CaseContext) -> None:
 @case("S3-04", ["S3", "A1"], Level.MUST, "CycleOn twice is answered (0000 or an error: MAY)",
       "answered; what it answered is INFORMATIONAL",
       checks={"answered": ANSWERED, "cycle-on": CYCLE_ON, "ready": READY,
-              "again": Requirement("A1: a second CycleOn is answered (0000 or an error: MAY, S3)", accept=answered(ON),
+              "again": Requirement(("A1",), "a second CycleOn is answered (0000 or an error: MAY, S3)", accept=answered_allowed(ON, Cycle.ON),
                                    informational=answered(ON),
                                    informational_text="a second CycleOn while a cycle is on: the box {outcome}")})
 def test_cycle_on_twice(isight: CaseContext) -> None:
@@ -164,9 +165,9 @@ def test_cycle_on_twice(isight: CaseContext) -> None:
       "while the stream holds half a frame and sends nothing, command answers come within time_out and "
       "their p50 stays ≤ baseline p50 + max(100 ms, 5×)",
       checks={"none": NONE_0,
-              "during": Requirement("S4: a silent stream connection never delays the command connection",
-                                    accept=answered(NONE, [0])),
-              "": Requirement("S4: a silent stream connection never delays answers on the command connection")})
+              "during": Requirement(("S4",), "a silent stream connection never delays the command connection",
+                                    accept=answered_allowed(NONE)),
+              "": Requirement(("S4",), "a silent stream connection never delays answers on the command connection")})
 def test_silent_stream(isight: CaseContext) -> None:
     base_conn = isight.connect("command (baseline)")
     base = _p50_latency(isight, base_conn, 10, "none")
@@ -188,10 +189,10 @@ def test_silent_stream(isight: CaseContext) -> None:
       "with poses flowing at the profile rate, command answers come within time_out, p50 ≤ baseline p50 + "
       "max(100 ms, 5×), and every pose is answered",
       checks={"none": NONE_0,
-              "during": Requirement("S4: the command connection is served while the stream is busy",
-                                    accept=answered(NONE, [0])),
-              "stream": Requirement("S4/S6: the stream served next to the command connection"),
-              "": Requirement("S4: a busy stream never delays answers on the command connection")})
+              "during": Requirement(("S4",), "the command connection is served while the stream is busy",
+                                    accept=answered_allowed(NONE)),
+              "stream": Requirement(("S4", "S6"), "the stream served next to the command connection"),
+              "": Requirement(("S4",), "a busy stream never delays answers on the command connection")})
 def test_busy_stream(isight: CaseContext) -> None:
     base_conn = isight.connect("command (baseline)")
     base = _p50_latency(isight, base_conn, 10, "none")
@@ -211,10 +212,10 @@ def test_busy_stream(isight: CaseContext) -> None:
 
 @case("S5-01", ["S5", "T1"], Level.MUST, "100 connect/disconnect cycles leave the box as responsive as the first",
       "every connect accepted; afterwards NONE on a fresh connection answered with p50 ≤ before p50 + max(50 ms, 5×)",
-      checks={"fresh": Requirement("S5: a fresh connection is answered", accept=answered(NONE, [0])),
-              "cycle": Requirement("S5: every cycle's connection is served", accept=answered(NONE, [0])),
-              "freed": Requirement("S5: after the robot closes a connection the box frees it"),
-              "": Requirement("S5: a hundred connect/disconnect cycles leave the box as responsive as the first")})
+      checks={"fresh": Requirement(("S5",), "a fresh connection is answered", accept=answered_allowed(NONE)),
+              "cycle": Requirement(("S5",), "every cycle's connection is served", accept=answered_allowed(NONE)),
+              "freed": Requirement(("S5",), "after the robot closes a connection the box frees it"),
+              "": Requirement(("S5",), "a hundred connect/disconnect cycles leave the box as responsive as the first")})
 def test_connect_cycles(isight: CaseContext) -> None:
     def fresh(n: int) -> list[float]:
         out = []
@@ -244,7 +245,7 @@ def test_connect_cycles(isight: CaseContext) -> None:
 
 @case("S5-02", ["S5"], Level.MUST, "After the robot closes, the box closes its side",
       "after our FIN (half-close, still reading) the box's FIN or RST arrives within time_out",
-      checks={"none": NONE_0, "": Requirement("S5: after the robot closes a connection the box closes its side",
+      checks={"none": NONE_0, "": Requirement(("S5",), "after the robot closes a connection the box closes its side",
                                               accept=CLOSED)})
 def test_box_closes_its_side(isight: CaseContext) -> None:
     conn = isight.connect()
@@ -265,8 +266,8 @@ def test_box_closes_its_side(isight: CaseContext) -> None:
 @case("S6-01", ["S6", "A1"], Level.MUST, "200 pipelined requests are all answered, in order",
       "200 requests sent without waiting (poses, with RegisterPose and Tolerance among them) get 200 answers "
       "echoing each request's action in order, each 0000",
-      checks={"": Requirement("S6/A1: request {n} of 200 pipelined is answered, in request order",
-                              accept=lambda action, **_: answered(action, [0]))})
+      checks={"": Requirement(("S6", "A1"), "request {n} of 200 pipelined is answered, in request order",
+                              accept=lambda action, **_: answered_allowed(action))})
 def test_pipelined(isight: CaseContext) -> None:
     conn = _stream(isight)
     actions = [Action.REGISTER_POSE if i % 10 == 9 else Action.TOLERANCE if i % 25 == 12 else Action.POSE

@@ -37,7 +37,7 @@ def _within(isight: CaseContext, outcome: Outcome, frame: Frame, where: str) -> 
 @case("T1-01", ["T1", "A1"], Level.MUST, "Every answer arrives within time_out",
       "each request of a session (NONE, Tolerance, RegisterPose, CycleOn, 20 poses, CycleOff, a 255-pose frame) "
       "and five requests on fresh connections are answered within time_out; latency distribution reported",
-      checks={"": Requirement("T1: every answer arrives within time_out ({time_out_ms:.0f} ms) of its request ({where})",
+      checks={"": Requirement(("T1",), "every answer arrives within time_out ({time_out_ms:.0f} ms) of its request ({where})",
                               accept=lambda action, **_: answered(action))})
 def test_every_answer_within_time_out(isight: CaseContext) -> None:
     conn = isight.connect()
@@ -60,7 +60,7 @@ def test_every_answer_within_time_out(isight: CaseContext) -> None:
 @case("T2-01", ["T2", "S6", "T1"], Level.MUST, "The pose stream at the profile rate: every pose answered, no backlog",
       "streaming at the profile rate for --stream-seconds, every pose answered 0000 within time_out, none lost, "
       "and last-quarter p50 latency ≤ first-quarter p50 + max(20 ms, 3×)",
-      checks={"stream": Requirement("T2: at the configured stream rate")})
+      checks={"stream": Requirement(("T2",), "at the configured stream rate")})
 def test_stream_at_rate(isight: CaseContext) -> None:
     rate, seconds = isight.profile.pose_rate_hz, isight.settings.stream_seconds
     conn = isight.connect("stream", target=isight.session.stream_target())

@@ -27,6 +27,7 @@ from conformance.protocol import (
     ACTION_ERROR,
     HEADER_LEN,
     Action,
+    ErrorCode,
     ProtocolError,
     TransferType,
     Transport,
@@ -34,8 +35,9 @@ from conformance.protocol import (
     parse_header,
     request,
 )
+from conformance.protocol.answers import Cycle
 from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Skip, answered
+from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
 from conformance.vectors import REPO_VECTORS, Vector, load_dir
@@ -123,29 +125,29 @@ def _prog_idx_expect(value: int) -> Expect:
 
 def _valid_expect(v: Vector, action: Action) -> Expect:
     if action is Action.CYCLE_ON:
-        return answered(action, [0, 1])
+        return answered_allowed(action, Cycle.IDLE)
     if action is Action.CYCLE_OFF:
-        return answered(action, [0, 2])
+        return answered_allowed(action, Cycle.ON)
     if action is Action.PROG_IDX:
         return _prog_idx_expect(v.frame["blocks"][0]["value"] if v.frame else 0)
     if action is Action.VISION_RESULT:
         return answered(action)
-    return answered(action, [0])
+    return answered_allowed(action)
 
 
 @case("A1-10", ["A1", "A4", "B1", "B2", "B3", "B4", "B5"], Level.MUST, "Valid golden vectors are answered 0000",
       "answered with the vector's action and 0000 (CycleOn 0001: INCONCLUSIVE, S2; CycleOff 0002 allowed, A3; "
       "ProgIdx: the same index or 409, E2)",
-      checks={"prep": Requirement("S3: {prep.name} brings the box to the state the vector expects",
+      checks={"prep": Requirement(("S3",), "{prep.name} brings the box to the state the vector expects",
                                   inconclusive=Expect("not answered", lambda o: not isinstance(o, Answer)),
                                   inconclusive_text="could not prepare the box's cycle state with {prep.name}"),
-              "started": Requirement("S2: a cycle is started before the CycleOff vector",
+              "started": Requirement(("S2",), "a cycle is started before the CycleOff vector",
                                      inconclusive=Expect("not answered 0000",
                                                          lambda o: not (isinstance(o, Answer) and not o.frame.error_code)),
                                      inconclusive_text="S2: could not start a cycle before the CycleOff vector"),
-              "": Requirement("A1: the well-formed request of vector {vector.name} is answered 0000",
+              "": Requirement(("A1",), "the well-formed request of vector {vector.name} is answered 0000",
                               accept=lambda vector, action, **_: _valid_expect(vector, action),
-                              inconclusive=lambda action, **_: answered(action, [1]) if action is Action.CYCLE_ON else None,
+                              inconclusive=lambda action, **_: answered(action, [ErrorCode.NOT_READY]) if action is Action.CYCLE_ON else None,
                               inconclusive_text="S2: CycleOn answered 0001 (box not ready)")})
 @pytest.mark.parametrize("vector", _params("valid"))
 def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
@@ -205,9 +207,9 @@ def _send_cut_short(isight: CaseContext, data: bytes) -> Outcome:
 
 @case("R1-10", ["R1", "A5", "A3", "B5", "F5"], Level.MUST, "Invalid golden vectors are never answered 0000",
       "not 0000 (MUST: silence, a non-zero error or a close); a B3-B5 parse error of 23/24/25 answered 1001/1002 (SHOULD, A3)",
-      checks={"": Requirement("R1: vector {vector.name} breaks {clauses} and MUST NOT be answered 0000", accept=NOT_OK,
+      checks={"": Requirement(("R1",), "vector {vector.name} breaks {clauses} and MUST NOT be answered 0000", accept=NOT_OK,
                               should=lambda named, action, **_: None if named is None else answered(action, [named]),
-                              should_text="A3: a parse error under {clause} SHOULD be answered {named:04X}")})
+                              should_clauses=("A3",), should_text="a parse error under {clause} SHOULD be answered {named:04X}")})
 @pytest.mark.parametrize("vector", _params("invalid"))
 def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = _applicable(isight, vector)

@@ -36,7 +36,8 @@ from ..observed.timing import judge_jitter, judge_rate, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
-from ..suite.verdicts import CaseResult, Verdict, WireLine
+from ..suite.signature import Sig, Signature
+from ..suite.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from .records import RunRecord
 from .wire import frame_wire, session_wire
 
@@ -101,7 +102,7 @@ def frame_cases(ctx: Ctx) -> list[CaseResult]:
                 out.append(ctx.result(spec, Verdict.PASS, f"{n} {what}(s) checked, none breaks {clause}"))
             continue
         first = bad[0]
-        verdict = spec.level.broken_verdict  # B4 (a SHOULD): NON-STRICT; lenient profiles accept NaN
+        verdict = broken_verdict(spec.level)  # B4 (a SHOULD): NON-STRICT; lenient profiles accept NaN
         lines = [f"+{(r.t - ctx.view.t0) * 1000:.1f} ms conn {r.conn} offset {r.offset}: {r.describe()}" for r in bad[:SHOWN]]
         if len(bad) > SHOWN:
             lines.append(f"… and {len(bad) - SHOWN} more")
@@ -177,7 +178,7 @@ def order_case(ctx: Ctx) -> CaseResult:
         # a close missing only because the robot left the connection open is the S5 defect seen from S1
         left_open = not order.violations and all(LEFT_OPEN in line for line in order.missing)
         return ctx.result(spec, Verdict.FAIL, "; ".join(lines), observed, **common,
-                          signature=left_open_signature(ctx) if left_open else "")
+                          signature=left_open_signature(ctx) if left_open else None)
     if order.not_judged:
         cut = view.cut
         return ctx.result(spec, Verdict.INCONCLUSIVE,
@@ -227,10 +228,10 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
     return out
 
 
-def left_open_signature(ctx: Ctx) -> str:
-    """``left-open:stream`` (or ``command``, ``command+stream``): the robot's connections the suite had to close."""
+def left_open_signature(ctx: Ctx) -> Signature | None:
+    """Left open ``stream`` (or ``command``, ``command+stream``): the robot's connections the suite had to close."""
     kinds = sorted({c.role for c in ctx.session.tcp if c.closed_by == BY_SUITE})
-    return "left-open:" + "+".join(kinds) if kinds else ""
+    return Signature(Sig.LEFT_OPEN, "+".join(kinds)) if kinds else None
 
 
 def close_case(ctx: Ctx) -> CaseResult:

@@ -50,7 +50,7 @@ from ..protocol.answers import (
 from ..protocol.answers import Finding as RawFinding
 from ..protocol.explain import explain, explain_events
 from ..protocol.framings import End, Explanation
-from ..suite.verdicts import Verdict
+from ..suite.verdicts import Verdict, broken_verdict
 
 __all__ = ["CONFLICT", "NOT_UNDERSTOOD", "Expectation", "Finding", "Judgement", "Rule", "expectations", "judge",
            "request_action", "seen_of"]
@@ -225,4 +225,4 @@ def judge(
 
 
 def _finding(f: RawFinding) -> Finding:
-    return Finding(Verdict.FAIL if f.level == "MUST" else Verdict.NON_STRICT, f.clause, f.requirement, f.observed, f.key)
+    return Finding(broken_verdict(f.level), f.clause, f.requirement, f.observed, f.key)

@@ -25,10 +25,13 @@ from math import isfinite
 from .constants import ACTION_ERROR, EXTENSION_ACTIONS, START_WORD, VERSION, Action, ResultCode, TransferType, Transport
 from .errors import DirectionError, FloatError, ProtocolError, StartWordError, UnknownActionError, VersionError
 from .frames import Frame, Header, ToleranceBlock, ValueBlock
+from .levels import Level
 from .profile import Profile
 
-#: Result codes a box may send (E3); 0 and 404 are the robot's own values.
-SENDABLE_RESULTS: tuple[int, ...] = (1, 2, 10, 20, 202, 400, 409)
+#: E3: ResultCodes only the robot writes (its initial value, and "no answer" on vision_time_out).
+ROBOT_RESULTS = frozenset({ResultCode.EMPTY, ResultCode.NO_ANSWER})
+#: Result codes a box may send (E3): every ResultCode but the robot's own.
+SENDABLE_RESULTS: tuple[int, ...] = tuple(int(r) for r in ResultCode if r not in ROBOT_RESULTS)
 #: E3: the ResultCode of a 26/27 request the box did not understand.
 NOT_UNDERSTOOD = int(ResultCode.NOT_UNDERSTOOD)
 #: E2: resource conflict / not ready.
@@ -58,6 +61,8 @@ for _state in Cycle:
     # E3: the result travels in the block; the error field is not judged
     ALLOWED_CODES[(_state, Action.VISION_RESULT)] = _ANY
 del _state, _action
+#: S1: on a ready box the canonical session completes with every answer 0000 (its CycleOff too)
+CANONICAL_CODES = frozenset({0})
 
 
 def allowed_codes(action: int, cycle: Cycle = Cycle.UNKNOWN) -> frozenset[int] | None:
@@ -200,7 +205,7 @@ class Seen:
 
 @dataclass(frozen=True, slots=True)
 class Finding:
-    level: str  # "MUST" or "SHOULD"
+    level: Level  # MUST or SHOULD
     clause: str
     requirement: str
     observed: str
@@ -213,11 +218,8 @@ class Finding:
 def _key(exp: Expectation, what: str) -> str:
     if exp.probe:
         return f"probe/{what}"
-    action = f"{exp.action:02X}" if exp.action is not None and exp.action in _KNOWN else "-"
+    action = f"{exp.action:02X}" if exp.action is not None and exp.action in _ACTIONS else "-"
     return f"{exp.clause or 'valid'}/{exp.rule.value}/{action}/{what}"
-
-
-_KNOWN = frozenset({0x00, 0x01, 0x02, 0x23, 0x24, 0x25, 0x26, 0x27})
 
 
 def judge_answer(exp: Expectation, seen: Seen) -> list[Finding]:
@@ -225,20 +227,20 @@ def judge_answer(exp: Expectation, seen: Seen) -> list[Finding]:
     out: list[Finding] = []
     what = seen.text or f"answered action {seen.action} error {seen.error}"
     if seen.problem:
-        out.append(Finding("MUST", seen.problem, f"{seen.problem}: the box's answers are conforming frames", what,
+        out.append(Finding(Level.MUST, seen.problem, f"{seen.problem}: the box's answers are conforming frames", what,
                            f"answer/{seen.problem}"))
     err, rule = seen.error, exp.rule
     if rule is Rule.ANSWER:
         if exp.ok_errors is not None and err not in exp.ok_errors:
             codes = " or ".join(f"{c:04X}" for c in sorted(exp.ok_errors))
-            out.append(Finding("MUST", "A1", f"A1/A3: a well-formed request ({exp.message}) is answered {codes}", what,
+            out.append(Finding(Level.MUST, "A1", f"A1/A3: a well-formed request ({exp.message}) is answered {codes}", what,
                                _key(exp, "code")))
         else:
             out.extend(_values(exp, seen, what))
     elif rule is Rule.ANSWER_SHOULD:  # accepted: any answer the request itself may get (a CycleOff's 0002 too)
         rejected = zero_allowed_for_malformed(exp.action, seen.value)  # E3: a 26/27 refused with "400 not understood"
         if rejected or (exp.ok_errors is not None and err not in exp.ok_errors):
-            out.append(Finding("SHOULD", exp.clause, f"F6: a TCP receiver SHOULD accept a correct CRC ({exp.message})",
+            out.append(Finding(Level.SHOULD, exp.clause, f"F6: a TCP receiver SHOULD accept a correct CRC ({exp.message})",
                                what, _key(exp, "code")))
         else:  # accepted, so E2/E3 judge the block as for any 26/27
             out.extend(_values(exp, seen, what))
@@ -247,19 +249,19 @@ def judge_answer(exp: Expectation, seen: Seen) -> list[Finding]:
             req = {Rule.REJECT: "A3/R1: a request that is a parse error MUST NOT be answered 0000",
                    Rule.NOT_REQUEST: "A5/R1: a frame that is not a request MUST NOT be answered 0000",
                    Rule.DROP: "R7: a datagram with a wrong CRC or length MUST NOT be answered 0000"}[rule]
-            out.append(Finding("MUST", exp.clause, f"{req} ({exp.message})", what, _key(exp, "0000")))
+            out.append(Finding(Level.MUST, exp.clause, f"{req} ({exp.message})", what, _key(exp, "0000")))
         elif rule is Rule.DROP:
-            out.append(Finding("SHOULD", "R7", f"R7: such a datagram SHOULD be dropped silently ({exp.message})", what,
+            out.append(Finding(Level.SHOULD, "R7", f"R7: such a datagram SHOULD be dropped silently ({exp.message})", what,
                                _key(exp, "answered")))
         elif exp.named_error is not None and err != exp.named_error:
-            out.append(Finding("SHOULD", "A3", f"A3: a {exp.clause} parse error SHOULD be answered "
+            out.append(Finding(Level.SHOULD, "A3", f"A3: a {exp.clause} parse error SHOULD be answered "
                                                f"{exp.named_error:04X} ({exp.message})", what, _key(exp, "code")))
     elif rule is Rule.REJECT_SHOULD:
         if err == 0:
-            out.append(Finding("SHOULD", "B4", f"B4: NaN or infinity SHOULD be treated as a parse error ({exp.message})",
+            out.append(Finding(Level.SHOULD, "B4", f"B4: NaN or infinity SHOULD be treated as a parse error ({exp.message})",
                                what, _key(exp, "0000")))
         elif exp.named_error is not None and err != exp.named_error:
-            out.append(Finding("SHOULD", "A3", f"A3: a B4 parse error SHOULD be answered {exp.named_error:04X}", what,
+            out.append(Finding(Level.SHOULD, "A3", f"A3: a B4 parse error SHOULD be answered {exp.named_error:04X}", what,
                                _key(exp, "code")))
     return out
 
@@ -270,7 +272,7 @@ def _values(exp: Expectation, seen: Seen, what: str) -> list[Finding]:
         return []
     clause = "E2" if exp.action == 0x26 else "E3"
     allowed = ", ".join(str(v) for v in sorted(exp.values))
-    return [Finding("MUST", clause, f"{clause}: the answer to {exp.message} carries {allowed}", what,
+    return [Finding(Level.MUST, clause, f"{clause}: the answer to {exp.message} carries {allowed}", what,
                     _key(exp, "value"))]
 
 
@@ -278,14 +280,14 @@ def unanswered(exp: Expectation, after_garbage: bool, how: str) -> list[Finding]
     """What is wrong with the box not answering the event ``exp`` at all."""
     if exp.rule is Rule.ANSWER:
         if after_garbage:
-            return [Finding("SHOULD", "R6", f"R6: after bytes that are not a frame the box SHOULD resynchronise on the "
+            return [Finding(Level.SHOULD, "R6", f"R6: after bytes that are not a frame the box SHOULD resynchronise on the "
                                             f"next valid frame ({exp.message} got no answer)", how, _key(exp, "resync"))]
-        return [Finding("MUST", "A1", f"A1: a well-formed request ({exp.message}) is answered", how,
+        return [Finding(Level.MUST, "A1", f"A1: a well-formed request ({exp.message}) is answered", how,
                         _key(exp, "unanswered"))]
     if exp.rule is Rule.ANSWER_SHOULD:
-        return [Finding("SHOULD", exp.clause, f"F6: a TCP receiver SHOULD accept a correct CRC ({exp.message})", how,
+        return [Finding(Level.SHOULD, exp.clause, f"F6: a TCP receiver SHOULD accept a correct CRC ({exp.message})", how,
                         _key(exp, "unanswered"))]
     if exp.rule in (Rule.REJECT, Rule.REJECT_SHOULD) and exp.named_error is not None:
-        return [Finding("SHOULD", "A3", f"A3: a {exp.clause} parse error SHOULD be answered {exp.named_error:04X} "
+        return [Finding(Level.SHOULD, "A3", f"A3: a {exp.clause} parse error SHOULD be answered {exp.named_error:04X} "
                                         f"({exp.message})", how, _key(exp, "unanswered"))]
     return []

@@ -15,7 +15,9 @@ from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
-LEVELS = ("MUST", "SHOULD", "MAY")  # strongest first
+from .levels import Level
+
+LEVELS = tuple(Level)  # strongest first
 _FIELDS = ("id", "level", "levels", "title", "text", "flags", "source")
 ZH = "zh-CN"  # the optional key of a clause's Chinese title and text: {"title": ..., "text": ...}
 
@@ -23,8 +25,8 @@ ZH = "zh-CN"  # the optional key of a clause's Chinese title and text: {"title":
 @dataclass(frozen=True)
 class Clause:
     id: str
-    level: str  # the strongest level the clause states
-    levels: tuple[str, ...]  # every level it states, strongest first
+    level: Level  # the strongest level the clause states
+    levels: tuple[Level, ...]  # every level it states, strongest first
     title: str  # short, for tables
     text: str  # the requirement in full sentences
     flags: tuple[str, ...]  # the profile (and suite) flags that touch it
@@ -57,10 +59,11 @@ def _clause(entry: Any, index: int) -> Clause:
     for key in ("levels", "flags"):
         if not isinstance(entry[key], list) or not all(isinstance(v, str) for v in entry[key]):
             raise RegistryError(f"clauses.json entry {index}: {key} must be a list of strings")
-    clause = Clause(entry["id"], entry["level"], tuple(entry["levels"]), entry["title"], entry["text"],
-                    tuple(entry["flags"]), entry["source"], zh["title"], zh["text"])
-    if not clause.levels or any(lv not in LEVELS for lv in clause.levels):
-        raise RegistryError(f"clause {clause.id}: levels must be some of {', '.join(LEVELS)}")
+    words = [entry["level"], *entry["levels"]]
+    if not entry["levels"] or any(w not in Level.__members__ for w in words):
+        raise RegistryError(f"clause {entry['id']}: levels must be some of {', '.join(LEVELS)}")
+    clause = Clause(entry["id"], Level(entry["level"]), tuple(Level(w) for w in entry["levels"]), entry["title"],
+                    entry["text"], tuple(entry["flags"]), entry["source"], zh["title"], zh["text"])
     if list(clause.levels) != sorted(set(clause.levels), key=LEVELS.index):
         raise RegistryError(f"clause {clause.id}: levels must be distinct, strongest first")
     if clause.level != clause.levels[0]:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 from .answers import Cycle, Expectation, Finding, Seen, judge_answer, unanswered
 from .framings import BAD, PENDING, VALID, End, Event, Explanation, Reader, Spot
+from .levels import Level
 from .profile import Profile
 
 #: At most this many departures from the reference framing are named in ``Explanation.framing``.
@@ -42,7 +43,7 @@ class _Step:
 
 
 def _cost(findings: Sequence[Finding], departures: int = 0) -> Cost:
-    must = sum(1 for f in findings if f.level == "MUST")
+    must = sum(1 for f in findings if f.level is Level.MUST)
     return (must, len(findings) - must, departures)
 
 
@@ -146,12 +147,12 @@ class _Search:
         assert exp is not None
         if done and end is End.SILENT:
             if bad or spot.kind == BAD:
-                found = [Finding("SHOULD", "R6", "R6: after bytes that are not a frame the box SHOULD resynchronise "
+                found = [Finding(Level.SHOULD, "R6", "R6: after bytes that are not a frame the box SHOULD resynchronise "
                                  "or close; hanging silently is NON-STRICT", self._how(), "end/hang")]
                 if spot.kind == BAD:
                     found += unanswered(exp, bad, self._how())
             else:
-                found = [Finding("MUST", "T1", "A1/T1: every well-formed request is answered within time_out",
+                found = [Finding(Level.MUST, "T1", "A1/T1: every well-formed request is answered within time_out",
                                  f"{self._how()} ({exp.message} unanswered)", "end/silence")]
             steps.append(_Step(_cost(found), tuple(found)))
         if spot.kind == VALID:
@@ -204,7 +205,7 @@ class _Search:
     def _terminal(self, allowed: bool, where: str) -> _Step:
         if self.end is not End.CLOSED or allowed:
             return _Step(_ZERO)
-        found = [Finding("MUST", "A1", "A1: the box answers well-formed requests (it may close only after bytes that "
+        found = [Finding(Level.MUST, "A1", "A1: the box answers well-formed requests (it may close only after bytes that "
                                        "are not a request, A5/R6)", f"{self._how()} at {where}", "end/closed")]
         return _Step(_cost(found), tuple(found))
 
@@ -213,16 +214,16 @@ class _Search:
         what = f"{seen.text or 'an answer'} (an answer no request of these bytes asked for)"
         if seen.action is None:
             clause = seen.problem or "F1"
-            return [Finding("MUST", clause, f"{clause}: the box sends only frames", what, f"answer/{clause}")]
+            return [Finding(Level.MUST, clause, f"{clause}: the box sends only frames", what, f"answer/{clause}")]
         found: list[Finding] = []
         if seen.problem:
-            found.append(Finding("MUST", seen.problem, f"{seen.problem}: the box's answers are conforming frames",
+            found.append(Finding(Level.MUST, seen.problem, f"{seen.problem}: the box's answers are conforming frames",
                                  what, f"answer/{seen.problem}"))
         if seen.error == 0 and self.first_bad:
-            found.append(Finding("MUST", self.first_bad, "R1: the box never answers 0000 to bytes that break F, B or A5",
+            found.append(Finding(Level.MUST, self.first_bad, "R1: the box never answers 0000 to bytes that break F, B or A5",
                                  what, f"{self.first_bad}/unasked/0000"))
         else:
-            found.append(Finding("MUST", "A1", "A1: exactly one answer per request", what, "A1/unasked"))
+            found.append(Finding(Level.MUST, "A1", "A1: exactly one answer per request", what, "A1/unasked"))
         return found
 
     def _how(self) -> str:

@@ -33,6 +33,7 @@ from .answers import Cycle, Expectation, Finding, Rule, rule_for_error, rule_for
 from .codec import codec_for
 from .constants import CHECK_LEN, HEADER_LEN, MAX_FRAME_LEN, TransferType, Transport
 from .errors import LengthError, ProtocolError, StartWordError
+from .levels import Level
 from .profile import Profile
 
 _START = b"\xfe\xfe"
@@ -78,11 +79,11 @@ class Explanation:
 
     @property
     def must(self) -> list[Finding]:
-        return [f for f in self.findings if f.level == "MUST"]
+        return [f for f in self.findings if f.level is Level.MUST]
 
     @property
     def should(self) -> list[Finding]:
-        return [f for f in self.findings if f.level == "SHOULD"]
+        return [f for f in self.findings if f.level is Level.SHOULD]
 
     def answers_within(self, start: int, end: int) -> list[int]:
         """The answers attributed to events that begin in bytes ``start..end``."""

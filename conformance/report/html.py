@@ -35,7 +35,7 @@ from ..options import PROFILE_OPTIONS
 from ..protocol import DEFAULT_PROFILE
 from ..protocol.clauses import all_clauses
 from ..protocol.clauses import families as registry_families
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
+from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict, broken_verdict
 from .clausetext import clause_text
 from .diff import SECTIONS, RunDiff, summary_line
 from .html_cases import (
@@ -200,7 +200,7 @@ def root_cause_views(root_causes: Sequence[RootCause], cases: Sequence[CaseResul
         counts = totals(explained)
         views.append({
             "id": rc.id, "anchor": "rc-" + re.sub(r"[^A-Za-z0-9_-]", "_", rc.id), "title": rc.title,
-            "level": rc.level.value, "kind": rc.kind, "cls": css_class(rc.level.broken_verdict),
+            "level": rc.level.value, "kind": rc.kind, "cls": css_class(broken_verdict(rc.level)),
             "clauses": [clause_text(c) for c in rc.clauses], "evidence": hexdump(rc.evidence, limit=256),
             "n_cases": len(rc.cases), "counts": [(v, n) for v, n in counts.items() if n],
             "first": link.get(rc.cases[0], ("", ""))[0] if rc.cases else "",

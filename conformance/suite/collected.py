@@ -19,6 +19,7 @@ from .. import __version__
 from .rootcause import SessionFacts, find_root_causes
 from .session import SessionState
 from .settings import SuiteSettings
+from .signature import DeathKind
 from .verdicts import CaseResult, RootCause, SuiteInfo
 
 STATE = pytest.StashKey[SessionState]()  # the first box's session (the settings every session shares)
@@ -88,9 +89,10 @@ def session_facts(config: pytest.Config, key: str = "") -> SessionFacts:
 
 def facts_of(state: SessionState) -> SessionFacts:
     return SessionFacts(
-        unresponsive=next((d.detail for d in state.deaths if d.kind == "unresponsive"), ""),
+        unresponsive=next((d.detail for d in state.deaths if d.kind is DeathKind.UNRESPONSIVE), ""),
         one_at_a_time=state.concurrency_note if state.concurrent is False else "",
-        deaths=tuple((d.case_id, d.kind, d.detail, d.opened, d.closed) for d in state.deaths if d.kind != "unresponsive"),
+        deaths=tuple(d for d in state.deaths if d.kind is not DeathKind.UNRESPONSIVE),
+        first_index=state.profile.first_index,
     )
 
 

@@ -23,9 +23,10 @@ from ..protocol import Action, Frame, Profile, encode, pose_blocks, request, tol
 from ..protocol.answers import Seen
 from ..protocol.explain import explain
 from ..protocol.framings import End, Explanation, embedded_actions
-from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
+from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
+from .signature import Sig, Signature
 
 PROBE_POSE_VALUES = (100.25, -200.5, 300.75, 0.0, 90.0, -180.0)
 PROBE_NONE = request(Action.NONE)
@@ -201,7 +202,7 @@ class CaseContext:
         cases = self.session.known_late(name)
         if cases is not None:
             raise Inconclusive(f"{name} is not answered within time_out (cases {', '.join(cases[:3])}): this case "
-                               f"depends on it and is not run again", signature=f"silence:{name}")
+                               f"depends on it and is not run again", signature=Signature(Sig.SILENCE, name))
 
     def check_alive(self) -> Outcome:
         """R2: a fresh connection still gets NONE answered."""
@@ -213,12 +214,12 @@ class CaseContext:
         SHOULD and unjudgeable outcomes, its level): return for PASS, raise the verdict otherwise.
         ``values`` (with the case's parameters) fill the requirement's words and expectations."""
         note = judge(outcome, self.info.check(check), self.info.level, {**self.params, **values},
-                     sent=self.last_sent if sent is None else sent)
+                     sent=self.last_sent if sent is None else sent, profile=self.profile)
         if note:
             self.inform(note)
 
     def broken(self, check: str = "", *, expected: str, observed: str, sent: bytes = b"", received: bytes = b"",
-               signature: str = "", **values: Any) -> CaseVerdict:
+               signature: Signature | None = None, **values: Any) -> CaseVerdict:
         """The verdict of a requirement the case judged by its own logic (raise it): the record
         gives the words and the level, the case what it expected and what it saw."""
         return broken(self.info.check(check), self.info.level, expected, observed, {**self.params, **values},
@@ -231,8 +232,9 @@ class CaseContext:
         from .pose_stream import judge_stream
 
         requirement = self.info.check(check)
-        judge_stream(result, requirement.level or self.info.level, words(requirement.text, {**self.params, **values}),
-                     max_lost=max_lost, backlog=backlog)
+        values = {**self.params, **values}
+        judge_stream(result, requirement.level or self.info.level, words(requirement.text, values), max_lost=max_lost,
+                     backlog=backlog, clauses=judged_clauses(requirement, values) or self.info.clauses)
 
     def inform(self, text: str) -> None:
         """Record behaviour that is reported, never judged (INFORMATIONAL)."""

@@ -8,22 +8,26 @@ verdict of the requirement's level, with expected, observed and the bytes.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
-from ..protocol import Action, ErrorCode, Frame, ProtocolError, TransferType, ValueBlock
+from ..protocol import (
+    DEFAULT_PROFILE,
+    Action,
+    ErrorCode,
+    Frame,
+    Profile,
+    ProtocolError,
+    TransferType,
+    ValueBlock,
+    codec_for,
+)
+from ..protocol.answers import Cycle, allowed_codes, allowed_values
+from ..protocol.constants import START_WORD
 from .record import Expect, ExpectSpec, Requirement
-from .verdicts import Level, Verdict
-
-_CLAUSES = re.compile(r"^\s*\[?((?:[FBASTRE][1-7])(?:\s*[/,]\s*[FBASTRE][1-7])*)\]?\s*(?::|\(|\[| )")
-
-
-def clauses_in(text: str) -> tuple[str, ...]:
-    """The clause IDs a requirement starts with: ``"A3/R1: a parse error ..."`` -> ("A3", "R1")."""
-    m = _CLAUSES.match(text or "")
-    return tuple(c.strip() for c in re.split("[/,]", m.group(1))) if m else ()
+from .signature import Reply, Sig, Signature
+from .verdicts import Level, Verdict, broken_verdict
 
 
 class CaseVerdict(Exception):
@@ -40,7 +44,7 @@ class CaseVerdict(Exception):
         sent: bytes = b"",
         received: bytes = b"",
         judged: tuple[str, ...] = (),
-        signature: str = "",
+        signature: Signature | None = None,
     ) -> None:
         super().__init__(message)
         self.verdict = verdict
@@ -50,8 +54,8 @@ class CaseVerdict(Exception):
         self.observed = observed
         self.sent = sent
         self.received = received
-        #: the clause(s) this verdict judged (default: the ones its requirement starts with)
-        self.judged = judged or clauses_in(requirement) or clauses_in(message)
+        #: the clause(s) this verdict judged, as the requirement names them (none: the case's clauses)
+        self.judged = judged
         #: what the defect looks like, for grouping verdicts under one root cause
         self.signature = signature
 
@@ -112,6 +116,13 @@ def answered(action: int | None = None, errors: Iterable[int] | None = None, val
     return Expect(text, match, action)
 
 
+def answered_allowed(action: int, cycle: Cycle = Cycle.UNKNOWN, request: Frame | None = None) -> Expect:
+    """What a conforming box may answer a well-formed ``action`` request in ``cycle``: the error codes
+    of the answer table (:mod:`conformance.protocol.answers`; any code where it allows any) and, for
+    the ``request`` given, the block values (E2/E3)."""
+    return answered(action, allowed_codes(action, cycle), None if request is None else allowed_values(request))
+
+
 def answered_error(action: int | None = None) -> Expect:
     """Answered with any non-zero error code (never 0000)."""
     text = "answered with a non-zero error" + (f" to {Action(action).name}" if action is not None else "")
@@ -130,7 +141,7 @@ def answered_zero(outcome: Outcome) -> bool:
     if isinstance(outcome, Answer):
         return outcome.frame.error_code == 0
     header = outcome.error.header if isinstance(outcome, Malformed) else None
-    return header is not None and header.start_word == 0xFEFE and header.error_code == 0
+    return header is not None and header.start_word == START_WORD and header.error_code == 0
 
 
 #: A5/R1: what a box may do with a frame that is not a request: anything but 0000.
@@ -145,8 +156,10 @@ def check(
     requirement: str,
     *,
     sent: bytes = b"",
+    judged: tuple[str, ...] = (),
+    profile: Profile = DEFAULT_PROFILE,
 ) -> None:
-    """Raise the level's verdict unless ``outcome`` is one of the ``acceptable`` ones.
+    """Raise the level's verdict unless ``outcome`` is one of the ``acceptable`` ones (judging ``judged``).
 
     A malformed answer that would be acceptable if it were a conforming frame fails on
     its format alone: FAIL, judging the clause the answer breaks (F1-F6, A2, ...), not
@@ -157,7 +170,7 @@ def check(
     expected = "; or ".join(e.text for e in options)
     received = outcome.raw
     observed = outcome.describe()
-    view = answer_view(outcome) if isinstance(outcome, Malformed) else None
+    view = answer_view(outcome, profile) if isinstance(outcome, Malformed) else None
     if isinstance(outcome, Malformed) and view is not None and any(e.matches(view) for e in options):
         error = outcome.error
         raise CaseVerdict(
@@ -166,26 +179,28 @@ def check(
             f"meet \"{requirement}\"",
             requirement=f"{error.clause}: the box's answers are conforming frames",
             expected=expected, observed=observed, sent=sent, received=received,
-            judged=(error.clause,), signature=answer_signature(error),
+            judged=(error.clause,), signature=answer_signature(error, _asked(options)),
         )
     raise CaseVerdict(
-        level.broken_verdict,
+        broken_verdict(level),
         f"{requirement}: expected {expected}; the box {observed}",
         requirement=requirement,
         expected=expected,
         observed=observed,
         sent=sent,
         received=received,
+        judged=judged,
         signature=outcome_signature(outcome, options),
     )
 
 
-def answer_view(outcome: Malformed) -> Answer | None:
+def answer_view(outcome: Malformed, profile: Profile = DEFAULT_PROFILE) -> Answer | None:
     """A malformed answer read leniently: its header's action, error code and first
-    type-03 value as a conforming answer would carry them (None when it has no readable
-    header or an unknown action)."""
+    type-03 value as a conforming answer would carry them (the value in the profile's
+    float_byte_order, as the codec reads it; None when it has no readable header or an
+    unknown action)."""
     header = outcome.error.header
-    if header is None or header.start_word != 0xFEFE:
+    if header is None or header.start_word != START_WORD:
         return None
     try:
         action = Action(header.action)
@@ -194,42 +209,56 @@ def answer_view(outcome: Malformed) -> Answer | None:
     raw = outcome.raw
     blocks: tuple[ValueBlock, ...] = ()
     if header.block_type == 3 and header.block_count >= 1 and len(raw) >= 17:
-        blocks = (ValueBlock(raw[12], int.from_bytes(raw[13:17], "big", signed=True)),)
+        index, value = codec_for(profile).value.unpack_from(raw, 12)  # the codec's layout of a type-03 block
+        blocks = (ValueBlock(index, value),)
     return Answer(Frame(TransferType.BOX_TO_ROBOT, action, blocks, header.error_code), outcome.latency_s, raw)
 
 
-def answer_signature(error: ProtocolError) -> str:
+def _asked(options: list[Expect]) -> int | None:
+    return next((int(e.action) for e in options if e.action is not None), None)
+
+
+def answer_signature(error: ProtocolError, asked: int | None = None) -> Signature:
     """What is wrong with a malformed answer, the same for every answer malformed the same way."""
     h, raw, clause = error.header, error.raw, error.clause
     if h is None:
-        return f"answer:{clause}:not-a-frame"
-    detail = {
-        "F1": f"start={raw[:2].hex()}",
-        "F2": f"version={h.version:04x}",
-        "F3": f"transfer-type={h.transfer_type:02x}",
-        "F6": f"check={raw[-2:].hex() if len(raw) >= 14 else ''}",
-        "F5": "length",
-        "A4": f"none-error={h.error_code:04x}",
-    }.get(clause, f"shape={h.block_type:02x}/{h.block_count}/{h.block_length}")
-    return f"answer:{clause}:{detail}"
+        return Signature(Sig.ANSWER, clause=clause, field="not-a-frame")
+    field, value = {
+        "F1": ("start", raw[:2].hex()),
+        "F2": ("version", f"{h.version:04x}"),
+        "F3": ("transfer-type", f"{h.transfer_type:02x}"),
+        "F6": ("check", raw[-2:].hex() if len(raw) >= 14 else ""),
+        "F5": ("length", ""),
+        "A4": ("none-error", f"{h.error_code:04x}"),
+    }.get(clause, ("shape", f"{h.block_type:02x}/{h.block_count}/{h.block_length}"))
+    reply = Reply(asked, h.action, h.error_code, h.transfer_type) if h.start_word == START_WORD else None
+    return Signature(Sig.ANSWER, clause=clause, field=field, value=value, reply=reply)
 
 
-def outcome_signature(outcome: Outcome, options: list[Expect]) -> str:
+def outcome_signature(outcome: Outcome, options: list[Expect]) -> Signature:
     """What the box did instead of an acceptable outcome, for grouping like failures."""
-    action = next((e.action for e in options if e.action is not None), None)
-    name = _action_name(action)
+    asked = _asked(options)
+    name = _action_name(asked)
     if isinstance(outcome, Silence):
-        return f"skipped:{name}" if outcome.skipped else f"silence:{name}"
+        return Signature(Sig.SKIPPED if outcome.skipped else Sig.SILENCE, name)
     if isinstance(outcome, Closed):
-        return f"closed:{name}"
+        return Signature(Sig.CLOSED, name)
     if isinstance(outcome, Malformed):
-        return answer_signature(outcome.error)
-    code = outcome.frame.error_code
+        return answer_signature(outcome.error, asked)
+    f = outcome.frame
+    code = f.error_code
+    reply = Reply(asked, int(f.action), code, int(f.transfer_type))
     swapped = ((code & 0xFF) << 8) | (code >> 8)
     wanted = [e for e in options if e.action is not None]
     if wanted and code and swapped != code and any(e.matches(_with_code(outcome, swapped)) for e in wanted):
-        return "swapped:error-code"
-    return f"code:{_action_name(int(outcome.frame.action))}:{code:04x}"
+        return Signature(Sig.SWAPPED, "error-code", reply=reply)
+    return Signature(Sig.CODE, _action_name(int(f.action)), value=f"{code:04x}", reply=reply)
+
+
+def reply_signature(outcome: Outcome, asked: int) -> Signature:
+    """The signature of ``outcome`` as the answer to an ``asked`` request a case judged by its own logic
+    (with the answer's fields, for the root causes read across every answer)."""
+    return outcome_signature(outcome, [Expect(f"answered {_action_name(asked)}", lambda o: False, int(asked))])
 
 
 def _with_code(outcome: Answer, code: int) -> Answer:
@@ -247,10 +276,10 @@ def _action_name(action: int | None) -> str:
 
 
 def fail(level: Level, requirement: str, expected: str, observed: str, sent: bytes = b"", received: bytes = b"",
-         signature: str = "") -> CaseVerdict:
+         signature: Signature | None = None, judged: tuple[str, ...] = ()) -> CaseVerdict:
     """A verdict for a requirement judged by the case's own logic (return it and raise)."""
     return CaseVerdict(
-        level.broken_verdict,
+        broken_verdict(level),
         f"{requirement}: expected {expected}; observed {observed}",
         requirement=requirement,
         expected=expected,
@@ -258,6 +287,7 @@ def fail(level: Level, requirement: str, expected: str, observed: str, sent: byt
         sent=sent,
         received=received,
         signature=signature,
+        judged=judged,
     )
 
 
@@ -280,7 +310,7 @@ def words(text: str, values: Mapping[str, Any]) -> str:
 
 
 def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapping[str, Any] | None = None, *,
-          sent: bytes = b"") -> str | None:
+          sent: bytes = b"", profile: Profile = DEFAULT_PROFILE) -> str | None:
     """Turn ``outcome`` into the requirement's verdict: raise it unless PASS.
 
     First the outcomes that leave it unjudgeable (INCONCLUSIVE), then the acceptable ones
@@ -291,16 +321,21 @@ def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapp
                                requirement.informational)):  # judged by nothing: it could never fail
         raise ValueError(f"requirement {requirement.text[:80]!r} names no outcome to judge by: the case is misdeclared")
     values = dict(values or {})
+    clauses = judged_clauses(requirement, values)
     unjudgeable = resolve(requirement.inconclusive, values)
     if unjudgeable is not None and unjudgeable.matches(outcome):
-        why = words(requirement.inconclusive_text or requirement.text, values)
-        raise Inconclusive(f"{why} (the box {outcome.describe()})")
+        why = words(requirement.inconclusive_text, values) or requirement.words(words(requirement.text, values))
+        raise Inconclusive(f"{why} (the box {outcome.describe()})", judged=clauses)
     accept = resolve(requirement.accept, values)
     if accept is not None:
-        check(outcome, accept, requirement.level or level, words(requirement.text, values), sent=sent)
+        check(outcome, accept, requirement.level or level, requirement.words(words(requirement.text, values)),
+              sent=sent, judged=clauses, profile=profile)
     should = resolve(requirement.should, values)
     if should is not None:
-        check(outcome, should, Level.SHOULD, words(requirement.should_text or requirement.text, values), sent=sent)
+        named = requirement.should_clauses or clauses
+        text = words(requirement.should_text or requirement.text, values)
+        check(outcome, should, Level.SHOULD, requirement.words(text, requirement.should_clauses), sent=sent,
+              judged=named, profile=profile)
     note = resolve(requirement.informational, values)
     if note is not None and note.matches(outcome):
         return f"{words(requirement.informational_text, {**values, 'outcome': outcome.describe()})}"
@@ -308,7 +343,16 @@ def judge(outcome: Outcome, requirement: Requirement, level: Level, values: Mapp
 
 
 def broken(requirement: Requirement, level: Level, expected: str, observed: str, values: Mapping[str, Any] | None = None,
-           *, sent: bytes = b"", received: bytes = b"", signature: str = "") -> CaseVerdict:
+           *, sent: bytes = b"", received: bytes = b"", signature: Signature | None = None) -> CaseVerdict:
     """The verdict for a requirement judged by the case's own logic (raise it)."""
-    return fail(requirement.level or level, words(requirement.text, dict(values or {})), expected, observed, sent,
-                received, signature)
+    values = dict(values or {})
+    clauses = judged_clauses(requirement, values)
+    return fail(requirement.level or level, requirement.words(words(requirement.text, values)), expected,
+                observed, sent, received, signature, clauses)
+
+
+def judged_clauses(requirement: Requirement, values: Mapping[str, Any]) -> tuple[str, ...]:
+    """The clauses a verdict of ``requirement`` judges: its own, or those its ``judged_from`` value holds."""
+    if requirement.clauses or not requirement.judged_from:
+        return requirement.clauses
+    return tuple(str(c) for c in values.get(requirement.judged_from, ()))

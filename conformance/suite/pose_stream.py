@@ -196,25 +196,31 @@ class PoseStream:
         r.ended = "malformed" if isinstance(outcome, Malformed) else "reset" if getattr(outcome, "reset", False) else "closed"
 
 
-def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, backlog: bool = False) -> None:
-    """Raise the verdict for a stream: a wrong answer, lost answers, or (``backlog``) latency that grew."""
+def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, backlog: bool = False,
+                 clauses: tuple[str, ...] = ()) -> None:
+    """Raise the verdict for a stream: a wrong answer, lost answers, or (``backlog``) latency that grew;
+    ``what`` names the stream, ``clauses`` what its verdicts judge."""
+    lead = "/".join(clauses)
+    what = f"{lead}: {what}" if lead else what
     if r.bad is not None and r.extra == 0:
         check(r.bad, answered(Action.POSE, [0]), level, f"{what}: pose {r.bad_index + 1} is answered 0000",
-              sent=r.bad_sent)
+              sent=r.bad_sent, judged=clauses)
     if r.extra:
         raise fail(level, f"A1/{what}: exactly one answer per pose", f"{r.sent} answers",
-                   f"{r.extra} answer(s) more than poses sent")
+                   f"{r.extra} answer(s) more than poses sent", judged=tuple(dict.fromkeys(("A1", *clauses))))
     if r.ended == "malformed" and r.ended_by is not None:
-        check(r.ended_by, answered(Action.POSE), level, f"{what}: every pose is answered with a well-formed frame")
+        check(r.ended_by, answered(Action.POSE), level, f"{what}: every pose is answered with a well-formed frame",
+              judged=clauses)
     if r.lost > max_lost:
         why = {"overdue": f"pose {r.answered + 1} got no answer within time_out ({r.time_out_s * 1000:.0f} ms)",
                "closed": "the box closed the connection", "reset": "the box reset the connection",
                "blocked": "the box stopped reading (a send did not complete within time_out)"}.get(r.ended, "")
         raise fail(level, f"{what}: every pose is answered (none lost)", f"{r.sent} answers" + (
-            f" (at most {max_lost} lost)" if max_lost else ""), f"{r.answered} answers, {r.lost} lost" + (f": {why}" if why else ""))
+            f" (at most {max_lost} lost)" if max_lost else ""), f"{r.answered} answers, {r.lost} lost" + (f": {why}" if why else ""),
+            judged=clauses)
     b = r.backlog() if backlog else None
     if b is not None and b[1] > b[2]:
         raise fail(level, f"{what}: answer latency does not grow over the run (backlog)",
                    f"last-quarter p50 ≤ {b[2]:.1f} ms (first-quarter p50 {b[0]:.1f} ms + max(20 ms, 3×))",
-                   f"backlog: last-quarter p50 {b[1]:.1f} ms")
+                   f"backlog: last-quarter p50 {b[1]:.1f} ms", judged=clauses)
 

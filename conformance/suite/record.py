@@ -51,23 +51,41 @@ ExpectSpec = Expect | Callable[..., Expect | None]
 
 @dataclass(frozen=True)
 class Requirement:
-    """One thing a case judges: the words and the outcomes, as data.
+    """One thing a case judges: the clauses it judges, the words and the outcomes, as data.
 
-    ``text`` (and ``should_text``, ``inconclusive_text``) may name the case's values in
-    braces (``"A3: a {action} request with {what} MUST NOT be answered 0000"``): the
-    case's parameters and what the body passes to ``judge``. ``accept``, ``should`` and
-    ``inconclusive`` are Expects, or functions of those values returning one.
+    ``clauses`` name what a verdict of this requirement judged (checked against the registry
+    when the requirement is made, at import); the verdict's words are the clauses and the
+    ``text``: ``Requirement(("A3",), "a {action} request with {what} MUST NOT be answered 0000")``
+    reads "A3: a POSE request with ... MUST NOT be answered 0000". ``text`` (and
+    ``should_text``, ``inconclusive_text``) may name the case's values in braces: the case's
+    parameters and what the body passes to ``judge``. ``accept``, ``should`` and
+    ``inconclusive`` are Expects, or functions of those values returning one. No clauses
+    (``()``): the case's own, or those a value named by ``judged_from`` holds when judged
+    (a fuzz finding's).
     """
 
+    clauses: tuple[str, ...]
     text: str
     accept: ExpectSpec | None = None  # the acceptable outcomes; else the level's broken verdict
     level: Level | None = None  # None: the case's level
     should: ExpectSpec | None = None  # what a conforming box SHOULD do; else NON-STRICT
     should_text: str = ""
+    should_clauses: tuple[str, ...] = ()  # what the SHOULD judges (default: ``clauses``)
     inconclusive: ExpectSpec | None = None  # outcomes that leave the requirement unjudgeable (checked first)
     inconclusive_text: str = ""
     informational: ExpectSpec | None = None  # acceptable outcomes worth recording (INFORMATIONAL, never failing)
     informational_text: str = ""
+    judged_from: str = ""  # the name of a value holding the clauses judged, when they are known only then
+
+    def __post_init__(self) -> None:
+        bad = [c for c in (*self.clauses, *self.should_clauses) if not _CLAUSE.match(c)]
+        if bad:
+            raise ValueError(f"requirement {self.text[:60]!r}: unknown clause IDs {bad}")
+
+    def words(self, text: str = "", clauses: tuple[str, ...] = ()) -> str:
+        """``text`` (default: the requirement's) led by ``clauses`` (default: the requirement's)."""
+        lead = "/".join(clauses or self.clauses)
+        return f"{lead}: {text or self.text}" if lead else (text or self.text)
 
 
 @dataclass(frozen=True)
@@ -97,7 +115,7 @@ class CaseRecord:
             return self.checks[name]
         if name:
             raise KeyError(f"case {self.id} has no requirement {name!r} (it has: {', '.join(self.checks) or 'none'})")
-        return Requirement(self.words)
+        return Requirement((), self.words)  # judged: the case's clauses
 
     def with_param(self, param_id: str) -> CaseRecord:
         return replace(self, id=f"{self.id}[{param_id}]")

@@ -14,10 +14,11 @@ from typing import Any
 from ..harness.target import Unreachable
 from ..harness.transcript import Kind, Transcript
 from .context import CaseContext
-from .judge import CaseVerdict, clauses_in
+from .judge import CaseVerdict
 from .record import CaseRecord
 from .settings import SuiteSettings
-from .verdicts import CaseResult, Verdict
+from .signature import Signature
+from .verdicts import CaseResult, Verdict, broken_verdict
 from .wirelog import wire_lines
 
 
@@ -74,7 +75,7 @@ def classify(exc: BaseException | None, info: CaseRecord, ctx: CaseContext | Non
         return Verdict.SKIP, {"message": str(getattr(exc, "msg", exc))}
     if isinstance(exc, AssertionError):
         message = str(exc).splitlines()[0] if str(exc) else "assertion failed"
-        return info.level.broken_verdict, {"message": message, "judged": clauses_in(message)}
+        return broken_verdict(info.level), {"message": message}  # judged: the case's clauses
     tb = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)[-3:])
     return Verdict.ERROR, {"message": f"suite error: {type(exc).__name__}: {exc}", "observed": tb}
 
@@ -86,7 +87,7 @@ def result_of(info: CaseRecord, ctx: CaseContext | None, exc: BaseException | No
     which ``clauses`` then also names (so the clause table marks what was judged)."""
     verdict, fields = classify(exc, info, ctx, skipped)
     judged = tuple(c for c in fields.pop("judged", ()) if c)
-    signature = fields.pop("signature", "") or ""
+    signature: Signature | None = fields.pop("signature", None)
     if verdict is not Verdict.PASS:
         fields["requirement"] = fields.get("requirement") or info.words
         if ctx is not None and not fields.get("sent_hex") and ctx.last_sent:
@@ -94,7 +95,7 @@ def result_of(info: CaseRecord, ctx: CaseContext | None, exc: BaseException | No
         if verdict in (Verdict.FAIL, Verdict.NON_STRICT) and not judged:
             judged = info.clauses
         if not signature and verdict in (Verdict.FAIL, Verdict.NON_STRICT):
-            signature = f"case:{info.id}"
+            signature = Signature.own(info.id)
     result = CaseResult(
         id=info.id, title=info.title, clauses=tuple(dict.fromkeys((*info.clauses, *judged))), level=info.level,
         verdict=verdict, duration_s=duration_s, expected=fields.pop("expected", "") or info.expect,

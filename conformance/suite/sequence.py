@@ -173,7 +173,8 @@ class SequenceRunner:
             if not expect.matches(outcome):
                 self.isight.inform(f"{path}: the box {outcome.describe()} (expected {expect.text})")
             return
-        check(outcome, expect, level, requirement, sent=sent)
+        check(outcome, expect, level, requirement, sent=sent, judged=tuple(self.seq.clauses),
+              profile=self.isight.profile)
 
     def _record(self, outcome: Outcome) -> None:
         self.figures["requests"] += 1
@@ -200,7 +201,7 @@ class SequenceRunner:
                 if not self.connected_once:
                     raise
                 raise fail(self._level(step), f"{', '.join(self.seq.clauses)}: the box keeps accepting connections ({path})",
-                           "the connection is accepted within time_out", str(exc)) from None
+                           "the connection is accepted within time_out", str(exc), judged=tuple(self.seq.clauses)) from None
             self.connected_once = True
 
     def _close(self, step: dict[str, Any], path: str) -> None:
@@ -289,12 +290,12 @@ class SequenceRunner:
         self.isight.latencies_ms.extend(result.latencies_ms)
         self.figures["streams"].append({"step": where, **result.figures()})
         level = self._level(step)
-        what = f"{', '.join(self.seq.clauses)}: {self.seq.title}, pose stream of {where}"
+        what = f"{self.seq.title}, pose stream of {where}"
         if level is Level.MAY:
             if result.failed or result.lost > step.get("max_lost", 0):
                 self.isight.inform(f"{where}: {result.figures()}")
             return
-        judge_stream(result, level, what, step.get("max_lost", 0), step.get("backlog", False))
+        judge_stream(result, level, what, step.get("max_lost", 0), step.get("backlog", False), tuple(self.seq.clauses))
 
     def _sleep(self, step: dict[str, Any], path: str) -> None:
         end = time.monotonic() + seconds(step["sleep"], self.isight.settings)

@@ -32,6 +32,7 @@ from ..harness.transcript import Kind, Transcript
 from ..protocol import Action, Profile, request
 from .judge import CaseVerdict, Inconclusive
 from .settings import SuiteSettings
+from .signature import Death, DeathKind, Sig, Signature
 from .verdicts import Verdict
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
@@ -44,7 +45,7 @@ PROBE_NONE = request(Action.NONE)
 REFUSED_RETRY_S = 0.05
 R2_TEXT = "R2: whatever bytes one connection sends, the box keeps accepting and answering new connections"
 #: the signature of a case that could not connect (context.connect): the session then looks for a death
-UNREACHABLE_AT_CONNECT = "unreachable:connect"
+UNREACHABLE_AT_CONNECT = Signature.unreachable("connect")
 S5_TEXT = "S5: after the robot closes a connection the box frees it (it keeps accepting new connections)"
 
 
@@ -53,17 +54,6 @@ class Health:
     dead_since_case: str | None = None
     reason: str = ""
     next_check: float = 0.0  # monotonic time of the next re-probe
-
-
-@dataclass
-class Death:
-    """The box stopped answering fresh connections after a case (a fact for root causes)."""
-
-    case_id: str
-    kind: str  # "dead" (R2), "not-accepting" (S5), "unresponsive" (never answered: baseline)
-    detail: str
-    opened: int  # TCP connections the suite had opened in the session
-    closed: int  # ... and closed
 
 
 @dataclass
@@ -170,7 +160,7 @@ class SessionState:
         if not responsive(self.baseline):
             self._mark_dead("session start", f"the box does not answer a NONE request (it {self.baseline.describe()}); "
                             "PROFILE-01 tells which profile it appears to use")
-            self.deaths.append(Death("session start", "unresponsive", self.baseline.describe(), self.opened,
+            self.deaths.append(Death("session start", DeathKind.UNRESPONSIVE, self.baseline.describe(), self.opened,
                                      self.closed))
             return
         self._preflight(transcript)
@@ -245,7 +235,7 @@ class SessionState:
                 transcript.note("the box answers again")
                 return
         raise Inconclusive(f"box unreachable since case {health.dead_since_case} ({health.reason})",
-                           signature=f"unreachable:{health.dead_since_case}")
+                           signature=Signature.unreachable(health.dead_since_case))
 
     def known_late(self, action: str) -> list[str] | None:
         """The cases that established that ``action`` is not answered within time_out (None: not
@@ -269,8 +259,9 @@ class SessionState:
                    error: BaseException | None) -> BaseException | None:
         """R2 after malformed input or a time_out (the case's connections already closed):
         returns the error the case ends with (the case's own, or an R2/S5 verdict)."""
-        if isinstance(error, CaseVerdict) and error.signature.startswith("silence:") and error.verdict is Verdict.FAIL:
-            self.late.setdefault(error.signature.split(":", 1)[1], []).append(case_id)
+        signature = error.signature if isinstance(error, CaseVerdict) and error.verdict is Verdict.FAIL else None
+        if signature is not None and signature.kind is Sig.SILENCE:
+            self.late.setdefault(signature.subject, []).append(case_id)
         refused = isinstance(error, Inconclusive) and error.signature == UNREACHABLE_AT_CONNECT
         if (not (malformed_input or transcript.timeouts or refused) or (isinstance(error, Inconclusive) and not refused)
                 or self.health.dead_since_case is not None):  # already known unreachable: nothing to learn
@@ -285,36 +276,36 @@ class SessionState:
         self._mark_dead(case_id, f"a fresh connection {alive.describe()}")
         if not (malformed_input and self.baseline_ok()) or refused:  # the death explains this case; no verdict of its own
             return error
-        if kind == "not-accepting":
+        if kind is DeathKind.CONNECTION_LEAK:
             verdict = CaseVerdict(
                 Verdict.FAIL, f"S5: the box stopped accepting new connections after the suite had opened {self.opened} "
                 f"and closed {self.closed} ({detail})", requirement=S5_TEXT,
                 expected="a fresh connection's NONE request answered", observed=detail, sent=last_sent,
-                judged=("S5",), signature="not-accepting")
+                judged=("S5",), signature=Signature(Sig.NOT_ACCEPTING))
         else:
             verdict = CaseVerdict(
                 Verdict.FAIL, f"R2: after this case's input the box no longer answers a fresh connection ({detail})",
                 requirement=R2_TEXT, expected="a fresh connection's NONE request answered", observed=detail,
-                sent=last_sent, judged=("R2",), signature=f"dead:{case_id}")
+                sent=last_sent, judged=("R2",), signature=Signature(Sig.DEAD, case_id))
         if isinstance(error, CaseVerdict) and error.verdict is Verdict.FAIL:
             error.message += f" (and then {verdict.message})"
             error.judged = tuple(dict.fromkeys((*error.judged, *verdict.judged)))
             return error
         return verdict
 
-    def _diagnose(self, alive: Outcome, transcript: Transcript) -> tuple[str, str]:
+    def _diagnose(self, alive: Outcome, transcript: Transcript) -> tuple[DeathKind, str]:
         """Dead (R2), or alive on the witness but not accepting new connections (S5)?"""
         witness = self._witness
         fresh = f"a fresh connection {alive.describe()}"
         if witness is None or witness.closed_by_peer is not None:
-            return "dead", fresh
+            return DeathKind.DEAD_AFTER_INPUT, fresh
         outcome = witness.request(PROBE_NONE, "witness: is the box alive on a connection it accepted earlier?")
         if responsive(outcome):
-            return "not-accepting", (f"{fresh}, yet it answers on a connection it accepted earlier: it accepts no new "
+            return DeathKind.CONNECTION_LEAK, (f"{fresh}, yet it answers on a connection it accepted earlier: it accepts no new "
                                      f"connections after the suite opened {self.opened} and closed {self.closed}")
         self._witness = None
         witness.abort("witness gone")
-        return "dead", f"{fresh}, and a connection it accepted earlier {outcome.describe()} too"
+        return DeathKind.DEAD_AFTER_INPUT, f"{fresh}, and a connection it accepted earlier {outcome.describe()} too"
 
     def _count(self, transcript: Transcript) -> None:
         tcp = {c for c, info in transcript.connections.items() if info.transport == "tcp"}

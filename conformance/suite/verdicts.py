@@ -10,6 +10,9 @@ import enum
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ..protocol.levels import Level
+from .signature import Signature
+
 
 class Verdict(str, enum.Enum):
     PASS = "PASS"
@@ -25,15 +28,13 @@ class Verdict(str, enum.Enum):
         return self in (Verdict.FAIL, Verdict.ERROR)
 
 
-class Level(str, enum.Enum):
-    MUST = "MUST"
-    SHOULD = "SHOULD"
-    MAY = "MAY"
+#: The verdict when a box breaks a requirement of each level (RFC 2119's levels: :mod:`conformance.protocol.levels`).
+BROKEN = {Level.MUST: Verdict.FAIL, Level.SHOULD: Verdict.NON_STRICT, Level.MAY: Verdict.INFORMATIONAL}
 
-    @property
-    def broken_verdict(self) -> Verdict:
-        """The verdict when a box breaks a requirement of this level."""
-        return {Level.MUST: Verdict.FAIL, Level.SHOULD: Verdict.NON_STRICT, Level.MAY: Verdict.INFORMATIONAL}[self]
+
+def broken_verdict(level: Level) -> Verdict:
+    """The verdict when a box breaks a requirement of ``level``."""
+    return BROKEN[level]
 
 
 #: Order in which reports list verdicts (worst first).
@@ -79,8 +80,8 @@ class CaseResult:
     #: the clause(s) the verdict judged (for a non-PASS verdict; also in ``clauses``): the clause
     #: table marks these, not every clause the case names
     judged: tuple[str, ...] = ()
-    #: what the defect looks like, for grouping verdicts under one root cause ("" when unknown)
-    signature: str = ""
+    #: what the defect looks like, for grouping verdicts under one root cause (None when unknown)
+    signature: Signature | None = None
 
     def to_summary(self) -> dict[str, Any]:
         """The case's entry in summary.json."""
@@ -107,6 +108,7 @@ class CaseResult:
         out["verdict"] = self.verdict.value
         out["clauses"] = list(self.clauses)
         out["judged"] = list(self.judged)
+        out["signature"] = None if self.signature is None else self.signature.to_dict()
         return out
 
     @classmethod
@@ -118,6 +120,8 @@ class CaseResult:
         fields["clauses"] = tuple(fields["clauses"])
         fields["judged"] = tuple(fields.get("judged", ()))
         fields["wire"] = [WireLine(**w) for w in fields.get("wire", [])]
+        sig = fields.get("signature")
+        fields["signature"] = Signature.from_dict(sig) if sig else None
         return cls(**fields)
 
 
