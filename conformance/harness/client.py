@@ -28,7 +28,7 @@ from ..protocol import (
     codec_for,
     decode_datagram,
 )
-from .target import Target, Unreachable
+from .target import Refused, Target, Unreachable
 from .transcript import Endpoint, Kind, Transcript
 
 # -- outcomes ------------------------------------------------------------------------------
@@ -108,10 +108,6 @@ SHOWN_BYTES = 64
 MAX_DRAIN = 64
 
 
-def describe(outcome: Outcome) -> str:
-    return outcome.describe()
-
-
 # -- TCP ---------------------------------------------------------------------------------------
 
 
@@ -157,7 +153,8 @@ class TcpConnection:
                 return self
             reason = _reason(exc, self.time_out_s)
             self.transcript.add(info.conn, Kind.CONNECT_FAILED, note=reason)
-            raise Unreachable(f"cannot connect to {self.target}: {reason}") from None
+            kind = Refused if isinstance(exc, ConnectionRefusedError) else Unreachable
+            raise kind(f"cannot connect to {self.target}: {reason}") from None
         self.sock = sock
         gone: OSError | None = None
         try:
@@ -338,6 +335,20 @@ class TcpConnection:
             out.append(outcome)
             if isinstance(outcome, Closed):
                 return out
+        return out
+
+    def poll(self) -> list[Outcome]:
+        """Outcomes already received or decodable now (never waits; at most :data:`MAX_DRAIN`)."""
+        out: list[Outcome] = []
+        if self.sock is not None and not self._closed and self.closed_by_peer is None:
+            self._read(0.0, time.monotonic())
+        while len(out) < MAX_DRAIN:
+            outcome = self.next_outcome(0.0)
+            if isinstance(outcome, Silence):
+                break
+            out.append(outcome)
+            if isinstance(outcome, Closed):
+                break
         return out
 
 

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 from ..harness.client import Answer, Malformed, Silence, TcpConnection
+from ..harness.liveness import PROBE_NONE
 from ..protocol import Action, request
-
-PROBE_NONE = request(Action.NONE)
 
 
 def detect_extension(conn: TcpConnection) -> tuple[bool, str]:

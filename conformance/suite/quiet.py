@@ -1,0 +1,90 @@
+"""Bounded time for a box that goes quiet after bad bytes: the hang pattern.
+
+A case that sends malformed input waits for the probe behind it (its answer bounds the
+wait). A box that hangs on a connection after some kind of bad bytes (R6: hanging
+silently is NON-STRICT) makes every such case wait the full time_out, 5 s each, some
+fifty times. After :data:`HANG_CASES` cases found the probe behind one *kind* of bad
+bytes unanswered for the whole time_out, with no legal framing explaining the silence
+(a box that trusts a header and waits for its body is not hanging), later cases that
+send that kind wait at most :data:`CUT_S` for the probe. If it is answered they are
+judged as usual; if not they end INCONCLUSIVE under that pattern: what the box would
+have done with their bytes later is unknown, so no verdict is guessed. Never a FAIL
+turned PASS.
+
+The pattern is withdrawn as soon as the box answers a probe behind that kind of bytes
+(the silences then had another cause), and never applies to a case that judges R6
+itself: the cases that report the hang always wait the full time_out.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, Transport
+from ..protocol.answers import rule_for_error, rule_for_frame
+from ..protocol.framings import Explanation
+
+#: After this many cases found the probe unanswered behind one kind of bad bytes, later cases are cut short.
+HANG_CASES = 2
+#: ... to this wait for the probe's answer (seconds; at most time_out).
+CUT_S = 0.5
+#: The clause a case judges when it reports the hang itself (it always waits the full time_out).
+HANG_CLAUSE = "R6"
+#: The kinds of bad bytes (:func:`bad_kind`) in words.
+KIND_WORDS = {"not-request": "bytes that are not a request", "reject": "a malformed request",
+              "reject-should": "a request with a NaN or infinite value", "any": "bytes whose handling is left open",
+              "incomplete": "an incomplete frame"}
+#: Findings of an explanation that say the box left the probe unanswered with no legal reason.
+_HANG_KEYS = ("end/hang", "end/silence")
+
+
+def bad_kind(data: bytes, profile: Profile, extension: bool = True) -> str:
+    """The kind of the first bad event in ``data`` by the reference framing: what a box may do
+    with it (``not-request``, ``reject``, ...), or ``incomplete`` when the bytes leave a frame open."""
+    decoder = StreamDecoder(profile, TransferType.ROBOT_TO_BOX)
+    for event in decoder.feed(data):
+        if isinstance(event, ProtocolError):
+            return rule_for_error(event, profile, Transport.TCP, extension).rule.value
+        if isinstance(event, Frame):
+            exp = rule_for_frame(event, profile, Transport.TCP, extension)
+            if not exp.valid:
+                return exp.rule.value
+    return "incomplete" if decoder.buffered else "valid"
+
+
+def hung(explanation: Explanation) -> bool:
+    """The explanation finds the probe left unanswered where no legal framing allows it."""
+    return any(f.key in _HANG_KEYS for f in explanation.findings)
+
+
+@dataclass
+class Hangs:
+    """Per kind of bad bytes: the cases that found the probe behind them unanswered for time_out."""
+
+    cases: dict[str, list[str]] = field(default_factory=dict)
+    #: kinds after which the box has answered the probe at least once
+    answered: set[str] = field(default_factory=set)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def note(self, kind: str, case_id: str, *, hung: bool, probe_answered: bool) -> None:
+        with self._lock:
+            if probe_answered:
+                self.answered.add(kind)
+            elif hung:
+                seen = self.cases.setdefault(kind, [])
+                if case_id not in seen:
+                    seen.append(case_id)
+
+    def known(self, kind: str) -> list[str] | None:
+        """The cases that established the pattern for ``kind`` (None: not established, or withdrawn)."""
+        with self._lock:
+            cases = self.cases.get(kind, [])
+            return list(cases) if len(cases) >= HANG_CASES and kind not in self.answered else None
+
+    def bound(self, kind: str, judged: tuple[str, ...], time_out_s: float) -> tuple[float, list[str]] | None:
+        """(the short wait, the establishing cases) for a case sending ``kind`` that does not judge R6."""
+        cases = self.known(kind)
+        if cases is None or HANG_CLAUSE in judged:
+            return None
+        return min(CUT_S, time_out_s), cases
