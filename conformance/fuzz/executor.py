@@ -35,8 +35,8 @@ from ..harness.exchange import (
     action_of,
     answers_zero,
     choose_probe,
-    collect,
     probe_request,
+    send_and_collect,
 )
 from ..harness.liveness import check_alive, responsive, unreachable_outcome
 from ..harness.target import Target, Unreachable
@@ -222,21 +222,15 @@ class Executor:
         probe = self.probe_for(case)
         probe_bytes = self._probes[Transport.TCP][probe] if probe is not None else b""
         wire = case.wire + probe_bytes
-        start = time.monotonic()
         text = note or case.describe()
         text += f"; then a {probe.name} probe" if probe is not None else " (no probe: the bytes hold every probe action)"
-        if not conn.send(wire, text):
-            outcomes: list[Outcome] = [o for o in conn.poll() if not isinstance(o, Closed)]
-            end: Outcome | None = conn.closed_by_peer or Closed(False, 0.0)
-            usable = False
-        else:
-            got = collect(conn, probe, start, self._settle(), self.time_out_s)
-            outcomes, end, usable = got.outcomes, got.end, got.usable
-            if got.probe_answered and got.kind is End.CLOSED:  # a refusal, then a close: the probe never read
-                outcomes, end = [*outcomes, *got.answers()[-1:]], got.close
+        got = send_and_collect(conn, case.wire, probe, probe_bytes, text, self._settle(), self.time_out_s)
+        outcomes, end = got.outcomes, got.end
+        if got.probe_answered and got.kind is End.CLOSED:  # a refusal, then a close: the probe never read
+            outcomes, end = [*outcomes, *got.answers()[-1:]], got.close
         judgement = judge(case.expects, outcomes, end, self.profile, probe, data=wire, extension=self.extension,
                           probe_at=len(case.wire) if probe is not None else None)
-        return Result(case, outcomes, end, judgement, conn.conn_id if usable else -1, False, probe)
+        return Result(case, outcomes, end, judgement, conn.conn_id if got.usable else -1, False, probe)
 
     def _run_eof(self, case: FuzzCase, note: str) -> Result:
         """A truncated frame: a fresh connection, the bytes, end of stream; what follows until the box closes."""

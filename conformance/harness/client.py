@@ -135,6 +135,8 @@ class TcpConnection:
         self.before_send: Callable[[bytes], None] | None = None
         #: called with the action of every request :meth:`request` saw answered within the wait
         self.on_answered: Callable[[int], None] | None = None
+        #: called when a wait for an answer runs out this connection's time_out (it may raise)
+        self.on_time_out: Callable[[], None] | None = None
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:
@@ -172,6 +174,11 @@ class TcpConnection:
         if gone is not None:
             self._peer_gone(gone)
         return self
+
+    @property
+    def is_open(self) -> bool:
+        """Connected, and closed by neither side."""
+        return self.sock is not None and not self._closed and self.closed_by_peer is None
 
     def close(self, note: str = "") -> None:
         """Close our side (FIN) and release the socket."""
@@ -262,6 +269,8 @@ class TcpConnection:
             remaining = deadline - now
             if remaining <= 0 or self.sock is None or self._closed:
                 if timeout_s is None and remaining <= 0:
+                    if self.on_time_out is not None:
+                        self.on_time_out()  # the suite's session rules may end the case here
                     self.transcript.timeouts += 1
                     self.transcript.note(f"no answer within time_out ({wait * 1000:.0f} ms)", self.conn_id)
                 return Silence(time.monotonic() - start)

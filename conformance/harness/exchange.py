@@ -155,6 +155,18 @@ class Collected:
         return out + [self.end] if isinstance(self.end, (Answer, Malformed)) else out
 
 
+def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_bytes: bytes, note: str,
+                     settle: Settle, timeout_s: float | None = None) -> Collected:
+    """``data`` and the probe behind it in one write (the box sees them as one segment, every time:
+    R4 requires it to answer both), then :func:`collect`. If the write fails, what had already
+    arrived and the close."""
+    start = time.monotonic()
+    if not conn.send(data + probe_bytes, note):
+        arrived: list[Outcome] = [o for o in conn.poll() if not isinstance(o, Closed)]
+        return Collected(arrived, conn.closed_by_peer or Closed(False, time.monotonic() - start))
+    return collect(conn, probe, start, settle, timeout_s)
+
+
 def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle,
             timeout_s: float | None = None) -> Collected:
     """Everything the box sends until an answer with the probe's action (then the settle

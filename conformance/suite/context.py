@@ -12,21 +12,21 @@ the witness, extension support.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
-from ..harness.exchange import Collected, Settle, attribute, choose_probe, collect, probe_request
-from ..harness.liveness import check_alive, responsive
+from ..harness.exchange import Collected, Settle, attribute, choose_probe, probe_request, send_and_collect
+from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..protocol import Action, Frame, encode
 from ..protocol.framings import Explanation
 from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
-from .quiet import HANG_CLAUSE, KIND_WORDS, bad_kind, hung
+from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, hung
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
+from .verdicts import Level
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
 #: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).
@@ -68,11 +68,27 @@ class CaseContext:
         conn = TcpConnection(self.transcript, target or self.target, self.profile, label, time_out_s)
         conn.before_send = self._not_known_late
         conn.on_answered = self.session.note_answered
+        if self._waits_behind_another():
+            conn.time_out_s = min(conn.time_out_s, CUT_S)
+            conn.on_time_out = self._served_one_at_a_time
         self._connections.append(conn)
         try:
             return conn.connect()
         except Unreachable as exc:
             raise Inconclusive(f"box unreachable: {exc}", signature=UNREACHABLE_AT_CONNECT) from None
+
+    def _waits_behind_another(self) -> bool:
+        """The box serves one connection at a time (the S4 preflight) and this case holds one open: a
+        new connection is not served until that one closes (unless the case judges S4 itself)."""
+        judges = "S4" in self.info.clauses and self.info.level is not Level.MAY
+        return (self.session.concurrent is False and not judges
+                and any(isinstance(c, TcpConnection) and c.is_open for c in self._connections))
+
+    def _served_one_at_a_time(self) -> None:
+        raise Inconclusive(
+            f"the box serves one connection at a time ({self.session.concurrency_note or 'the S4 preflight'}); this "
+            f"case needs a second connection while its first is open, and it was not answered within "
+            f"{CUT_S * 1000:.0f} ms: the case ends here, not judged", judged=("S4",), signature="one-connection")
 
     def try_connect(self, label: str = "command", time_out_s: float | None = None) -> TcpConnection | None:
         """Like :meth:`connect`, but None when the box cannot be reached (for R/S cases that judge it)."""
@@ -125,16 +141,12 @@ class CaseContext:
         action = choose_probe(bad)
         self.last_probe_action = action if action is not None else Action.NONE
         probe_bytes = encode(probe_request(action, self.profile), self.profile) if action is not None else b""
-        start = time.monotonic()
-        if not conn.send(bad, note):
-            self.last_probe = conn.closed_by_peer or Closed(False, 0.0)
-            return self.last_probe
-        if action is not None:
-            conn.send(probe_bytes, f"probe: a valid {action.name} request; its answer bounds the wait")
         extension = self.session.extension_supported is not False
         kind = bad_kind(bad, self.profile, extension)
-        cut = self.session.hangs.bound(kind, self.info.clauses, self.time_out_s) if action is not None else None
-        got = collect(conn, action, start, SETTLE, cut[0] if cut else None)
+        judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
+        cut = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
+        text = f"{note}; then a valid {action.name} probe: its answer bounds the wait" if action is not None else note
+        got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, cut[0] if cut else None)
         if cut is not None and action is not None and isinstance(got.end, Silence):
             self._cut_short(kind, action, *cut)
         explanation = attribute(bad + probe_bytes, got, self.profile, extension=extension,
@@ -195,8 +207,16 @@ class CaseContext:
                                f"depends on it and is not run again", signature=f"silence:{name}")
 
     def check_alive(self) -> Outcome:
-        """R2: a fresh connection still gets NONE answered."""
-        return check_alive(self.transcript, self.target, self.profile)
+        """R2: a fresh connection still gets NONE answered (on a box serving one connection at a time,
+        while this case holds one open, a wait cut short: see :meth:`connect`)."""
+        if not self._waits_behind_another():
+            return check_alive(self.transcript, self.target, self.profile)
+        conn = self.try_connect("liveness")
+        if conn is None:
+            return check_alive(self.transcript, self.target, self.profile)
+        outcome = conn.request(PROBE_NONE, LIVENESS_NOTE)
+        conn.close()
+        return outcome
 
     # -- verdict helpers ------------------------------------------------------------------
     def judge(self, outcome: Outcome, check: str = "", *, sent: bytes | None = None, **values: Any) -> None:

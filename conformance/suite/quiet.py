@@ -12,8 +12,8 @@ have done with their bytes later is unknown, so no verdict is guessed. Never a F
 turned PASS.
 
 The pattern is withdrawn as soon as the box answers a probe behind that kind of bytes
-(the silences then had another cause), and never applies to a case that judges R6
-itself: the cases that report the hang always wait the full time_out.
+(the silences then had another cause), and never applies to a case that judges R6 at
+MUST or SHOULD level: the cases that report the hang always wait the full time_out.
 """
 
 from __future__ import annotations
@@ -82,9 +82,10 @@ class Hangs:
             cases = self.cases.get(kind, [])
             return list(cases) if len(cases) >= HANG_CASES and kind not in self.answered else None
 
-    def bound(self, kind: str, judged: tuple[str, ...], time_out_s: float) -> tuple[float, list[str]] | None:
-        """(the short wait, the establishing cases) for a case sending ``kind`` that does not judge R6."""
+    def bound(self, kind: str, judges_hang: bool, time_out_s: float) -> tuple[float, list[str]] | None:
+        """(the short wait, the establishing cases) for a case sending ``kind``; None (wait in full) when
+        the pattern is not established or the case judges the hang itself (R6 at MUST or SHOULD)."""
         cases = self.known(kind)
-        if cases is None or HANG_CLAUSE in judged:
+        if cases is None or judges_hang:
             return None
         return min(CUT_S, time_out_s), cases
