@@ -177,3 +177,32 @@ def test_a_second_connection_to_a_box_serving_one_at_a_time_is_cut_short_unless_
     assert cut.value.judged == ("S4",) and "one connection at a time" in cut.value.message
     assert r2.transcript.timeouts == 0  # it did not wait time_out
     assert isinstance(waited, Silence) and s4.transcript.timeouts == 1  # the S4 case waits in full and judges it
+
+
+def zero_then_hang(conn: socket.socket) -> None:
+    """Answers malformed requests 0000 (R1 broken) and then hangs on that connection; garbage: hangs at once."""
+    conn.settimeout(10)
+    decoder = StreamDecoder(expect=TransferType.ROBOT_TO_BOX)
+    while data := conn.recv(65536):
+        for event in decoder.feed(data):
+            if isinstance(event, ProtocolError):
+                if event.header is not None and event.header.start_word == 0xFEFE:
+                    conn.sendall(encode(answer(Action(event.header.action))))
+                while conn.recv(65536):
+                    pass
+                return
+            conn.sendall(encode(answer(event.action)))
+
+
+def test_a_0000_that_came_before_the_cut_is_judged_after_the_full_wait() -> None:
+    """Cutting a wait short may turn a verdict INCONCLUSIVE, never hide the evidence of a FAIL that came."""
+    with ScriptedBox(zero_then_hang) as box:
+        state = SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=P))
+        for n in range(HANG_CASES):
+            context(state, f"B3-{n}").send_malformed(BAD_INDEX)
+        assert state.hangs.known("reject") is not None
+        ctx = context(state, "B3-9", ("B3",))
+        outcome = ctx.send_malformed(BAD_INDEX)  # no Inconclusive: the 0000 is judged
+        ctx.close_all()
+    assert outcome.describe() == "answered box→robot POSE err=0x0000"
+    assert isinstance(ctx.last_probe, Silence)

@@ -12,11 +12,12 @@ the witness, extension support.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
-from ..harness.exchange import Collected, Settle, attribute, choose_probe, probe_request, send_and_collect
+from ..harness.exchange import Collected, Settle, attribute, choose_probe, collect, probe_request, send_and_collect
 from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
@@ -148,7 +149,11 @@ class CaseContext:
         text = f"{note}; then a valid {action.name} probe: its answer bounds the wait" if action is not None else note
         got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, cut[0] if cut else None)
         if cut is not None and action is not None and isinstance(got.end, Silence):
-            self._cut_short(kind, action, *cut)
+            if not any(_may_fail(o) for o in got.outcomes):
+                self._cut_short(kind, action, *cut)
+            # a 0000 or a malformed answer came: wait out time_out as usual (evidence of a FAIL is judged in full)
+            more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - cut[0]))
+            got = Collected(got.outcomes + more.outcomes, more.end, more.close)
         explanation = attribute(bad + probe_bytes, got, self.profile, extension=extension,
                                 probe_at=len(bad) if action is not None else None)
         self.last_explanation = explanation
@@ -256,6 +261,11 @@ class CaseContext:
     def _record_latency(self, outcome: Outcome) -> None:
         if isinstance(outcome, Answer):
             self.latencies_ms.append(outcome.latency_s * 1000)
+
+
+def _may_fail(outcome: Outcome) -> bool:
+    """An answer that may be evidence of a FAIL whatever came after it: a 0000, or malformed bytes."""
+    return isinstance(outcome, Malformed) or (isinstance(outcome, Answer) and outcome.frame.error_code == 0)
 
 
 def answers_none(outcome: Outcome) -> bool:
