@@ -144,16 +144,8 @@ class CaseContext:
         probe_bytes = encode(probe_request(action, self.profile), self.profile) if action is not None else b""
         extension = self.session.extension_supported is not False
         kind = bad_kind(bad, self.profile, extension)
-        judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
-        cut = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
         text = f"{note}; then a valid {action.name} probe: its answer bounds the wait" if action is not None else note
-        got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, cut[0] if cut else None)
-        if cut is not None and action is not None and isinstance(got.end, Silence):
-            if not any(_may_fail(o) for o in got.outcomes):
-                self._cut_short(kind, action, *cut)
-            # a 0000 or a malformed answer came: wait out time_out as usual (evidence of a FAIL is judged in full)
-            more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - cut[0]))
-            got = Collected(got.outcomes + more.outcomes, more.end, more.close)
+        got = self._send_bounded(conn, bad, action, probe_bytes, text, kind)
         explanation = attribute(bad + probe_bytes, got, self.profile, extension=extension,
                                 probe_at=len(bad) if action is not None else None)
         self.last_explanation = explanation
@@ -164,6 +156,20 @@ class CaseContext:
             self.session.hangs.note(kind, self.info.id, hung=isinstance(got.end, Silence) and hung(explanation),
                                     probe_answered=isinstance(self.last_probe, (Answer, Malformed)))
         return outcome
+
+    def _send_bounded(self, conn: TcpConnection, bad: bytes, action: Action | None, probe_bytes: bytes, text: str,
+                      kind: str) -> Collected:
+        """The exchange; on a box known to hang after this kind of bytes (:mod:`.quiet`), cut short."""
+        judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
+        cut = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
+        got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, cut[0] if cut else None)
+        if cut is None or action is None or not isinstance(got.end, Silence):
+            return got
+        if not any(_may_fail(o) for o in got.outcomes):
+            self._cut_short(kind, action, *cut)
+        # a 0000 or a malformed answer came: wait out time_out as usual (evidence of a FAIL is judged in full)
+        more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - cut[0]))
+        return Collected(got.outcomes + more.outcomes, more.end, more.close)
 
     def _cut_short(self, kind: str, probe: Action, wait_s: float, cases: list[str]) -> None:
         """The probe behind a kind of bytes the box is known to hang on went unanswered for ``wait_s``:
