@@ -23,7 +23,7 @@ from conformance.protocol import (
 )
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive
-from conformance.suite.quiet import CUT_S, HANG_CASES, Hangs, bad_kind
+from conformance.suite.quiet import CUT_S, HANG_CASES, Hangs, bad_kind, pattern_key
 from conformance.suite.record import CaseRecord
 from conformance.suite.session import SessionState
 from conformance.suite.settings import SuiteSettings
@@ -46,23 +46,24 @@ def test_bad_bytes_are_classified_by_the_reference_framing() -> None:
 
 
 def test_the_pattern_needs_enough_cases_and_is_withdrawn_by_one_answer() -> None:
-    hangs = Hangs()
+    hangs, key = Hangs(), pattern_key("not-request", False)
     for n in range(HANG_CASES):
-        assert hangs.known("not-request") is None
-        hangs.note("not-request", f"C-{n}", hung=True, probe_answered=False)
-    assert hangs.known("not-request") == [f"C-{n}" for n in range(HANG_CASES)]
-    assert hangs.bound("not-request", False, 5.0) == (CUT_S, hangs.known("not-request"))
+        assert hangs.known(key) is None and hangs.bound("not-request", False, 5.0) is None
+        hangs.note(key, f"C-{n}", hung=True, probe_answered=False)
+    assert hangs.known(key) == [f"C-{n}" for n in range(HANG_CASES)]
+    assert hangs.bound("not-request", False, 5.0) == CUT_S
     assert hangs.bound("not-request", True, 5.0) is None  # a case judging the hang waits in full
     assert hangs.bound("reject", False, 5.0) is None  # another kind of bytes: not established
-    hangs.note("not-request", "C-9", hung=False, probe_answered=True)
-    assert hangs.known("not-request") is None  # the box resynchronised once: the silences had another cause
+    assert hangs.known(pattern_key("not-request", True)) is None  # answered, then quiet: another pattern
+    hangs.note(key, "C-9", hung=False, probe_answered=True)
+    assert hangs.known(key) is None  # the box resynchronised once: the silences had another cause
 
 
 def test_a_legal_wait_or_a_silence_with_the_probe_answered_is_not_a_hang() -> None:
     hangs = Hangs()
     for n in range(3):
-        hangs.note("incomplete", f"C-{n}", hung=False, probe_answered=False)  # explained by a trusting framing
-    assert hangs.known("incomplete") is None
+        hangs.note(pattern_key("incomplete", False), f"C-{n}", hung=False, probe_answered=False)  # a legal wait
+    assert hangs.bound("incomplete", False, 5.0) is None
 
 
 def hang_after_garbage(conn: socket.socket) -> None:
@@ -114,7 +115,8 @@ def test_a_box_that_answers_the_probe_is_never_cut_short() -> None:
         outcome = ctx.send_malformed(BAD_INDEX)  # a malformed request, not garbage: answered, the probe too
         ctx.close_all()
     assert outcome.describe() == "answered box→robot POSE err=0x1001" and ctx.transcript.timeouts == 0
-    assert state.hangs.known("reject") is None and state.hangs.known("not-request") is not None
+    assert state.hangs.known(pattern_key("reject", True)) is None
+    assert state.hangs.known(pattern_key("not-request", False)) is not None
 
 
 class OneAtATime:
@@ -200,9 +202,38 @@ def test_a_0000_that_came_before_the_cut_is_judged_after_the_full_wait() -> None
         state = SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=P))
         for n in range(HANG_CASES):
             context(state, f"B3-{n}").send_malformed(BAD_INDEX)
-        assert state.hangs.known("reject") is not None
+        assert state.hangs.known(pattern_key("reject", True)) is not None
         ctx = context(state, "B3-9", ("B3",))
         outcome = ctx.send_malformed(BAD_INDEX)  # no Inconclusive: the 0000 is judged
         ctx.close_all()
     assert outcome.describe() == "answered box→robot POSE err=0x0000"
     assert isinstance(ctx.last_probe, Silence)
+
+
+def first_of_each_read(conn: socket.socket) -> None:
+    """Answers only the first frame of each read (R4 broken): malformed requests 1001, garbage never."""
+    conn.settimeout(10)
+    decoder = StreamDecoder(expect=TransferType.ROBOT_TO_BOX)
+    while data := conn.recv(65536):
+        out = []
+        for event in decoder.feed(data):
+            if not isinstance(event, ProtocolError):
+                out.append(encode(answer(event.action)))
+            elif event.header is not None and event.header.start_word == 0xFEFE:
+                out.append(encode(answer(Action(event.header.action), 0x1001)))
+        conn.sendall(out[0] if out else b"")
+
+
+def test_a_box_dropping_the_probe_after_answering_the_bytes_is_its_own_pattern() -> None:
+    """Bytes it leaves unanswered get the probe answered; that does not withdraw the pattern of bytes it answers."""
+    with ScriptedBox(first_of_each_read) as box:
+        state = SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=P))
+        for n in range(HANG_CASES):
+            context(state, f"B3-{n}").send_malformed(BAD_INDEX)
+        context(state, "A5-0").send_malformed(GARBAGE)  # garbage: unanswered, the probe answered
+        later = context(state, "B3-9", ("B3",))
+        with pytest.raises(Inconclusive) as cut:
+            later.send_malformed(BAD_INDEX)
+        later.close_all()
+    assert state.hangs.known(pattern_key("reject", True)) == ["B3-0", "B3-1"]
+    assert "once it answered them" in cut.value.message and later.transcript.timeouts == 0

@@ -24,7 +24,7 @@ from ..harness.transcript import Transcript
 from ..protocol import Action, Frame, encode
 from ..protocol.framings import Explanation
 from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
-from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, hung
+from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, hung, pattern_key
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
 from .verdicts import Level
@@ -153,30 +153,33 @@ class CaseContext:
             self.details["framing"] = explanation.framing
         outcome = self._outcome_for_bad(bad, got, explanation)
         if action is not None:
-            self.session.hangs.note(kind, self.info.id, hung=isinstance(got.end, Silence) and hung(explanation),
-                                    probe_answered=isinstance(self.last_probe, (Answer, Malformed)))
+            mine = bool(explanation.answers_within(0, len(bad)))
+            self.session.hangs.note(pattern_key(kind, mine), self.info.id, probe_answered=isinstance(
+                self.last_probe, (Answer, Malformed)), hung=isinstance(got.end, Silence) and hung(explanation))
         return outcome
 
     def _send_bounded(self, conn: TcpConnection, bad: bytes, action: Action | None, probe_bytes: bytes, text: str,
                       kind: str) -> Collected:
         """The exchange; on a box known to hang after this kind of bytes (:mod:`.quiet`), cut short."""
         judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
-        cut = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
-        got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, cut[0] if cut else None)
-        if cut is None or action is None or not isinstance(got.end, Silence):
+        bound = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
+        got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, bound)
+        if bound is None or action is None or not isinstance(got.end, Silence):
             return got
-        if not any(_may_fail(o) for o in got.outcomes):
-            self._cut_short(kind, action, *cut)
-        # a 0000 or a malformed answer came: wait out time_out as usual (evidence of a FAIL is judged in full)
-        more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - cut[0]))
+        key = pattern_key(kind, bool(got.answers()))
+        cases = self.session.hangs.known(key)
+        if cases is not None and not any(_may_fail(o) for o in got.outcomes):
+            self._cut_short(KIND_WORDS.get(kind, kind) + (", once it answered them," if got.answers() else ""),
+                            action, bound, cases)
+        # not in the pattern, or a 0000 or malformed answer came: wait out time_out (a FAIL is judged in full)
+        more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
         return Collected(got.outcomes + more.outcomes, more.end, more.close)
 
-    def _cut_short(self, kind: str, probe: Action, wait_s: float, cases: list[str]) -> None:
-        """The probe behind a kind of bytes the box is known to hang on went unanswered for ``wait_s``:
-        INCONCLUSIVE under that pattern (if the box still answers a fresh connection; else R2 judges)."""
+    def _cut_short(self, what: str, probe: Action, wait_s: float, cases: list[str]) -> None:
+        """The probe behind bytes the box is known to hang on went unanswered for ``wait_s``: INCONCLUSIVE
+        under that pattern (if the box still answers a fresh connection; else R2 judges)."""
         if not responsive(self.check_alive()):
             return
-        what = KIND_WORDS.get(kind, f"bytes of kind {kind}")
         raise Inconclusive(
             f"after {what} the box left the request behind them unanswered for the whole time_out in cases "
             f"{', '.join(cases[:3])} (R6: hanging silently is NON-STRICT); here its probe ({probe.name}) was not "

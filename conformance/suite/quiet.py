@@ -3,16 +3,19 @@
 A case that sends malformed input waits for the probe behind it (its answer bounds the
 wait). A box that hangs on a connection after some kind of bad bytes (R6: hanging
 silently is NON-STRICT) makes every such case wait the full time_out, 5 s each, some
-fifty times. After :data:`HANG_CASES` cases found the probe behind one *kind* of bad
-bytes unanswered for the whole time_out, with no legal framing explaining the silence
-(a box that trusts a header and waits for its body is not hanging), later cases that
-send that kind wait at most :data:`CUT_S` for the probe. If it is answered they are
-judged as usual; if not they end INCONCLUSIVE under that pattern: what the box would
-have done with their bytes later is unknown, so no verdict is guessed. Never a FAIL
-turned PASS.
+fifty times. A *pattern* is a kind of bad bytes (:func:`bad_kind`) and whether the box
+answered them before going quiet (:func:`pattern_key`). After :data:`HANG_CASES` cases
+found the probe unanswered for the whole time_out in one pattern, with no legal framing
+explaining the silence (a box that trusts a header and waits for its body is not
+hanging), later cases that send that kind of bytes first wait :data:`CUT_S` for the
+probe. If it is answered they are judged as usual; if not, and they are in the pattern,
+they end INCONCLUSIVE under it: what the box would have done later is unknown, so no
+verdict is guessed. A 0000 or a malformed answer that came before the bound (evidence of
+a FAIL) is never cut short: the case then waits out time_out and is judged. Never a
+FAIL turned PASS.
 
-The pattern is withdrawn as soon as the box answers a probe behind that kind of bytes
-(the silences then had another cause), and never applies to a case that judges R6 at
+A pattern is withdrawn as soon as the box answers a probe in it (the silences then had
+another cause), and never applies to a case that judges R6 at
 MUST or SHOULD level: the cases that report the hang always wait the full time_out.
 """
 
@@ -58,34 +61,39 @@ def hung(explanation: Explanation) -> bool:
     return any(f.key in _HANG_KEYS for f in explanation.findings)
 
 
+def pattern_key(kind: str, answered: bool) -> str:
+    """A hang pattern: the kind of bad bytes, and whether the box answered them before going quiet (a box
+    that answers only the first frame of a read drops the probe exactly when it answered the bytes)."""
+    return f"{kind}/{'answered' if answered else 'unanswered'}"
+
+
 @dataclass
 class Hangs:
-    """Per kind of bad bytes: the cases that found the probe behind them unanswered for time_out."""
+    """Per pattern (:func:`pattern_key`): the cases that found the probe unanswered for time_out."""
 
     cases: dict[str, list[str]] = field(default_factory=dict)
-    #: kinds after which the box has answered the probe at least once
+    #: patterns after which the box has answered the probe at least once
     answered: set[str] = field(default_factory=set)
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
-    def note(self, kind: str, case_id: str, *, hung: bool, probe_answered: bool) -> None:
+    def note(self, key: str, case_id: str, *, hung: bool, probe_answered: bool) -> None:
         with self._lock:
             if probe_answered:
-                self.answered.add(kind)
+                self.answered.add(key)
             elif hung:
-                seen = self.cases.setdefault(kind, [])
+                seen = self.cases.setdefault(key, [])
                 if case_id not in seen:
                     seen.append(case_id)
 
-    def known(self, kind: str) -> list[str] | None:
-        """The cases that established the pattern for ``kind`` (None: not established, or withdrawn)."""
+    def known(self, key: str) -> list[str] | None:
+        """The cases that established the pattern (None: not established, or withdrawn)."""
         with self._lock:
-            cases = self.cases.get(kind, [])
-            return list(cases) if len(cases) >= HANG_CASES and kind not in self.answered else None
+            cases = self.cases.get(key, [])
+            return list(cases) if len(cases) >= HANG_CASES and key not in self.answered else None
 
-    def bound(self, kind: str, judges_hang: bool, time_out_s: float) -> tuple[float, list[str]] | None:
-        """(the short wait, the establishing cases) for a case sending ``kind``; None (wait in full) when
-        the pattern is not established or the case judges the hang itself (R6 at MUST or SHOULD)."""
-        cases = self.known(kind)
-        if cases is None or judges_hang:
+    def bound(self, kind: str, judges_hang: bool, time_out_s: float) -> float | None:
+        """The short first wait for a case sending ``kind`` when some pattern of that kind is established;
+        None (wait in full) otherwise, or when the case judges the hang itself (R6 at MUST or SHOULD)."""
+        if judges_hang or not any(self.known(pattern_key(kind, a)) for a in (False, True)):
             return None
-        return min(CUT_S, time_out_s), cases
+        return min(CUT_S, time_out_s)
