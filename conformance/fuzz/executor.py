@@ -4,9 +4,9 @@ One case on TCP: the case's bytes (and the filler that completes a frame they le
 open) and a valid *probe* request in one write, on a connection that is reused from
 case to case. Answers come in order (A1), so everything before the probe's answer is
 the box's answer to the case, and the probe's answer bounds the wait without sleeping.
-The probe's action is one the case's bytes do not use, so the two cannot be confused;
-if a probe-like answer is followed at once by another one, the first answered the case
-(as :meth:`~conformance.suite.context.CaseContext.send_malformed` does). A truncated
+The probe, the sending and collecting, the settle window and the liveness check are the
+harness's exchange engine (:mod:`conformance.harness.exchange`, :mod:`~conformance.harness.liveness`),
+shared with the catalogue's malformed-input cases and ``replay``. A truncated
 frame (``eof``) goes on a fresh connection that is then half-closed: no probe can
 follow it. UDP: the datagram, then a probe datagram.
 
@@ -17,7 +17,9 @@ while the open one still works, is caught within ``liveness_every`` cases; the
 campaign then finds which of those cases killed it (:mod:`.campaign`).
 
 ``isolate``: every case on a fresh connection; ``settle``: after the probe's answer
-the connection is watched for ``settle_s`` for late extra answers. The campaign
+the connection is watched for ``settle_s`` for late extra answers (otherwise only what
+has already arrived is taken, and ``settle_s`` after an answer with the probe's action
+and an error, which may be a refusal of the bytes). The campaign
 confirms a failure with both before it reports it, and shrinks isolated, so what a
 box did with an earlier case on the same connection is never blamed on a later one.
 """
