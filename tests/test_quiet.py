@@ -55,6 +55,7 @@ def test_the_pattern_needs_enough_cases_and_is_withdrawn_by_one_answer() -> None
     assert hangs.bound("not-request", True, 5.0) is None  # a case judging the hang waits in full
     assert hangs.bound("reject", False, 5.0) is None  # another kind of bytes: not established
     assert hangs.known(pattern_key("not-request", True)) is None  # answered, then quiet: another pattern
+    assert pattern_key("reject", True) == pattern_key("any", True) != pattern_key("not-request", True)
     hangs.note(key, "C-9", hung=False, probe_answered=True)
     assert hangs.known(key) is None  # the box resynchronised once: the silences had another cause
 

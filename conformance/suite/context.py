@@ -24,7 +24,7 @@ from ..harness.transcript import Transcript
 from ..protocol import Action, Frame, encode
 from ..protocol.framings import Explanation
 from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, words
-from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, hung, pattern_key
+from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, broken_besides_hang, hung, pattern_key
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
 from .verdicts import Level
@@ -166,12 +166,13 @@ class CaseContext:
         got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, bound)
         if bound is None or action is None or not isinstance(got.end, Silence):
             return got
-        key = pattern_key(kind, bool(got.answers()))
-        cases = self.session.hangs.known(key)
-        if cases is not None and not any(_may_fail(o) for o in got.outcomes):
+        cases = self.session.hangs.known(pattern_key(kind, bool(got.answers())))
+        so_far = attribute(bad + probe_bytes, got, self.profile, extension=self.session.extension_supported is not False,
+                           probe_at=len(bad))
+        if cases is not None and not broken_besides_hang(so_far):
             self._cut_short(KIND_WORDS.get(kind, kind) + (", once it answered them," if got.answers() else ""),
                             action, bound, cases)
-        # not in the pattern, or a 0000 or malformed answer came: wait out time_out (a FAIL is judged in full)
+        # not in the pattern, or what came already breaks a requirement: wait out time_out, judged in full
         more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
         return Collected(got.outcomes + more.outcomes, more.end, more.close)
 
@@ -270,11 +271,6 @@ class CaseContext:
     def _record_latency(self, outcome: Outcome) -> None:
         if isinstance(outcome, Answer):
             self.latencies_ms.append(outcome.latency_s * 1000)
-
-
-def _may_fail(outcome: Outcome) -> bool:
-    """An answer that may be evidence of a FAIL whatever came after it: a 0000, or malformed bytes."""
-    return isinstance(outcome, Malformed) or (isinstance(outcome, Answer) and outcome.frame.error_code == 0)
 
 
 def answers_none(outcome: Outcome) -> bool:

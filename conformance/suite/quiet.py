@@ -10,9 +10,10 @@ explaining the silence (a box that trusts a header and waits for its body is not
 hanging), later cases that send that kind of bytes first wait :data:`CUT_S` for the
 probe. If it is answered they are judged as usual; if not, and they are in the pattern,
 they end INCONCLUSIVE under it: what the box would have done later is unknown, so no
-verdict is guessed. A 0000 or a malformed answer that came before the bound (evidence of
-a FAIL) is never cut short: the case then waits out time_out and is judged. Never a
-FAIL turned PASS.
+verdict is guessed. What came before the bound and already breaks a requirement
+(evidence of a FAIL or NON-STRICT: a 0000 to malformed input, a malformed answer) is
+never cut short: the case then waits out time_out and is judged. Never a FAIL turned
+PASS.
 
 A pattern is withdrawn as soon as the box answers a probe in it (the silences then had
 another cause), and never applies to a case that judges R6 at
@@ -30,14 +31,15 @@ from ..protocol.framings import Explanation
 
 #: After this many cases found the probe unanswered behind one kind of bad bytes, later cases are cut short.
 HANG_CASES = 2
-#: ... to this wait for the probe's answer (seconds; at most time_out).
-CUT_S = 0.5
+#: ... to this first wait for the probe's answer (seconds; at most time_out): far above a box's usual answer
+#: latency on loopback, far below time_out (each cut case costs it, some fifty of them)
+CUT_S = 0.25
 #: The clause a case judges when it reports the hang itself (it always waits the full time_out).
 HANG_CLAUSE = "R6"
 #: The kinds of bad bytes (:func:`bad_kind`) in words.
 KIND_WORDS = {"not-request": "bytes that are not a request", "reject": "a malformed request",
-              "reject-should": "a request with a NaN or infinite value", "any": "bytes whose handling is left open",
-              "incomplete": "an incomplete frame"}
+              "reject-should": "a request with a NaN or infinite value",
+              "any": "a request whose handling PROTOCOL.md leaves open", "incomplete": "an incomplete frame"}
 #: Findings of an explanation that say the box left the probe unanswered with no legal reason.
 _HANG_KEYS = ("end/hang", "end/silence")
 
@@ -61,10 +63,17 @@ def hung(explanation: Explanation) -> bool:
     return any(f.key in _HANG_KEYS for f in explanation.findings)
 
 
+def broken_besides_hang(explanation: Explanation) -> bool:
+    """The explanation finds something wrong other than the silence at the end."""
+    return any(f.key not in _HANG_KEYS for f in explanation.findings)
+
+
 def pattern_key(kind: str, answered: bool) -> str:
-    """A hang pattern: the kind of bad bytes, and whether the box answered them before going quiet (a box
+    """A hang pattern: the kind of bad bytes (bytes that are not a request, a frame with a request's header
+    and bad content, an incomplete frame), and whether the box answered them before going quiet (a box
     that answers only the first frame of a read drops the probe exactly when it answered the bytes)."""
-    return f"{kind}/{'answered' if answered else 'unanswered'}"
+    family = kind if kind in ("not-request", "incomplete") else "request"
+    return f"{family}/{'answered' if answered else 'unanswered'}"
 
 
 @dataclass
