@@ -238,3 +238,4 @@ def test_a_box_dropping_the_probe_after_answering_the_bytes_is_its_own_pattern()
         later.close_all()
     assert state.hangs.known(pattern_key("reject", True)) == ["B3-0", "B3-1"]
     assert "once it answered them" in cut.value.message and later.transcript.timeouts == 0
+    assert cut.value.judged == ("R4", "A1")  # the probe in the segment of bytes it answered was dropped

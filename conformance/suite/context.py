@@ -170,22 +170,24 @@ class CaseContext:
         so_far = attribute(bad + probe_bytes, got, self.profile, extension=self.session.extension_supported is not False,
                            probe_at=len(bad))
         if cases is not None and not broken_besides_hang(so_far):
-            self._cut_short(KIND_WORDS.get(kind, kind) + (", once it answered them," if got.answers() else ""),
-                            action, bound, cases)
+            self._cut_short(kind, bool(got.answers()), action, bound, cases)
         # not in the pattern, or what came already breaks a requirement: wait out time_out, judged in full
         more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
         return Collected(got.outcomes + more.outcomes, more.end, more.close)
 
-    def _cut_short(self, what: str, probe: Action, wait_s: float, cases: list[str]) -> None:
+    def _cut_short(self, kind: str, answered: bool, probe: Action, wait_s: float, cases: list[str]) -> None:
         """The probe behind bytes the box is known to hang on went unanswered for ``wait_s``: INCONCLUSIVE
         under that pattern (if the box still answers a fresh connection; else R2 judges)."""
         if not responsive(self.check_alive()):
             return
+        what = KIND_WORDS.get(kind, kind) + (", once it answered them," if answered else "")
+        clauses, why = (("R4", "A1"), "R4: every frame of a segment is answered") if answered else (
+            (HANG_CLAUSE,), "R6: hanging silently is NON-STRICT")
         raise Inconclusive(
             f"after {what} the box left the request behind them unanswered for the whole time_out in cases "
-            f"{', '.join(cases[:3])} (R6: hanging silently is NON-STRICT); here its probe ({probe.name}) was not "
-            f"answered within {wait_s * 1000:.0f} ms either, so the wait ended there and what the box does with "
-            "these bytes is not judged", signature=f"silence:{probe.name}", judged=(HANG_CLAUSE,), sent=self.last_sent)
+            f"{', '.join(cases[:3])} ({why}); here its probe ({probe.name}) was not answered within "
+            f"{wait_s * 1000:.0f} ms either, so the wait ended there and what the box does with these bytes is not "
+            "judged", signature=f"silence:{probe.name}", judged=clauses, sent=self.last_sent)
 
     def _outcome_for_bad(self, bad: bytes, got: Collected, explanation: Explanation) -> Outcome:
         """What the box did with ``bad`` by the explanation (and, in ``last_probe``, with the probe)."""
