@@ -1,23 +1,25 @@
 """Bounded time for a box that goes quiet after bad bytes: the hang pattern.
 
 A case that sends malformed input waits for the probe behind it (its answer bounds the
-wait). A box that hangs on a connection after some kind of bad bytes (R6: hanging
-silently is NON-STRICT) makes every such case wait the full time_out, 5 s each, some
-fifty times. A *pattern* is a kind of bad bytes (:func:`bad_kind`) and whether the box
-answered them before going quiet (:func:`pattern_key`). After :data:`HANG_CASES` cases
-found the probe unanswered for the whole time_out in one pattern, with no legal framing
-explaining the silence (a box that trusts a header and waits for its body is not
-hanging), later cases that send that kind of bytes first wait :data:`CUT_S` for the
-probe. If it is answered they are judged as usual; if not, and they are in the pattern,
-they end INCONCLUSIVE under it: what the box would have done later is unknown, so no
-verdict is guessed. What came before the bound and already breaks a requirement
-(evidence of a FAIL or NON-STRICT: a 0000 to malformed input, a malformed answer) is
-never cut short: the case then waits out time_out and is judged. Never a FAIL turned
-PASS.
+wait). A box that hangs on a connection after some bad bytes (R6: hanging silently is
+NON-STRICT), or drops the probe that shares a segment with bytes it answered (R4), makes
+every such case wait the full time_out, 5 s each, some fifty times. A *pattern* is a
+family of bad bytes (not a request; a request's header with bad content; an incomplete
+frame) and whether the box answered them before going quiet (:func:`pattern_key`).
+After :data:`HANG_CASES` cases found the probe unanswered for the whole time_out in one
+pattern, with no legal framing explaining the silence (a box that trusts a header and
+waits for its body is not hanging), later cases that send that family first wait
+:data:`CUT_S` for the probe. If it is answered they are judged as usual; if not, and
+they are in the pattern, they end INCONCLUSIVE under it: what the box would have done
+later is unknown, so no verdict is guessed. What came before the bound and already
+breaks a requirement (a 0000 to malformed input, a malformed answer) is never cut short:
+the case then waits out time_out and is judged. Never a FAIL turned PASS.
 
 A pattern is withdrawn as soon as the box answers a probe in it (the silences then had
-another cause), and never applies to a case that judges R6 at
-MUST or SHOULD level: the cases that report the hang always wait the full time_out.
+another cause), and never applies to a case that judges R6 at MUST or SHOULD level: the
+cases that report the hang always wait the full time_out. The same bound applies to a
+case's second connection on a box that serves one connection at a time
+(:meth:`~conformance.suite.context.CaseContext.connect`).
 """
 
 from __future__ import annotations
