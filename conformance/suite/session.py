@@ -88,7 +88,7 @@ class SessionState:
     late: dict[str, list[str]] = field(default_factory=dict)
     #: actions the box has answered within the wait at least once this session
     answered: set[str] = field(default_factory=set)
-    #: kinds of bad bytes after which the box leaves the probe unanswered (bounded time: :mod:`.quiet`)
+    #: the patterns of bad bytes after which the box leaves the probe unanswered (bounded time: :mod:`.quiet`)
     hangs: Hangs = field(default_factory=Hangs)
     _target: Target | None = None
     _udp_target: Target | None = None
@@ -338,4 +338,3 @@ class SessionState:
                 self.extension_supported, self.extension_how = detect_extension(conn)
                 conn.close()
         return self.extension_supported
-
