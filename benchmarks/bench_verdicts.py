@@ -8,8 +8,11 @@ time and peak resident memory (VmHWM) by :class:`tests.impls.matrix.Proc`:
 - ``reference``: no ``--target``, so the bundled reference box (the embedded default);
 - the independent boxes of ``tests/impls`` that once made the suite hang, blow up or
   blame the wrong clause: ``dead``, ``swapped-version``, ``late-cycle-on``,
-  ``flood-random``, ``flood-headers``, ``one-at-a-time``, ``leaky`` (each started by
-  ``python -m tests.impls.box NAME``, exactly as the matrix does).
+  ``flood-random``, ``flood-headers``, ``leaky``, and the boxes that go quiet (issue 17:
+  bounded time for every box that answers at all): ``no-resync`` (silent after garbage,
+  R6), ``drops-coalesced`` (answers only the first frame of a read, R4),
+  ``one-at-a-time`` (S4). Each is started by ``python -m tests.impls.box NAME``, exactly
+  as the matrix does.
 
 It prints one line per endpoint: exit code, wall time, peak RSS, the judgement against
 ``tests/impls/expectations.py`` and the first root cause the run reported. The load
@@ -32,8 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.impls.expectations import EXPECTATIONS  # noqa: E402
 from tests.impls.matrix import Proc, run_box, suite_command  # noqa: E402
 
-ENDPOINTS = ["reference", "dead", "swapped-version", "late-cycle-on", "flood-random", "flood-headers",
-             "one-at-a-time", "leaky"]
+ENDPOINTS = ["reference", "no-resync", "drops-coalesced", "one-at-a-time", "dead", "swapped-version",
+             "late-cycle-on", "flood-random", "flood-headers", "leaky"]
 
 
 def run_reference(out: Path, limit: float) -> dict[str, object]:

@@ -133,3 +133,18 @@ def test_a_box_answering_the_embedded_frame_leaves_nothing_for_the_next_case() -
     assert [o.frame.action for o in first.outcomes] == [Action.NONE]  # the embedded frame's answer
     assert second.verdict is Verdict.PASS and second.conn == first.conn  # reused, nothing left over
     assert [o.frame.error_code for o in second.outcomes] == [0x1001]
+
+
+def test_bytes_holding_every_probe_action_go_without_a_probe_and_are_judged_after_time_out() -> None:
+    """Before, the fuzzer fell back to a NONE probe although the bytes held a NONE request: the first NONE
+    answer (the embedded request's) ended the wait and the probe's own answer was left for the next case."""
+    from conformance.harness.exchange import PROBE_ACTIONS, probe_request
+
+    every = b"".join(encode(probe_request(a, P)) for a in PROBE_ACTIONS)
+    with patched_box() as box:
+        ex = executor(box.tcp_port, time_out_s=0.3)
+        result = ex.run(S.case("t", "", every, "t"))
+        ex.close()
+    assert result.probe is None and result.verdict is Verdict.PASS, result.judgement.describe()
+    assert [o.frame.action for o in result.outcomes if isinstance(o, Answer)] == list(PROBE_ACTIONS)
+    assert isinstance(result.end, Silence)  # the wait ended at time_out, nothing left for a next case

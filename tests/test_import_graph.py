@@ -136,3 +136,22 @@ def test_analyze_and_certify_are_siblings_on_the_observed_model() -> None:
             assert not {d for d in deps if d.startswith("conformance.certify")}, name
         if name.startswith("conformance.observed"):
             assert not {d for d in deps if d.startswith(("conformance.certify", "conformance.analyze"))}, name
+
+
+def test_the_suite_imports_nothing_of_the_fuzzer() -> None:
+    """The catalogue and the fuzzer share the exchange engine below them (conformance/harness/):
+    no module of conformance/suite/ imports conformance/fuzz/, not even lazily."""
+    graph = import_graph()
+    assert graph["conformance.suite.context"], "the walker found no imports"
+    leaks = {name: sorted(d for d in deps if d.startswith("conformance.fuzz"))
+             for name, deps in graph.items() if name.startswith("conformance.suite")}
+    assert {name: deps for name, deps in leaks.items() if deps} == {}
+
+
+def test_the_harness_imports_only_the_protocol() -> None:
+    """The exchange engine sits under the catalogue, the fuzzer and replay: it depends on nothing above it."""
+    graph = import_graph()
+    for name, deps in graph.items():
+        if name.startswith("conformance.harness"):
+            assert {d for d in deps if d.startswith("conformance.")
+                    and not d.startswith(("conformance.harness", "conformance.protocol"))} == set(), name

@@ -4,9 +4,9 @@ One case on TCP: the case's bytes (and the filler that completes a frame they le
 open) and a valid *probe* request in one write, on a connection that is reused from
 case to case. Answers come in order (A1), so everything before the probe's answer is
 the box's answer to the case, and the probe's answer bounds the wait without sleeping.
-The probe's action is one the case's bytes do not use, so the two cannot be confused;
-if a probe-like answer is followed at once by another one, the first answered the case
-(as :meth:`~conformance.suite.context.CaseContext.send_malformed` does). A truncated
+The probe, the sending and collecting, the settle window and the liveness check are the
+harness's exchange engine (:mod:`conformance.harness.exchange`, :mod:`~conformance.harness.liveness`),
+shared with the catalogue's malformed-input cases and ``replay``. A truncated
 frame (``eof``) goes on a fresh connection that is then half-closed: no probe can
 follow it. UDP: the datagram, then a probe datagram.
 
@@ -17,7 +17,9 @@ while the open one still works, is caught within ``liveness_every`` cases; the
 campaign then finds which of those cases killed it (:mod:`.campaign`).
 
 ``isolate``: every case on a fresh connection; ``settle``: after the probe's answer
-the connection is watched for ``settle_s`` for late extra answers. The campaign
+the connection is watched for ``settle_s`` for late extra answers (otherwise only what
+has already arrived is taken, and ``settle_s`` after an answer with the probe's action
+and an error, which may be a refusal of the bytes). The campaign
 confirms a failure with both before it reports it, and shrinks isolated, so what a
 box did with an earlier case on the same connection is never blamed on a later one.
 """
@@ -29,37 +31,32 @@ import time
 from dataclasses import dataclass, field
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
+from ..harness.exchange import (
+    PROBE_ACTIONS,
+    Settle,
+    action_of,
+    answers_zero,
+    choose_probe,
+    probe_request,
+    send_and_collect,
+)
+from ..harness.liveness import check_alive, responsive, unreachable_outcome
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
-from ..protocol import Action, Frame, Profile, Transport, codec_for, request, tolerance_blocks
-from ..protocol.framings import embedded_actions
-from ..suite.context import probe_pose
+from ..protocol import Action, Frame, Profile, Transport, codec_for
+from ..protocol.framings import End
 from ..suite.verdicts import Verdict
 from .oracle import Finding, Judgement, judge
 from .strategies import FuzzCase
 
 #: At most this many answers to one case are read (a box flooding answers ends the case).
 MAX_ANSWERS = 64
-#: Probes, in order of preference: each is answered 0000 in any cycle state.
-PROBE_ACTIONS = (Action.NONE, Action.POSE, Action.TOLERANCE, Action.REGISTER_POSE)
+#: The connection the executor uses (the harness's; it can poll what has arrived without waiting).
+FuzzConnection = TcpConnection
+#: R2: a fresh connection's NONE request got a frame-like answer (the harness's one liveness test).
+alive = responsive
 
-
-class FuzzConnection(TcpConnection):
-    """A recorded TCP connection that can also take what has already arrived, without waiting."""
-
-    def poll(self) -> list[Outcome]:
-        """Outcomes already received or decodable now (never waits)."""
-        out: list[Outcome] = []
-        if self.sock is not None and not self._closed and self.closed_by_peer is None:
-            self._read(0.0, time.monotonic())
-        while len(out) < MAX_ANSWERS:
-            outcome = self.next_outcome(0.0)
-            if isinstance(outcome, Silence):
-                break
-            out.append(outcome)
-            if isinstance(outcome, Closed):
-                break
-        return out
+__all__ = ["MAX_ANSWERS", "PROBE_ACTIONS", "Executor", "FuzzConnection", "Result", "Stats", "alive", "frame_of"]
 
 
 @dataclass
@@ -109,13 +106,6 @@ class Stats:
     by_kind: dict[str, int] = field(default_factory=dict)
 
 
-def alive(outcome: Outcome) -> bool:
-    """R2: a fresh connection's NONE request got a frame-like answer."""
-    if isinstance(outcome, Answer):
-        return True
-    return isinstance(outcome, Malformed) and outcome.error.header is not None
-
-
 class Executor:
     """Sends fuzz cases to one box and judges what it does (see the module docstring)."""
 
@@ -145,15 +135,8 @@ class Executor:
         self.since_liveness = 0
         self.last_liveness: Outcome | None = None
         codec = codec_for(profile)
-        first = profile.first_index
         self._probes: dict[Transport, dict[Action, bytes]] = {
-            t: {
-                Action.NONE: codec.encode(request(Action.NONE), t),
-                Action.POSE: codec.encode(probe_pose(profile), t),
-                Action.TOLERANCE: codec.encode(request(Action.TOLERANCE, tolerance_blocks([0.5], first)), t),
-                Action.REGISTER_POSE: codec.encode(request(Action.REGISTER_POSE, probe_pose(profile).blocks), t),
-            }
-            for t in (Transport.TCP, Transport.UDP)
+            t: {a: codec.encode(probe_request(a, profile), t) for a in PROBE_ACTIONS} for t in (Transport.TCP, Transport.UDP)
         }
         self._conn: FuzzConnection | None = None
         self._udp: UdpChannel | None = None
@@ -181,23 +164,20 @@ class Executor:
         """R2: a NONE request on a fresh connection."""
         self.stats.liveness_checks += 1
         self.since_liveness = 0
-        conn = TcpConnection(self.transcript, self.target, self.profile, "liveness", self.time_out_s)
-        try:
-            conn.connect()
-        except Unreachable as exc:
-            outcome: Outcome = Closed(True, 0.0) if "refused" in str(exc) else Silence(self.time_out_s)
-        else:
-            outcome = conn.request(self._probes[Transport.TCP][Action.NONE], "liveness check on a fresh connection (R2)")
-            conn.close()
-        self.last_liveness = outcome
-        return outcome
+        self.last_liveness = check_alive(self.transcript, self.target, self.profile, time_out_s=self.time_out_s)
+        return self.last_liveness
 
     # -- running -------------------------------------------------------------------------
-    def probe_for(self, case: FuzzCase) -> Action:
-        """An action no frame in the case's bytes has under any legal framing (else the first answer with
-        it could be an embedded frame's, the probe's own answer arriving later, in the next case)."""
-        used = case.actions | embedded_actions(case.wire)
-        return next((a for a in PROBE_ACTIONS if a not in used), Action.NONE)
+    def probe_for(self, case: FuzzCase) -> Action | None:
+        """An action neither the case's requests nor a frame some legal framing finds in its bytes has
+        (else the first answer with it could be an embedded frame's, the probe's own answer arriving
+        later, in the next case); None when all are taken: the case then goes without a probe."""
+        return choose_probe(case.wire, case.actions)
+
+    def _settle(self) -> Settle:
+        """``settle``: the full window after the probe's answer; else only what has arrived (and the
+        window after an answer with an error, which may be a refusal of the bytes)."""
+        return Settle.fixed(self.settle_s) if self.settle else Settle(0.0, self.settle_s, 0.0)
 
     def run(self, case: FuzzCase, note: str = "") -> Result:
         """Send one case, judge it, and check liveness when it is due or something went wrong."""
@@ -222,7 +202,7 @@ class Executor:
             try:
                 self._conn = self._connect("fuzz")
             except Unreachable as exc:
-                end = Closed(True, 0.0) if "refused" in str(exc) else Silence(self.time_out_s)
+                end = unreachable_outcome(exc, self.time_out_s)
                 return Result(case, [], end, judge(case.expects, [], end, self.profile, Action.NONE), 0, True)
         conn = self._conn
         assert conn is not None
@@ -242,48 +222,17 @@ class Executor:
 
         ``result.conn`` is negative when the connection is no longer usable (closed, reset, hung)."""
         probe = self.probe_for(case)
-        start = time.monotonic()
+        probe_bytes = self._probes[Transport.TCP][probe] if probe is not None else b""
+        wire = case.wire + probe_bytes
         text = note or case.describe()
-        if not conn.send(case.wire + self._probes[Transport.TCP][probe], f"{text}; then a {probe.name} probe"):
-            outcomes: list[Outcome] = [o for o in conn.poll() if not isinstance(o, Closed)]
-            end: Outcome = conn.closed_by_peer or Closed(False, 0.0)
-            closed = True
-        else:
-            outcomes, end, closed = self._collect(conn, probe, start)
-        usable = not (closed or isinstance(end, (Closed, Silence)))
-        wire = case.wire + self._probes[Transport.TCP][probe]
+        text += f"; then a {probe.name} probe" if probe is not None else " (no probe: the bytes hold every probe action)"
+        got = send_and_collect(conn, case.wire, probe, probe_bytes, text, self._settle(), self.time_out_s)
+        outcomes, end = got.outcomes, got.end
+        if got.probe_answered and got.kind is End.CLOSED:  # a refusal, then a close: the probe never read
+            outcomes, end = [*outcomes, *got.answers()[-1:]], got.close
         judgement = judge(case.expects, outcomes, end, self.profile, probe, data=wire, extension=self.extension,
-                          probe_at=len(case.wire))
-        return Result(case, outcomes, end, judgement, conn.conn_id if usable else -1, False, probe)
-
-    def _collect(self, conn: FuzzConnection, probe: Action, start: float) -> tuple[list[Outcome], Outcome, bool]:
-        """(answers to the case, how it ended: the probe's answer / Closed / Silence, the box closed after it)."""
-        outcomes: list[Outcome] = []
-        while len(outcomes) < MAX_ANSWERS:
-            outcome = conn.next_outcome(self.time_out_s, since=start)
-            if _probe_action(outcome, probe) and not _answers(outcome, probe):
-                # the probe's action with an error: the probe's (wrong) answer, or an error answer to the case's
-                # bytes with the probe's action (A5 allows that); a 0000 answer to the probe soon after tells
-                extra = conn.drain(self.settle_s)
-                closed = any(isinstance(o, Closed) for o in extra)
-                extra = [o for o in extra if not isinstance(o, Closed)]
-                if extra and _answers(extra[0], probe):
-                    outcomes.append(outcome)
-                    outcome = extra.pop(0)
-                return outcomes + extra, outcome, closed
-            if _answers(outcome, probe):
-                extra = conn.drain(self.settle_s) if self.settle else conn.poll()
-                closed = any(isinstance(o, Closed) for o in extra)
-                extra = [o for o in extra if not isinstance(o, Closed)]
-                if extra and _answers(extra[0], probe):  # the first probe-like answer answered the case
-                    outcomes.append(outcome)
-                    outcome = extra.pop(0)
-                outcomes += extra  # late extras: the oracle sees them as unasked-for answers
-                return outcomes, outcome, closed
-            if isinstance(outcome, (Closed, Silence)):
-                return outcomes, outcome, True
-            outcomes.append(outcome)
-        return outcomes, Silence(time.monotonic() - start), True
+                          probe_at=len(case.wire) if probe is not None else None)
+        return Result(case, outcomes, end, judgement, conn.conn_id if got.usable else -1, False, probe)
 
     def _run_eof(self, case: FuzzCase, note: str) -> Result:
         """A truncated frame: a fresh connection, the bytes, end of stream; what follows until the box closes."""
@@ -291,7 +240,7 @@ class Executor:
         try:
             conn = self._connect("fuzz-eof")
         except Unreachable as exc:
-            end: Outcome = Closed(True, 0.0) if "refused" in str(exc) else Silence(self.time_out_s)
+            end: Outcome = unreachable_outcome(exc, self.time_out_s)
             return Result(case, [], end, judge(case.expects, [], end, self.profile), 0, True)
         outcomes: list[Outcome] = []
         if conn.send(case.wire, note or case.describe()) and conn.sock is not None:
@@ -324,40 +273,29 @@ class Executor:
             try:
                 self._udp = UdpChannel(self.transcript, self.udp_target, self.profile, "fuzz-udp")
             except Unreachable:
-                end: Outcome = Closed(True, 0.0)
-                return Result(case, [], end, judge(case.expects, [], end, self.profile, Action.NONE), 0, True)
+                gone = Closed(True, 0.0)
+                return Result(case, [], gone, judge(case.expects, [], gone, self.profile, Action.NONE), 0, True)
         channel = self._udp
         probe = self.probe_for(case)
         start = time.monotonic()
         channel.send(case.wire, note or case.describe())
-        channel.send(self._probes[Transport.UDP][probe], f"a {probe.name} probe datagram")
+        if probe is not None:
+            channel.send(self._probes[Transport.UDP][probe], f"a {probe.name} probe datagram")
         outcomes: list[Outcome] = []
-        end = Silence(0.0)
+        end: Outcome = Silence(0.0)
         while len(outcomes) < MAX_ANSWERS:
             outcome = channel.next_outcome(self.time_out_s, since=start)
-            if _probe_action(outcome, probe) or isinstance(outcome, (Closed, Silence)):
+            if (probe is not None and action_of(outcome) == probe) or isinstance(outcome, (Closed, Silence)):
                 end = outcome
                 break
             outcomes.append(outcome)
-        if _probe_action(end, probe) and (self.settle or not _answers(end, probe)):
+        if probe is not None and action_of(end) == probe and (self.settle or not answers_zero(end, probe)):
             extra = channel.next_outcome(self.settle_s)
-            if _answers(extra, probe):
+            if answers_zero(extra, probe):
                 outcomes.append(end)
                 end = extra
         return Result(case, outcomes, end, judge(case.expects, outcomes, end, self.profile, probe,
                                                   transport=Transport.UDP), channel.conn_id, True, probe)
-
-
-def _answers(outcome: Outcome, probe: Action) -> bool:
-    return isinstance(outcome, Answer) and outcome.frame.action == probe and outcome.frame.error_code == 0
-
-
-def _probe_action(outcome: Outcome, probe: Action) -> bool:
-    """An answer with the probe's action, even a malformed one: it ends the wait (the oracle attributes it)."""
-    if isinstance(outcome, Answer):
-        return outcome.frame.action == probe
-    header = outcome.error.header if isinstance(outcome, Malformed) else None
-    return header is not None and header.start_word == 0xFEFE and header.action == probe
 
 
 def frame_of(outcome: Outcome) -> Frame | None:

@@ -19,22 +19,19 @@ to the harness's outcomes:
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
+from ..harness.exchange import seen_of
 from ..protocol import (
-    EXTENSION_ACTIONS,
     HEADER_LEN,
-    AnswerError,
     Frame,
     Profile,
     ProtocolError,
     StreamDecoder,
     TransferType,
     Transport,
-    UnknownActionError,
     decode_datagram,
 )
 from ..protocol.answers import (
@@ -42,7 +39,6 @@ from ..protocol.answers import (
     NOT_UNDERSTOOD,
     Expectation,
     Rule,
-    Seen,
     request_action,
     rule_for_error,
     rule_for_frame,
@@ -149,33 +145,6 @@ def expectations(
 
 
 # -- judging -------------------------------------------------------------------------------------------
-
-
-def seen_of(outcome: Answer | Malformed, profile: Profile) -> Seen:
-    """An answer (or malformed bytes) from the box reduced to what attribution needs: its action
-    byte, error code and block value when its header is readable, and what is wrong with it."""
-    if isinstance(outcome, Answer):
-        f = outcome.frame
-        value = getattr(f.blocks[0], "value", None) if f.blocks else None
-        return Seen(int(f.action), f.error_code, value, "", outcome.describe())
-    err = outcome.error
-    h = err.header
-    if h is None or h.start_word != 0xFEFE:
-        return Seen(None, None, None, err.clause, outcome.describe())
-    value = None
-    raw = err.raw
-    if h.block_type == 3 and h.block_count >= 1 and len(raw) >= HEADER_LEN + 5:
-        order = ">" if profile.float_byte_order == "big" else "<"
-        value = struct.unpack_from(order + "i", raw, HEADER_LEN + 1)[0]
-    # an answer whose only fault is its content (A4: NONE answered with an error; E3: 0 or 404) is
-    # judged by its code and value, not as a malformed frame. So is a refusal: A5 lets a box answer a
-    # non-request "with a non-zero error", and such an answer may echo an unknown action, or a 26/27
-    # without the block only an accepted one carries (a well-formed 26/27 still needs its block: E2/E3
-    # judge the value; an unknown action pairs with no request, which then goes unanswered: A1)
-    refusal = h.error_code != 0 and (isinstance(err, UnknownActionError) or (
-        err.clause in ("E2", "E3") and h.action in EXTENSION_ACTIONS and h.block_count == 0))
-    problem = "" if isinstance(err, AnswerError) or refusal else err.clause
-    return Seen(h.action, h.error_code, value, problem, outcome.describe())
 
 
 def _end(end: Outcome | None) -> tuple[End, str]:

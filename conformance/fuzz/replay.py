@@ -22,12 +22,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..harness.liveness import responsive
 from ..harness.target import Target
 from ..harness.transcript import Transcript
 from ..protocol import HEADER_LEN, Profile, TransferType, Transport
 from ..suite.verdicts import Verdict
 from ..vectors import Vector, load
-from .executor import Executor, alive
+from .executor import Executor
 from .oracle import expectations
 from .strategies import FuzzCase
 
@@ -105,7 +106,7 @@ def replay(
                 judgement = result.judgement
                 status = {Verdict.FAIL: "FAIL", Verdict.NON_STRICT: "NON-STRICT"}.get(judgement.verdict, "OK")
                 why = judgement.describe() if judgement.findings else ""
-                if result.liveness is not None and not alive(result.liveness):
+                if result.liveness is not None and not responsive(result.liveness):
                     status = "FAIL"
                     dead = f"the box died after vector {v.name} (R2)"
                     why = "; ".join(x for x in (why, f"R2: a fresh connection then {result.liveness.describe()}") if x)

@@ -28,7 +28,7 @@ from ..protocol import (
     codec_for,
     decode_datagram,
 )
-from .target import Target, Unreachable
+from .target import Refused, Target, Unreachable
 from .transcript import Endpoint, Kind, Transcript
 
 # -- outcomes ------------------------------------------------------------------------------
@@ -108,10 +108,6 @@ SHOWN_BYTES = 64
 MAX_DRAIN = 64
 
 
-def describe(outcome: Outcome) -> str:
-    return outcome.describe()
-
-
 # -- TCP ---------------------------------------------------------------------------------------
 
 
@@ -139,6 +135,8 @@ class TcpConnection:
         self.before_send: Callable[[bytes], None] | None = None
         #: called with the action of every request :meth:`request` saw answered within the wait
         self.on_answered: Callable[[int], None] | None = None
+        #: called when a wait for an answer runs out this connection's time_out (it may raise)
+        self.on_time_out: Callable[[], None] | None = None
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:
@@ -157,7 +155,8 @@ class TcpConnection:
                 return self
             reason = _reason(exc, self.time_out_s)
             self.transcript.add(info.conn, Kind.CONNECT_FAILED, note=reason)
-            raise Unreachable(f"cannot connect to {self.target}: {reason}") from None
+            kind = Refused if isinstance(exc, ConnectionRefusedError) else Unreachable
+            raise kind(f"cannot connect to {self.target}: {reason}") from None
         self.sock = sock
         gone: OSError | None = None
         try:
@@ -175,6 +174,11 @@ class TcpConnection:
         if gone is not None:
             self._peer_gone(gone)
         return self
+
+    @property
+    def is_open(self) -> bool:
+        """Connected, and closed by neither side."""
+        return self.sock is not None and not self._closed and self.closed_by_peer is None
 
     def close(self, note: str = "") -> None:
         """Close our side (FIN) and release the socket."""
@@ -265,6 +269,8 @@ class TcpConnection:
             remaining = deadline - now
             if remaining <= 0 or self.sock is None or self._closed:
                 if timeout_s is None and remaining <= 0:
+                    if self.on_time_out is not None:
+                        self.on_time_out()  # the suite's session rules may end the case here
                     self.transcript.timeouts += 1
                     self.transcript.note(f"no answer within time_out ({wait * 1000:.0f} ms)", self.conn_id)
                 return Silence(time.monotonic() - start)
@@ -338,6 +344,20 @@ class TcpConnection:
             out.append(outcome)
             if isinstance(outcome, Closed):
                 return out
+        return out
+
+    def poll(self) -> list[Outcome]:
+        """Outcomes already received or decodable now (never waits; at most :data:`MAX_DRAIN`)."""
+        out: list[Outcome] = []
+        if self.sock is not None and not self._closed and self.closed_by_peer is None:
+            self._read(0.0, time.monotonic())
+        while len(out) < MAX_DRAIN:
+            outcome = self.next_outcome(0.0)
+            if isinstance(outcome, Silence):
+                break
+            out.append(outcome)
+            if isinstance(outcome, Closed):
+                break
         return out
 
 

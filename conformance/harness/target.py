@@ -10,6 +10,10 @@ class Unreachable(Exception):
     """The target refused, timed out, or does not resolve; str() is one clear line."""
 
 
+class Refused(Unreachable):
+    """The target refused the connection (nothing listens there, or a full accept queue)."""
+
+
 @dataclass(frozen=True)
 class Target:
     host: str

@@ -16,41 +16,24 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..harness.client import MAX_DRAIN, Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
+from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
+from ..harness.exchange import Collected, Settle, attribute, choose_probe, collect, probe_request, send_and_collect
+from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
-from ..protocol import Action, Frame, Profile, encode, pose_blocks, request, tolerance_blocks
-from ..protocol.answers import Seen
-from ..protocol.explain import explain
-from ..protocol.framings import End, Explanation, embedded_actions
+from ..protocol import Action, Frame, encode
+from ..protocol.framings import Explanation
 from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
+from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, broken_besides_hang, hung, pattern_key
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
 from .signature import Sig, Signature
-
-PROBE_POSE_VALUES = (100.25, -200.5, 300.75, 0.0, 90.0, -180.0)
-PROBE_NONE = request(Action.NONE)
-
-
-def probe_pose(profile: Profile) -> Frame:
-    """A valid pose request in this profile (its first index) used as a probe."""
-    return request(Action.POSE, pose_blocks([PROBE_POSE_VALUES], profile.first_index))
-
-
-def probe_for(bad: bytes, profile: Profile) -> Frame:
-    """A valid request whose action no frame in ``bad`` has under any legal framing (R6: a
-    receiver may resume at any start word), so the first answer with it is the probe's."""
-    used = embedded_actions(bad)
-    if Action.NONE not in used:
-        return PROBE_NONE
-    if Action.POSE not in used:
-        return probe_pose(profile)
-    return request(Action.TOLERANCE, tolerance_blocks([0.5], profile.first_index))
-
+from .verdicts import Level
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
-#: asked for, A1; a close). Short: ~120 malformed-input cases each pay it on a conforming box.
-AFTER_PROBE_S = 0.005
+#: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).
+SETTLE = Settle()
+
 
 class CaseContext:
     """The ``isight`` fixture: everything one case needs, all of it recorded."""
@@ -87,11 +70,27 @@ class CaseContext:
         conn = TcpConnection(self.transcript, target or self.target, self.profile, label, time_out_s)
         conn.before_send = self._not_known_late
         conn.on_answered = self.session.note_answered
+        if self._waits_behind_another():
+            conn.time_out_s = min(conn.time_out_s, CUT_S)
+            conn.on_time_out = self._served_one_at_a_time
         self._connections.append(conn)
         try:
             return conn.connect()
         except Unreachable as exc:
             raise Inconclusive(f"box unreachable: {exc}", signature=UNREACHABLE_AT_CONNECT) from None
+
+    def _waits_behind_another(self) -> bool:
+        """The box serves one connection at a time (the S4 preflight) and this case holds one open: a
+        new connection is not served until that one closes (unless the case judges S4 itself)."""
+        judges = "S4" in self.info.clauses and self.info.level is not Level.MAY
+        return (self.session.concurrent is False and not judges
+                and any(isinstance(c, TcpConnection) and c.is_open for c in self._connections))
+
+    def _served_one_at_a_time(self) -> None:
+        raise Inconclusive(
+            f"the box serves one connection at a time ({self.session.concurrency_note or 'the S4 preflight'}); this "
+            f"case needs a second connection while its first is open, and it was not answered within "
+            f"{CUT_S * 1000:.0f} ms: the case ends here, not judged", judged=("S4",))
 
     def try_connect(self, label: str = "command", time_out_s: float | None = None) -> TcpConnection | None:
         """Like :meth:`connect`, but None when the box cannot be reached (for R/S cases that judge it)."""
@@ -131,7 +130,7 @@ class CaseContext:
         """Send ``bad`` followed by a valid probe request; return the box's outcome for ``bad``.
 
         What the box sent back is attributed by every legal framing of ``bad`` plus the
-        probe (:func:`conformance.protocol.explain.explain`): the answers that framing
+        probe (:func:`conformance.harness.exchange.attribute`): the answers that framing
         gives to ``bad``'s bytes (the first one is returned), or an answer no framing
         explains, or silence / the close. ``self.last_probe`` keeps what the box did with
         the probe (R6: did it resynchronise?). Any answer with the probe's action, even a
@@ -141,55 +140,76 @@ class CaseContext:
         self.last_sent = bad
         if conn is None:
             conn = self.connect("malformed")
-        probe = probe_for(bad, self.profile)
-        self.last_probe_action = probe.action
-        probe_bytes = encode(probe, self.profile)
-        start = time.monotonic()
-        if not conn.send(bad, note):
-            self.last_probe = conn.closed_by_peer or Closed(False, 0.0)
-            return self.last_probe
-        conn.send(probe_bytes, f"probe: a valid {probe.action.name} request; its answer bounds the wait")
-        outcomes, end = self._collect(conn, int(probe.action), start)
-        answers = [o for o in outcomes if isinstance(o, (Answer, Malformed))]
-        from ..fuzz.oracle import seen_of  # the outcome -> Seen adapter (no import circle: oracle needs no suite)
-
-        seen: list[Seen] = [seen_of(o, self.profile) for o in answers]
-        kind = End.CLOSED if isinstance(end, Closed) else End.SILENT if isinstance(end, Silence) else End.ANSWERED
-        explanation = explain(bad + probe_bytes, seen, kind, self.profile,
-                              extension=self.session.extension_supported is not False, probe_at=len(bad))
+        action = choose_probe(bad)
+        self.last_probe_action = action if action is not None else Action.NONE
+        probe_bytes = encode(probe_request(action, self.profile), self.profile) if action is not None else b""
+        extension = self.session.extension_supported is not False
+        kind = bad_kind(bad, self.profile, extension)
+        text = f"{note}; then a valid {action.name} probe: its answer bounds the wait" if action is not None else note
+        got = self._send_bounded(conn, bad, action, probe_bytes, text, kind)
+        explanation = attribute(bad + probe_bytes, got, self.profile, extension=extension,
+                                probe_at=len(bad) if action is not None else None)
         self.last_explanation = explanation
         if explanation.framing != "reference":
             self.details["framing"] = explanation.framing
+        outcome = self._outcome_for_bad(bad, got, explanation)
+        if action is not None:
+            mine = bool(explanation.answers_within(0, len(bad)))
+            self.session.hangs.note(pattern_key(kind, mine), self.info.id, probe_answered=isinstance(
+                self.last_probe, (Answer, Malformed)), hung=isinstance(got.end, Silence) and hung(explanation))
+        return outcome
+
+    def _send_bounded(self, conn: TcpConnection, bad: bytes, action: Action | None, probe_bytes: bytes, text: str,
+                      kind: str) -> Collected:
+        """The exchange; on a box known to hang after this kind of bytes (:mod:`.quiet`), cut short."""
+        judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
+        bound = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
+        got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, bound)
+        if bound is None or action is None or not isinstance(got.end, Silence):
+            return got
+        cases = self.session.hangs.known(pattern_key(kind, bool(got.answers())))
+        so_far = attribute(bad + probe_bytes, got, self.profile, extension=self.session.extension_supported is not False,
+                           probe_at=len(bad))
+        if cases is not None and not broken_besides_hang(so_far):
+            self._cut_short(kind, bool(got.answers()), action, bound, cases)
+        # not in the pattern, or what came already breaks a requirement: wait out time_out, judged in full
+        more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
+        return Collected(got.outcomes + more.outcomes, more.end, more.close)
+
+    def _cut_short(self, kind: str, answered: bool, probe: Action, wait_s: float, cases: list[str]) -> None:
+        """The probe behind bytes the box is known to hang on went unanswered for ``wait_s``: INCONCLUSIVE
+        under that pattern (if the box still answers a fresh connection; else R2 judges)."""
+        if not responsive(self.check_alive()):
+            return
+        what = KIND_WORDS.get(kind, kind) + (", once it answered them," if answered else "")
+        clauses, why = (("R4", "A1"), "R4: every frame of a segment is answered") if answered else (
+            (HANG_CLAUSE,), "R6: hanging silently is NON-STRICT")
+        raise Inconclusive(
+            f"after {what} the box left the request behind them unanswered for the whole time_out in cases "
+            f"{', '.join(cases[:3])} ({why}); here its probe ({probe.name}) was not answered within "
+            f"{wait_s * 1000:.0f} ms either, so the wait ended there and what the box does with these bytes is not "
+            "judged", signature=Signature(Sig.SILENCE, probe.name), judged=clauses, sent=self.last_sent)
+
+    def _outcome_for_bad(self, bad: bytes, got: Collected, explanation: Explanation) -> Outcome:
+        """What the box did with ``bad`` by the explanation (and, in ``last_probe``, with the probe)."""
+        answers, end = got.answers(), got.close or got.end
         mine = explanation.answers_within(0, len(bad))
         probe_event = explanation.event_at(len(bad))
-        if probe_event is not None and probe_event.answer is not None:
+        probe_answered = probe_event is not None and probe_event.answer is not None
+        if probe_answered:
+            assert probe_event is not None and probe_event.answer is not None
             self.last_probe = answers[probe_event.answer]
         else:
-            self.last_probe = end if end is not None else Silence(self.time_out_s)
+            self.last_probe = end if isinstance(end, (Closed, Silence)) else Silence(self.time_out_s)
         if mine:
             return answers[mine[0]]
         if explanation.unasked:
             return answers[explanation.unasked[0]]
-        if isinstance(end, Closed) and not (probe_event is not None and probe_event.answer is not None):
+        if isinstance(end, Closed) and not probe_answered:
             return end
         if isinstance(self.last_probe, (Answer, Malformed)):
             return Silence(self.last_probe.latency_s, skipped=True)
-        return end if end is not None else Silence(self.time_out_s)
-
-    def _collect(self, conn: TcpConnection, probe_action: int, start: float) -> tuple[list[Outcome], Outcome | None]:
-        """What the box sent until an answer with the probe's action (then a short settle for
-        late extras), a close or silence: (outcomes, how it ended; None: the probe's answer came)."""
-        outcomes: list[Outcome] = []
-        while len(outcomes) < MAX_DRAIN:
-            outcome = conn.next_outcome(since=start)
-            if isinstance(outcome, (Silence, Closed)):
-                return outcomes, outcome
-            outcomes.append(outcome)
-            if _action_of(outcome) == probe_action:
-                extra = conn.drain(AFTER_PROBE_S)
-                closed = next((o for o in extra if isinstance(o, Closed)), None)
-                return outcomes + [o for o in extra if not isinstance(o, Closed)], closed
-        return outcomes, Silence(time.monotonic() - start)
+        return end if isinstance(end, (Closed, Silence)) else Silence(self.time_out_s)
 
     def _not_known_late(self, data: bytes) -> None:
         """Bounded time: a request the box is known not to answer within time_out ends the case at once."""
@@ -205,8 +225,16 @@ class CaseContext:
                                f"depends on it and is not run again", signature=Signature(Sig.SILENCE, name))
 
     def check_alive(self) -> Outcome:
-        """R2: a fresh connection still gets NONE answered."""
-        return self.session.probe(self.transcript)
+        """R2: a fresh connection still gets NONE answered (on a box serving one connection at a time,
+        while this case holds one open, a wait cut short: see :meth:`connect`)."""
+        if not self._waits_behind_another():
+            return check_alive(self.transcript, self.target, self.profile)
+        conn = self.try_connect("liveness")
+        if conn is None:
+            return check_alive(self.transcript, self.target, self.profile)
+        outcome = conn.request(PROBE_NONE, LIVENESS_NOTE)
+        conn.close()
+        return outcome
 
     # -- verdict helpers ------------------------------------------------------------------
     def judge(self, outcome: Outcome, check: str = "", *, sent: bytes | None = None, **values: Any) -> None:
@@ -252,11 +280,3 @@ class CaseContext:
 def answers_none(outcome: Outcome) -> bool:
     return isinstance(outcome, Answer) and outcome.frame.action == Action.NONE and outcome.frame.error_code == 0
 
-
-def _action_of(outcome: Outcome) -> int | None:
-    """The action byte of what the box sent: an answer, or malformed bytes with a readable header."""
-    if isinstance(outcome, Answer):
-        return int(outcome.frame.action)
-    if isinstance(outcome, Malformed) and outcome.error.header is not None:
-        return outcome.error.header.action
-    return None

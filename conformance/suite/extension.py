@@ -18,10 +18,10 @@ import time
 from dataclasses import dataclass
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from ..harness.liveness import PROBE_NONE
 from ..harness.target import Unreachable
 from ..protocol import Action, BlockType, Frame, Header, TransferType, request, value_blocks
 
-PROBE_NONE = request(Action.NONE)
 #: The program index sent when 27 gave no evidence either way.
 PROG_IDX_VALUE = 7
 

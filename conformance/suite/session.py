@@ -26,11 +26,13 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from ..harness.client import Answer, Outcome, TcpConnection
+from ..harness.liveness import PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
-from ..protocol import Action, Profile, request
+from ..protocol import Action, Profile
 from .judge import CaseVerdict, Inconclusive
+from .quiet import Hangs
 from .settings import SuiteSettings
 from .signature import Death, DeathKind, Sig, Signature
 from .verdicts import Verdict
@@ -40,7 +42,6 @@ RECHECK_S = 10.0
 #: After this many cases found an action unanswered within time_out, later requests of it end their case
 #: INCONCLUSIVE at once (explained by that root cause) instead of each waiting time_out again.
 LATE_CASES = 2
-PROBE_NONE = request(Action.NONE)
 #: the S4 preflight's pause between connection attempts while a one-at-a-time box frees its slot
 REFUSED_RETRY_S = 0.05
 R2_TEXT = "R2: whatever bytes one connection sends, the box keeps accepting and answering new connections"
@@ -77,6 +78,8 @@ class SessionState:
     late: dict[str, list[str]] = field(default_factory=dict)
     #: actions the box has answered within the wait at least once this session
     answered: set[str] = field(default_factory=set)
+    #: the patterns of bad bytes after which the box leaves the probe unanswered (bounded time: :mod:`.quiet`)
+    hangs: Hangs = field(default_factory=Hangs)
     _target: Target | None = None
     _udp_target: Target | None = None
     _witness: TcpConnection | None = None
@@ -129,14 +132,7 @@ class SessionState:
     # -- probes ---------------------------------------------------------------------------
     def probe(self, transcript: Transcript, label: str = "liveness") -> Outcome:
         """R2: a NONE request on a fresh connection (what the box did, never an exception)."""
-        conn = TcpConnection(transcript, self.target(), self.profile, label)
-        try:
-            conn.connect()
-        except Unreachable as exc:
-            return Closed(True, 0.0) if "refused" in str(exc) else Silence(self.time_out_s)
-        outcome = conn.request(PROBE_NONE, "liveness check on a fresh connection (R2)")
-        conn.close()
-        return outcome
+        return check_alive(transcript, self.target(), self.profile, label=label)
 
     def baseline_ok(self) -> bool:
         return self.baseline is not None and responsive(self.baseline)
@@ -333,11 +329,3 @@ class SessionState:
                 self.extension_supported, self.extension_how = detect_extension(conn)
                 conn.close()
         return self.extension_supported
-
-
-def responsive(outcome: Outcome) -> bool:
-    """R2/baseline: the box answered with something frame-like (whether right or not is
-    for the cases to judge)."""
-    if isinstance(outcome, Answer):
-        return True
-    return isinstance(outcome, Malformed) and outcome.error.header is not None

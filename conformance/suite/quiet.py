@@ -1,0 +1,110 @@
+"""Bounded time for a box that goes quiet after bad bytes: the hang pattern.
+
+A case that sends malformed input waits for the probe behind it (its answer bounds the
+wait). A box that hangs on a connection after some bad bytes (R6: hanging silently is
+NON-STRICT), or drops the probe that shares a segment with bytes it answered (R4), makes
+every such case wait the full time_out, 5 s each, some fifty times. A *pattern* is a
+family of bad bytes (not a request; a request's header with bad content; an incomplete
+frame) and whether the box answered them before going quiet (:func:`pattern_key`).
+After :data:`HANG_CASES` cases found the probe unanswered for the whole time_out in one
+pattern, with no legal framing explaining the silence (a box that trusts a header and
+waits for its body is not hanging), later cases that send that family first wait
+:data:`CUT_S` for the probe. If it is answered they are judged as usual; if not, and
+they are in the pattern, they end INCONCLUSIVE under it: what the box would have done
+later is unknown, so no verdict is guessed. What came before the bound and already
+breaks a requirement (a 0000 to malformed input, a malformed answer) is never cut short:
+the case then waits out time_out and is judged. Never a FAIL turned PASS.
+
+A pattern is withdrawn as soon as the box answers a probe in it (the silences then had
+another cause), and never applies to a case that judges R6 at MUST or SHOULD level: the
+cases that report the hang always wait the full time_out. The same bound applies to a
+case's second connection on a box that serves one connection at a time
+(:meth:`~conformance.suite.context.CaseContext.connect`).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+
+from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, Transport
+from ..protocol.answers import rule_for_error, rule_for_frame
+from ..protocol.framings import Explanation
+
+#: After this many cases found the probe unanswered behind one kind of bad bytes, later cases are cut short.
+HANG_CASES = 2
+#: ... to this first wait for the probe's answer (seconds; at most time_out): far above a box's usual answer
+#: latency on loopback, far below time_out (each cut case costs it, some fifty of them)
+CUT_S = 0.25
+#: The clause a case judges when it reports the hang itself (it always waits the full time_out).
+HANG_CLAUSE = "R6"
+#: The kinds of bad bytes (:func:`bad_kind`) in words.
+KIND_WORDS = {"not-request": "bytes that are not a request", "reject": "a malformed request",
+              "reject-should": "a request with a NaN or infinite value",
+              "any": "a request whose handling PROTOCOL.md leaves open", "incomplete": "an incomplete frame"}
+#: Findings of an explanation that say the box left the probe unanswered with no legal reason.
+_HANG_KEYS = ("end/hang", "end/silence")
+
+
+def bad_kind(data: bytes, profile: Profile, extension: bool = True) -> str:
+    """The kind of the first bad event in ``data`` by the reference framing: what a box may do
+    with it (``not-request``, ``reject``, ...), or ``incomplete`` when the bytes leave a frame open."""
+    decoder = StreamDecoder(profile, TransferType.ROBOT_TO_BOX)
+    for event in decoder.feed(data):
+        if isinstance(event, ProtocolError):
+            return rule_for_error(event, profile, Transport.TCP, extension).rule.value
+        if isinstance(event, Frame):
+            exp = rule_for_frame(event, profile, Transport.TCP, extension)
+            if not exp.valid:
+                return exp.rule.value
+    return "incomplete" if decoder.buffered else "valid"
+
+
+def hung(explanation: Explanation) -> bool:
+    """The explanation finds the probe left unanswered where no legal framing allows it."""
+    return any(f.key in _HANG_KEYS for f in explanation.findings)
+
+
+def broken_besides_hang(explanation: Explanation) -> bool:
+    """The explanation finds something wrong other than the silence at the end."""
+    return any(f.key not in _HANG_KEYS for f in explanation.findings)
+
+
+def pattern_key(kind: str, answered: bool) -> str:
+    """A hang pattern: the kind of bad bytes (bytes that are not a request, a frame with a request's header
+    and bad content, an incomplete frame), and whether the box answered them before going quiet (a box
+    that answers only the first frame of a read drops the probe exactly when it answered the bytes)."""
+    family = kind if kind in ("not-request", "incomplete") else "request"
+    return f"{family}/{'answered' if answered else 'unanswered'}"
+
+
+@dataclass
+class Hangs:
+    """Per pattern (:func:`pattern_key`): the cases that found the probe unanswered for time_out."""
+
+    cases: dict[str, list[str]] = field(default_factory=dict)
+    #: patterns after which the box has answered the probe at least once
+    answered: set[str] = field(default_factory=set)
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def note(self, key: str, case_id: str, *, hung: bool, probe_answered: bool) -> None:
+        with self._lock:
+            if probe_answered:
+                self.answered.add(key)
+            elif hung:
+                seen = self.cases.setdefault(key, [])
+                if case_id not in seen:
+                    seen.append(case_id)
+
+    def known(self, key: str) -> list[str] | None:
+        """The cases that established the pattern (None: not established, or withdrawn)."""
+        with self._lock:
+            cases = self.cases.get(key, [])
+            return list(cases) if len(cases) >= HANG_CASES and key not in self.answered else None
+
+    def bound(self, kind: str, judges_hang: bool, time_out_s: float) -> float | None:
+        """The short first wait for a case sending ``kind`` when some pattern of that kind is established;
+        None (wait in full) otherwise, or when the case judges the hang itself (R6 at MUST or SHOULD)."""
+        if judges_hang or not any(self.known(pattern_key(kind, a)) for a in (False, True)):
+            return None
+        return min(CUT_S, time_out_s)
