@@ -32,7 +32,7 @@ from ..protocol import (
     Transport,
     codec_for,
 )
-from ..protocol.constants import MAX_BLOCK_COUNT
+from ..protocol.constants import MAX_BLOCK_COUNT, MAX_FRAME_LEN
 from .oracle import Expectation, Rule, expectations
 
 #: IEEE-754 binary32 edge values that are legal (B4): a conforming box accepts them.
@@ -95,10 +95,6 @@ class FuzzCase:
         return f"{self.kind}: {self.note} [{len(self.data)} bytes{tail}{how}]"
 
 
-def f32_bits(value: float) -> int:
-    return int(struct.unpack(">I", struct.pack(">f", value))[0])
-
-
 def _finite(raw: bytes, order: str) -> bytes:
     """float32 words with any all-ones exponent (NaN/inf) turned into a finite value."""
     out = bytearray(raw)
@@ -139,7 +135,8 @@ class Strategies:
         self._block_action = st.sampled_from(BLOCK_ACTIONS + ((Action.PROG_IDX,) if extension else ()))
         self._float_action = st.sampled_from(BLOCK_ACTIONS)
         self._unknown_action = st.integers(0, len(unknown) - 1).map(unknown.__getitem__)
-        self._counts = st.sampled_from(COUNTS)
+        # the usual counts first (shrinking), else any count 1-255 (a box may fail at exactly 7 blocks)
+        self._counts = st.one_of(st.sampled_from(COUNTS), st.integers(1, MAX_BLOCK_COUNT))
         self._small = st.integers(1, SMALL_COUNT)
         self._binary: dict[int, st.SearchStrategy[bytes]] = {}
         self._request = _request(self)
@@ -251,9 +248,11 @@ class Strategies:
         return _mutated(self)
 
     def garbage(self) -> st.SearchStrategy[FuzzCase]:
-        return st.binary(min_size=1, max_size=64).map(
-            lambda b: self.case("F1-garbage", "F1", b, f"{len(b)} bytes of garbage")
-        )
+        """Random bytes: up to 64 drawn, or a drawn pattern repeated up to beyond the largest legal frame."""
+        short = st.binary(min_size=1, max_size=64)
+        long = st.tuples(st.integers(65, 4 * MAX_FRAME_LEN), st.binary(min_size=1, max_size=64)).map(
+            lambda sp: (sp[1] * (sp[0] // len(sp[1]) + 1))[: sp[0]])
+        return st.one_of(short, long).map(lambda b: self.case("F1-garbage", "F1", b, f"{len(b)} bytes of garbage"))
 
     def datagram(self) -> st.SearchStrategy[FuzzCase]:
         return _datagram(self)
@@ -391,7 +390,8 @@ def _mutated(draw: st.DrawFn, s: Strategies) -> FuzzCase:
 
     The edits come from one ``binary`` draw, 4 bytes each (operation, position high and
     low byte, value): one choice however many edits, and it shrinks to "set byte 0 to 00"."""
-    data = bytearray(s.raw(*draw(s._request)))
+    header, body = draw(s._request)
+    data = bytearray(s.raw(header, body))
     ops = draw(s._edits)
     done = []
     for i in range(0, len(ops) - 3, 4):
@@ -406,7 +406,24 @@ def _mutated(draw: st.DrawFn, s: Strategies) -> FuzzCase:
         elif op == "delete" and len(data) > 1:
             del data[at]
         done.append(f"{op}@{at}" + (f"={value:02x}" if op in ("set", "insert") else ""))
+    recount = _recount(s, header, body, bytes(data))
+    if recount is not None:
+        return s.case("mutation", "", recount, f"a valid request mutated: {', '.join(done)}; "
+                      f"its blocks rebuilt for count {recount[7]} (a well-formed frame of that count)")
     return s.case("mutation", "", bytes(data), "a valid request mutated: " + ", ".join(done))
+
+
+def _recount(s: Strategies, header: Header, body: bytes, data: bytes) -> bytes | None:
+    """When the edits changed only the block count of a block request: a well-formed frame of the new
+    count (its blocks indexed and filled like the first ones), not a header whose body is zero filler."""
+    old = s.raw(header, body)
+    if len(data) < 12 or data[:7] != old[:7] or data[8:12] != old[8:12] or data[7] == old[7] or not data[7]:
+        return None
+    if header.action not in BLOCK_ACTIONS:
+        return None
+    per = header.block_length - 1
+    values = b"".join(body[i * (per + 1) + 1 : (i + 1) * (per + 1)] for i in range(min(header.block_count, SMALL_COUNT)))
+    return s.raw(dataclasses.replace(header, block_count=data[7]), s.blocks(header.block_type, data[7], values))
 
 
 @st.composite
