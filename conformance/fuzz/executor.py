@@ -109,6 +109,14 @@ class Stats:
     by_kind: dict[str, int] = field(default_factory=dict)
 
 
+def _write(conn: FuzzConnection, wire: bytes, case: FuzzCase, note: str) -> bool:
+    """The case's bytes and the probe: one write, or the pieces of a split case (R3) with their pauses."""
+    if not case.splits:
+        return conn.send(wire, note)
+    cuts = [0, *case.splits, len(wire)]
+    return conn.send_pieces([wire[a:b] for a, b in zip(cuts, cuts[1:]) if b > a], case.gap_s, note)
+
+
 def alive(outcome: Outcome) -> bool:
     """R2: a fresh connection's NONE request got a frame-like answer."""
     if isinstance(outcome, Answer):
@@ -244,14 +252,14 @@ class Executor:
         probe = self.probe_for(case)
         start = time.monotonic()
         text = note or case.describe()
-        if not conn.send(case.wire + self._probes[Transport.TCP][probe], f"{text}; then a {probe.name} probe"):
+        wire = case.wire + self._probes[Transport.TCP][probe]
+        if not _write(conn, wire, case, f"{text}; then a {probe.name} probe"):
             outcomes: list[Outcome] = [o for o in conn.poll() if not isinstance(o, Closed)]
             end: Outcome = conn.closed_by_peer or Closed(False, 0.0)
             closed = True
         else:
             outcomes, end, closed = self._collect(conn, probe, start)
         usable = not (closed or isinstance(end, (Closed, Silence)))
-        wire = case.wire + self._probes[Transport.TCP][probe]
         judgement = judge(case.expects, outcomes, end, self.profile, probe, data=wire, extension=self.extension,
                           probe_at=len(case.wire))
         return Result(case, outcomes, end, judgement, conn.conn_id if usable else -1, False, probe)

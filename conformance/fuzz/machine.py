@@ -228,6 +228,11 @@ class IsightSession(RuleBasedStateMachine):
             self.send(target.connection, Action[target.last], raw)
         self.send(target.connection, Action[target.action], raw)
 
+    def connection_patterns(self) -> None:
+        """The connection patterns at their largest: 16 connections at once, 32 quick reconnects."""
+        self._burst(16)
+        self._reconnects(32)
+
     # -- rules -----------------------------------------------------------------------------------
     @rule()
     def none(self) -> None:
@@ -321,6 +326,35 @@ class IsightSession(RuleBasedStateMachine):
         if result.conn < 0:  # the box closed or hung (allowed after bytes that are not a request)
             self.conns[on].abort("reopened after the box closed or hung")
             self._open(on)
+
+    @rule(count=st.integers(2, 16))
+    def many_connections(self, count: int) -> None:
+        """S4/R5: ``count`` more connections open at once, a NONE on each, then all closed."""
+        if self.ctx.left():
+            self._burst(count)
+
+    def _burst(self, count: int) -> None:
+        names = [f"extra-{i + 1}" for i in range(count)]
+        for name in names:
+            self._open(name)
+        for name in names:
+            self.send(name, Action.NONE, note=f"NONE on one of {count} connections open at once (S4)")
+        for name in names:
+            self.conns.pop(name).close("many connections: done")
+            self.sequence.append({"close": name})
+
+    @rule(count=st.integers(2, 32))
+    def quick_reconnects(self, count: int) -> None:
+        """S5/R2: ``count`` connections opened and closed at once, nothing sent."""
+        if self.ctx.left():
+            self._reconnects(count)
+
+    def _reconnects(self, count: int) -> None:
+        self.log.append(f"{count} quick connect/close cycles")
+        for _ in range(count):
+            self._open("quick")
+            self.conns.pop("quick").close("quick reconnect")
+            self.sequence.append({"close": "quick"})
 
     @rule(name=st.sampled_from(("command", "stream")))
     def reconnect(self, name: str) -> None:

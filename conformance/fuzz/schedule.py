@@ -25,6 +25,7 @@ The cases carry the oracle's expectations like any other (they are built with
 
 from __future__ import annotations
 
+import dataclasses
 import random
 from collections.abc import Iterator
 from typing import Literal
@@ -52,6 +53,10 @@ GARBAGE_SIZES = tuple(sorted({1, 2, 3, 7, 8, 9, 13, 14, 15, 64, 65, 255, 256, 10
                               65535, 65536, 100_000, MAX_FRAME_LEN - 1, MAX_FRAME_LEN, MAX_FRAME_LEN + 1}))
 
 
+#: A long pause mid-frame (R3: the frame still counts as one).
+PAUSE_S = 0.15
+
+
 def boundary_counts() -> list[int]:
     """1-255, the boundary counts first."""
     first = [c for c in EDGES_U8 if c >= 1]
@@ -63,7 +68,7 @@ class Schedule:
 
     def __init__(self, s: Strategies) -> None:
         self.s = s
-        groups = [self._fields(), self._values(), self._sizes(), self._counts()]
+        groups = [self._fields(), self._values(), self._sizes(), self._splits(), self._counts()]
         if s.udp:
             groups.append(self._udp())
         self._iter = _round_robin(groups)
@@ -101,19 +106,21 @@ class Schedule:
                 yield self.s.case("valid-count", "", self.request(action, n), f"{action.name} ×{n} (every count)")
 
     def _fields(self) -> Iterator[FuzzCase]:
+        """Every field's boundary values, the fields taken in turn (each field's edges come early)."""
+        return _round_robin([self._field(name, off, width) for name, off, width, _defined in FIELDS])
+
+    def _field(self, name: str, off: int, width: int) -> Iterator[FuzzCase]:
         s = self.s
         bases = [(Action.NONE, self.request(Action.NONE, 0)), (Action.POSE, self.request(Action.POSE, 1))]
-        space = field_space()
         order: Literal["big", "little"] = "big" if s.profile.byte_order == "big" else "little"
-        for name, off, width, _defined in FIELDS:
-            for value in space[name]:
-                for action, base in bases:
-                    data = bytearray(base)
-                    data[off : off + width] = value.to_bytes(width, order)
-                    if bytes(data) == base:
-                        continue
-                    yield s.case(f"edge-{name}", _FIELD_CLAUSE[name], bytes(data),
-                                 f"{action.name} with {name} {value:#0{2 + 2 * width}x} (a boundary value)")
+        for value in field_space()[name]:
+            for action, base in bases:
+                data = bytearray(base)
+                data[off : off + width] = value.to_bytes(width, order)
+                if bytes(data) == base:
+                    continue
+                yield s.case(f"edge-{name}", _FIELD_CLAUSE[name], bytes(data),
+                             f"{action.name} with {name} {value:#0{2 + 2 * width}x} (a boundary value)")
 
     def _values(self) -> Iterator[FuzzCase]:
         s = self.s
@@ -145,6 +152,14 @@ class Schedule:
             body = random.Random(n * length).randbytes(n * length)
             yield s.case("edge-oversized", "R5", s.raw(header, body),
                          f"POSE header announcing {n}×{length} = {n * length} bytes, then all of them")
+
+    def _splits(self) -> Iterator[FuzzCase]:
+        """R3: a one-pose request cut at every offset (2 ms pause), then a few long pauses mid-frame."""
+        s = self.s
+        data = self.request(Action.POSE, 1)
+        for cut, gap in [(c, 0.002) for c in range(1, len(data))] + [(c, PAUSE_S) for c in (2, 7, 12, 20)]:
+            case = s.case("R3-split", "R3", data, f"POSE ×1 split at {cut}, {gap * 1000:g} ms pause")
+            yield dataclasses.replace(case, splits=(cut,), gap_s=gap)
 
     def _udp(self) -> Iterator[FuzzCase]:
         s, udp = self.s, Transport.UDP

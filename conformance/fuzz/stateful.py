@@ -125,6 +125,8 @@ class SessionRunner:
         session = None
         try:
             session = self.machine()
+            if not self.tries:  # the first steered session also tries the connection patterns at their largest
+                session.connection_patterns()
             for target in targets:
                 if not self.ctx.left():
                     break

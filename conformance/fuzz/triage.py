@@ -120,8 +120,9 @@ class Triage:
     # -- after hypothesis ------------------------------------------------------------------
     def record_shrunk(self, result: Result) -> None:
         plainer = self.rederive(result)
+        # only what the recorded failure shows becomes known: hypothesis may have shrunk one failure into
+        # another (the same raise site), and the first must then still count when it comes again
         self.record(plainer or result, "oracle", shrunk=True)
-        self.known |= self.known_before_shrink
 
     def record_pending(self) -> None:
         """Hypothesis could not replay the failure it was shrinking: it is written as found, unshrunk."""
