@@ -303,6 +303,8 @@ class Campaign:
         """A session left the box dead: bring it back (False: it did not come back)."""
         back = recover(self.config, self.executor)
         self.restarts += back
+        self.executor.drop_connection()  # a restart may have cut the frames' reused connection: not the box's fault
+        self.history.clear()
         return back
 
     def _observe(self, case: FuzzCase, result: Result) -> None:

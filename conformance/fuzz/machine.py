@@ -83,12 +83,14 @@ class StatefulFailure(AssertionError):
 
 
 class StatefulHang(BaseException):
-    """A session failure where the box stayed silent for time_out: reported as found, not shrunk
-    (every shrink step would wait time_out again). A BaseException, so hypothesis lets it through."""
+    """A session failure hypothesis must not shrink, reported as found: the box stayed silent for time_out
+    (every shrink step would wait time_out again), or it died (every step would need a restart: ``dead``).
+    A BaseException, so hypothesis lets it through."""
 
-    def __init__(self, failure: StatefulFailure) -> None:
+    def __init__(self, failure: StatefulFailure, dead: bool = False) -> None:
         super().__init__(str(failure))
         self.failure = failure
+        self.dead = dead
 
 
 class KnownFailure(BaseException):
@@ -150,6 +152,8 @@ class IsightSession(RuleBasedStateMachine):
             raise KnownFailure(finding.describe())
         if hang and not ctx.shrinking:
             raise StatefulHang(StatefulFailure(finding, self, case))
+        if not ctx.shrinking and not alive(self.executor.check_alive()):
+            raise StatefulHang(StatefulFailure(finding, self, case), dead=True)
         ctx.shrinking = True  # from now on every step runs: hypothesis is shrinking
         raise StatefulFailure(finding, self, case)
 

@@ -41,8 +41,12 @@ from .strategies import Strategies
 STEPS = 25
 RUNS_PER_CHUNK = 5
 #: Unreached transitions a steered session walks to per chunk, and how often each is tried.
-STEER_PER_CHUNK = 8
+STEER_PER_CHUNK = 32
 STEER_TRIES = 2
+
+
+_UNSHRUNK = {False: "not shrunk: the box hung, each shrink step would wait time_out",
+             True: "not shrunk: the box died, each shrink step would need a restart"}
 
 
 @dataclass
@@ -105,8 +109,8 @@ class SessionRunner:
             run_state_machine_as_test(self.machine, settings=hyp)
         except StatefulFailure as exc:
             self._found(exc, shrunk=True)
-        except StatefulHang as exc:  # not shrunk: each step would wait time_out
-            self._found(exc.failure, shrunk=False)
+        except StatefulHang as exc:  # not shrunk: each step would wait time_out, or need a restart
+            self._found(exc.failure, shrunk=False, how=_UNSHRUNK[exc.dead])
         except KnownFailure:
             self._after_failure()
         except Flaky as exc:
@@ -136,7 +140,7 @@ class SessionRunner:
         except StatefulFailure as exc:
             self._found(exc, shrunk=False, how="found by steering toward unreached state transitions")
         except StatefulHang as exc:
-            self._found(exc.failure, shrunk=False, how="found by steering; not shrunk: the box hung")
+            self._found(exc.failure, shrunk=False, how="found by steering; " + _UNSHRUNK[exc.dead])
         except KnownFailure:
             self._after_failure()
         finally:
