@@ -121,12 +121,12 @@ def write_vectors(path: Path, failure: Failure, profile: Profile, description: s
             where = f" (case {i} of {len(failure.cases)} of the sequence that kills the box, in this order)"
         comment = f"fuzz failure {failure.number} ({failure.kind}){where}: {case.describe()}. {failure.message}"
         entry = vector_entry(len(group["tests"]) + 1, case, profile, comment, clauses_of(case, failure.clauses))
-        entry["flags"] = flags
+        entry["flags"] = flags + split_flags(case)
         group["tests"].append(entry)
     path.parent.mkdir(parents=True, exist_ok=True)
     notes: dict[str, str] = {}
-    if any(t["flags"] for g in groups.values() for t in g["tests"]):
-        notes = dict(SEQUENCE_NOTES)
+    for flag in sorted({f for g in groups.values() for t in g["tests"] for f in t["flags"]}):
+        notes[flag] = SEQUENCE_NOTES.get(flag) or _split_note(flag)
     if profile.byte_order != "big" or profile.float_byte_order != "big":
         description += (f" Profile: byte order {profile.byte_order}, float byte order {profile.float_byte_order} "
                         "(the vectors are in that order).")
@@ -140,6 +140,26 @@ SEQUENCE_NOTES = {
                     "liveness (R2) after the last",
     "NewConnection": "this step of the sequence goes on a new connection (the ones before it on the previous one)",
 }
+
+
+def split_flags(case: FuzzCase) -> list[str]:
+    """R3: how a split case is written (``SplitAt<offset>``, ``PauseMs<ms>``); ``replay`` writes it so again."""
+    if not case.splits:
+        return []
+    return [f"SplitAt{c}" for c in case.splits] + [f"PauseMs{round(case.gap_s * 1000)}"]
+
+
+def splits_of(flags: Sequence[str]) -> tuple[tuple[int, ...], float]:
+    """The inverse of :func:`split_flags`: (cut offsets, pause in seconds)."""
+    cuts = tuple(int(f[7:]) for f in flags if f.startswith("SplitAt") and f[7:].isdigit())
+    gap = next((int(f[7:]) / 1000 for f in flags if f.startswith("PauseMs") and f[7:].isdigit()), 0.0)
+    return cuts, gap
+
+
+def _split_note(flag: str) -> str:
+    if flag.startswith("SplitAt"):
+        return f"R3: the bytes are written in pieces, one cut at offset {flag[7:]}"
+    return f"R3: a pause of {flag[7:]} ms between the pieces"
 
 
 def _sequence_flags(failure: Failure, i: int) -> list[str]:

@@ -27,6 +27,7 @@ from ..harness.transcript import Transcript
 from ..protocol import HEADER_LEN, Profile, TransferType, Transport
 from ..suite.verdicts import Verdict
 from ..vectors import Vector, load
+from .evidence import splits_of
 from .executor import Executor, alive
 from .oracle import expectations
 from .strategies import FuzzCase
@@ -72,7 +73,9 @@ def case_of(v: Vector, profile: Profile, extension: bool) -> FuzzCase:
     if eof:
         filler, expects = expectations(v.data, profile, v.transport, extension, eof=True)
     clause = v.clauses[0] if v.clauses else ""
-    return FuzzCase(f"vector:{v.result}", clause, v.data, f"{v.name}: {v.comment[:100]}", v.transport, eof, filler, expects)
+    splits, gap = splits_of(v.flags)
+    return FuzzCase(f"vector:{v.result}", clause, v.data, f"{v.name}: {v.comment[:100]}", v.transport, eof, filler,
+                    expects, splits, gap)
 
 
 def replay(
