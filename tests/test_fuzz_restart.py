@@ -25,7 +25,16 @@ from conformance.fuzz.restart import restart_command
 from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
-from conformance.protocol import Action, Frame, ProtocolError, Transport, encode_tcp, pose_blocks, request, tolerance_blocks
+from conformance.protocol import (
+    Action,
+    Frame,
+    ProtocolError,
+    Transport,
+    encode_tcp,
+    pose_blocks,
+    request,
+    tolerance_blocks,
+)
 
 pytestmark = pytest.mark.timeout(120)
 

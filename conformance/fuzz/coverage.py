@@ -80,7 +80,7 @@ def float_class(bits: int) -> str:
         return sign + "max-finite"
     if exp == 1 and frac == 0:
         return "min-normal"
-    if exp >= 0xE3:  # 2^100 ≈ 1.3e30
+    if exp >= 0xE2:  # 2^99 ≈ 6.3e29 (1e30 and up)
         return sign + "huge"
     return sign + "normal"
 

@@ -225,7 +225,8 @@ class IsightSession(RuleBasedStateMachine):
     def steer(self, target: Transition, raw: bytes = bytes(24)) -> None:
         """Walk to ``target``: set the cycle on the command connection, make the last answer, send the request."""
         want = Action.CYCLE_ON if target.cycle == Cycle.ON.value else Action.CYCLE_OFF
-        self.send("command", want, note=f"steer to {target.describe()}: {want.name}")
+        name = "CycleOn" if want is Action.CYCLE_ON else "CycleOff"
+        self.send("command", want, note=f"{name} (steering to: {target.describe()})")
         if target.last == OPEN:
             self._reopen(target.connection, "steer: a fresh connection")
         else:

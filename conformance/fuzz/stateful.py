@@ -1,10 +1,11 @@
 """Stateful fuzzing: sessions of the state machine (:mod:`.machine`), run in slices between the frame cases.
 
-A :class:`SessionRunner` runs *chunks*: one hypothesis run of ``RUNS_PER_CHUNK``
-sessions of ``STEPS`` steps each (seeded from the campaign's seed, the campaign's
-database), then a *steered* session that walks straight to the transitions of
-:class:`~.statecov.StateCoverage` no session has reached yet (at most
-``STEER_PER_CHUNK``, each tried at most twice: the box may refuse the way there). The
+A :class:`SessionRunner` runs *chunks*: a *steered* session that walks straight to the
+transitions of :class:`~.statecov.StateCoverage` no session has reached yet (at most
+``STEER_PER_CHUNK``, each tried at most twice: the box may refuse the way there; the
+first one also opens 16 connections at once and makes 32 quick reconnects), then one
+hypothesis run of ``RUNS_PER_CHUNK`` sessions of ``STEPS`` steps each (seeded from the
+campaign's seed, the campaign's database). The
 campaign interleaves the chunks with its frame cases from the first second, so a
 defect behind a request sequence is found as early as one behind a single frame.
 
@@ -87,10 +88,11 @@ class SessionRunner:
         return StatefulResult(self.ctx.runs, self.ctx.steps, self.failures, self.stopped)
 
     def run_chunk(self) -> list[Failure]:
-        """One hypothesis run of sessions, then a steered session; the failures found (recorded)."""
+        """A steered session, then one hypothesis run of sessions; the failures found (recorded)."""
         before = len(self.failures)
-        if not self._hypothesis_chunk() and not self.stopped:
-            self._steer()
+        self._steer()
+        if len(self.failures) == before and not self.stopped:
+            self._hypothesis_chunk()
         self.chunk += 1
         return self.failures[before:]
 
@@ -110,7 +112,7 @@ class SessionRunner:
         except StatefulFailure as exc:
             self._found(exc, shrunk=True)
         except StatefulHang as exc:  # not shrunk: each step would wait time_out, or need a restart
-            self._found(exc.failure, shrunk=False, how=_UNSHRUNK[exc.dead])
+            self._found(exc.failure, shrunk=False, how=_UNSHRUNK[exc.dead], stopped="hang")
         except KnownFailure:
             self._after_failure()
         except Flaky as exc:
@@ -126,35 +128,64 @@ class SessionRunner:
         targets = [t for t in self.coverage.unreached() if self.tries.get(t, 0) < STEER_TRIES][:STEER_PER_CHUNK]
         if not targets or not self.ctx.left():
             return
+        if not self.tries:  # the connection patterns at their largest, once, in a session of their own
+            self._walk(None)
+        for i in range(0, len(targets), 8):  # sessions of eight walks
+            if not self.ctx.left() or self.stopped:
+                break
+            batch = targets[i : i + 8]
+            for target in batch:
+                self.tries[target] = self.tries.get(target, 0) + 1
+            self._walk(batch)
+
+    def _walk(self, targets: list[Transition] | None) -> None:
+        """One steered session: to each target in turn (None: the connection patterns); a failure is walked
+        to again on its own, in a fresh session, and the shorter session that fails is reported."""
+        done: Transition | None = None
+        try:
+            found = self._session(targets)
+            if found is None:
+                return
+            exc, done = found
+            if done is not None and not isinstance(exc, StatefulHang):
+                alone = self._session([done])
+                if alone is not None and type(alone[0]) is type(exc):
+                    exc = alone[0]
+            if isinstance(exc, StatefulHang):
+                self._found(exc.failure, False, "found by steering; " + _UNSHRUNK[exc.dead], "hang")
+            elif isinstance(exc, StatefulFailure):
+                self._found(exc, False, "found by steering toward an unreached state transition, walked to alone")
+            else:
+                self._after_failure()
+        finally:
+            self.ctx.shrinking = False
+
+    def _session(self, targets: list[Transition] | None) -> tuple[BaseException, Transition | None] | None:
+        """Walk to ``targets`` in a fresh session; the failure and the target it happened on, else None."""
         session = None
+        current: Transition | None = None
         try:
             session = self.machine()
-            if not self.tries:  # the first steered session also tries the connection patterns at their largest
+            if targets is None:
                 session.connection_patterns()
-            for target in targets:
-                if not self.ctx.left():
-                    break
-                self.tries[target] = self.tries.get(target, 0) + 1
-                session.steer(target)
+            for current in targets or []:
+                session.steer(current)
             session.teardown()
-        except StatefulFailure as exc:
-            self._found(exc, shrunk=False, how="found by steering toward unreached state transitions")
-        except StatefulHang as exc:
-            self._found(exc.failure, shrunk=False, how="found by steering; " + _UNSHRUNK[exc.dead])
-        except KnownFailure:
-            self._after_failure()
+            return None
+        except (StatefulFailure, StatefulHang, KnownFailure) as exc:
+            return exc, current
         finally:
             self.ctx.shrinking = False
             if session is not None:
                 for conn in session.conns.values():
                     conn.abort("steered session done")
 
-    def _found(self, exc: StatefulFailure, shrunk: bool, how: str = "") -> None:
+    def _found(self, exc: StatefulFailure, shrunk: bool, how: str = "", stopped: str = "failure") -> None:
         failure = _record(self.cfg, self.seed, self.number(), exc, shrunk, how)
         self.failures.append(failure)
         if exc.finding.key:
             self.ctx.known.add(exc.finding.key)
-        self.stopped = "failure" if shrunk else "hang"
+        self.stopped = stopped
         self._after_failure()
 
     def _after_failure(self) -> None:
