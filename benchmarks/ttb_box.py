@@ -183,6 +183,10 @@ class Box:
             dies = len(self.silent_closes) >= 20
         if dies and self.server is not None:
             self.fire("20 quick reconnects")
+            try:
+                self.server.shutdown(socket.SHUT_RDWR)  # wakes the accept loop: the box stops listening
+            except OSError:
+                pass
             self.server.close()
 
     def _loop(self, conn: socket.socket) -> bool:

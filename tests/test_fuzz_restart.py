@@ -9,13 +9,13 @@ last liveness check and shrinks it (ddmin) to the two requests.
 from __future__ import annotations
 
 import json
+import socket
 import sys
+import threading
 from pathlib import Path
 
 import pytest
 
-from conformance.endpoints.behaviour import BoxConfig, Decision
-from conformance.endpoints.loop import BoxThread
 from conformance.fuzz.config import CampaignConfig
 from conformance.fuzz.death import Seen, find_killer
 from conformance.fuzz.evidence import write_vectors
@@ -26,10 +26,12 @@ from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
 from conformance.protocol import (
+    DEFAULT_PROFILE,
     Action,
     Frame,
-    ProtocolError,
-    Transport,
+    StreamDecoder,
+    TransferType,
+    answer,
     encode_tcp,
     pose_blocks,
     request,
@@ -44,35 +46,57 @@ TOL2 = encode_tcp(request(Action.TOLERANCE, tolerance_blocks([0.5, 1.0])))
 TOL1 = encode_tcp(request(Action.TOLERANCE, tolerance_blocks([0.5])))
 
 
+def _close(server: socket.socket) -> None:
+    """Stop listening (shutdown wakes the thread blocked in accept; close alone does not on Linux)."""
+    try:
+        server.shutdown(socket.SHUT_RDWR)
+    except OSError:
+        pass
+    server.close()
+
+
 class SequenceDyingBox:
+    """Stops accepting connections when, on one connection, a tolerance with two blocks follows a register pose
+    (NONE requests in between do not count). ``restart()`` brings a fresh (still deadly) one up."""
+
     def __init__(self) -> None:
         self.port = 0
         self.restarts = 0
-        self.box = self._start()
+        self._start()
 
-    def _start(self) -> BoxThread:
-        box = BoxThread(BoxConfig(), host="127.0.0.1", port=self.port, udp=False).start()
-        self.port = box.tcp_port
-        b = box.behaviour
-        original = b.decide
-        last: list[int] = [-1]
+    def _start(self) -> None:
+        server = self.server = socket.socket()
+        server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        server.bind(("127.0.0.1", self.port))
+        server.listen(16)
+        self.port = server.getsockname()[1]
+        threading.Thread(target=self._accept, args=(server,), daemon=True).start()
 
-        def decide(event: Frame | ProtocolError, transport: Transport = Transport.TCP) -> Decision:
-            if isinstance(event, Frame):
-                if event.action == Action.TOLERANCE and len(event.blocks) == 2 and last[0] == Action.REGISTER_POSE:
-                    ref = box.box
-                    assert ref is not None and ref._server is not None
-                    ref._server.close()
-                last[0] = int(event.action)
-            return original(event, transport)
+    def _accept(self, server: socket.socket) -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            threading.Thread(target=self._serve, args=(server, conn), daemon=True).start()
 
-        box.call(lambda: (setattr(b, "decide", decide), setattr(b, "fast_path", False)))
-        return box
+    def _serve(self, server: socket.socket, conn: socket.socket) -> None:
+        decoder = StreamDecoder(DEFAULT_PROFILE, TransferType.ROBOT_TO_BOX)
+        prev = -1
+        with conn:
+            while data := conn.recv(65536):
+                for event in decoder.feed(data):
+                    if not isinstance(event, Frame):
+                        continue
+                    if event.action == Action.TOLERANCE and len(event.blocks) == 2 and prev == Action.REGISTER_POSE:
+                        _close(server)
+                    prev = prev if event.action == Action.NONE else int(event.action)
+                    conn.sendall(encode_tcp(answer(event.action)))
 
     def restart(self) -> None:
-        self.box.stop()
+        _close(self.server)
         self.restarts += 1
-        self.box = self._start()
+        self._start()
 
 
 def test_a_death_only_a_sequence_causes_is_replayed_shrunk_and_written_whole(tmp_path: Path) -> None:
@@ -101,7 +125,7 @@ def test_a_death_only_a_sequence_causes_is_replayed_shrunk_and_written_whole(tmp
         results = replay(load_files([path]), cfg.target, cfg.profile)
         assert [r.status for r in results] == ["OK", "FAIL"] and "R2" in results[1].why
     finally:
-        box.box.stop()
+        _close(box.server)
 
 
 def test_a_restart_command_runs_and_a_failing_one_is_an_error(tmp_path: Path) -> None:
