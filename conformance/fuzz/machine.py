@@ -334,19 +334,29 @@ class IsightSession(RuleBasedStateMachine):
 
     @rule(count=st.integers(2, 16))
     def many_connections(self, count: int) -> None:
-        """S4/R5: ``count`` more connections open at once, a NONE on each, then all closed."""
+        """R5/S4: ``count`` more connections open at once, a NONE written on each, all closed; then the
+        command connection MUST still be answered (the box may refuse or drop the extra ones: it may bound
+        its resources)."""
         if self.ctx.left():
             self._burst(count)
 
     def _burst(self, count: int) -> None:
-        names = [f"extra-{i + 1}" for i in range(count)]
-        for name in names:
-            self._open(name)
-        for name in names:
-            self.send(name, Action.NONE, note=f"NONE on one of {count} connections open at once (S4)")
-        for name in names:
-            self.conns.pop(name).close("many connections: done")
-            self.sequence.append({"close": name})
+        ctx = self.ctx
+        extras: list[FuzzConnection] = []
+        for i in range(count):
+            conn = FuzzConnection(self.tr, ctx.cfg.target, ctx.cfg.profile, f"extra-{i + 1}")
+            try:
+                conn.connect()
+            except Unreachable:
+                break  # the box bounds its connections: allowed
+            extras.append(conn)
+            conn.send(ctx.codec.encode_raw(Header(action=Action.NONE)), "NONE on one of many connections (R5)")
+        self.log.append(f"{count} more connections at once ({len(extras)} accepted), a NONE on each")
+        self.sequence.append({"open": "extra", "target": "command", "count": count})
+        for conn in extras:
+            conn.close("many connections: done")
+        self.sequence.append({"close": "extra"})
+        self.send("command", Action.NONE, note=f"NONE on the command connection after {count} more at once (R5)")
 
     @rule(count=st.integers(2, 32))
     def quick_reconnects(self, count: int) -> None:
