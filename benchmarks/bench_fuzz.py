@@ -96,7 +96,7 @@ def campaign(port: int, seconds: float, seed_value: int, capture: str, tmp: Path
         target=Target("127.0.0.1", port), seed=seed_value, duration_s=seconds, stateful_share=0,
         report_dir=tmp / f"report-{capture}", pcap_dir=tmp / f"pcaps-{capture}", capture=capture, log=lambda _: None,
     )
-    summary = Campaign(config).run()
+    summary = Campaign(config).run().to_dict()
     size = sum(p.stat().st_size for p in (tmp / f"pcaps-{capture}").glob("*.pcapng")) if capture == "all" else 0
     summary["pcap_bytes"] = size
     return summary

@@ -85,3 +85,26 @@ def test_the_database_setting(tmp_path: Path) -> None:
         assert db is None and "no-db-for-test" in label
     finally:
         settings.load_profile(before)
+
+
+def test_restart_cmd_is_the_campaign_s_restart_and_the_report_prints_the_coverage(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    import argparse
+    import shlex
+    import sys
+
+    from conformance.fuzz.cli import _restart, add_fuzz_arguments
+
+    parser = argparse.ArgumentParser()
+    add_fuzz_arguments(parser)
+    mark = tmp_path / "restarted"
+    cmd = f"{shlex.quote(sys.executable)} -c \"open(r'{mark}', 'w').write('x')\""
+    restart = _restart(parser.parse_args(["--restart-cmd", cmd]), None)
+    assert restart is not None
+    restart()
+    assert mark.read_text() == "x"
+    assert _restart(parser.parse_args([]), None) is None  # no box to restart: the campaign can only wait
+    monkeypatch.chdir(tmp_path)
+    assert main(["fuzz", "--max-examples", "200", "--seed", "5", "--report-dir", "r"]) == 0
+    out = capsys.readouterr().out
+    assert "fuzz: coverage: counts " in out and "state transitions " in out

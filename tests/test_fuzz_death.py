@@ -43,7 +43,9 @@ def test_the_killer_is_found_by_rerunning_the_suspects_after_a_restart(tmp_path:
     try:
         cfg = CampaignConfig(target=Target("127.0.0.1", box.port), restart=box.restart, recover_s=2.0, log=log.append)
         window, ex = window_of(box)
-        failure, evidence = find_killer(cfg, window, ex, number=3)
+        death = find_killer(cfg, window, ex, number=3)
+        failure, evidence = death.failure, death.evidence
+        assert death.back
         assert alive(ex.check_alive())  # brought back after the killer was confirmed
     finally:
         box.stop()
@@ -60,13 +62,16 @@ def test_a_box_that_does_not_come_back_leaves_the_suspects_unconfirmed(tmp_path:
     try:
         cfg = CampaignConfig(target=Target("127.0.0.1", box.port), recover_s=0.3, log=lambda _: None)
         window, ex = window_of(box)
-        failure, evidence = find_killer(cfg, window, ex, number=1)
+        death = find_killer(cfg, window, ex, number=1)
+        failure, evidence = death.failure, death.evidence
+        assert not death.back
     finally:
         box.stop()
     odd = [s.case for s in window if s.result.anomaly]
     assert failure.kind == "death" and not failure.confirmed and evidence is None
     assert failure.cases == (odd[:1] or [s.case for s in window])
     assert ("not confirmed: the box did not come back" if odd else "one of these cases") in failure.message
+    assert "--restart-cmd" in failure.message  # how to give the campaign a way to bring the box back
 
 
 def test_a_restart_that_fails_is_reported_and_the_box_counts_as_not_back() -> None:

@@ -18,9 +18,7 @@ case's. For longer campaigns use ``isight-conformance fuzz`` (docs/FUZZING.md).
 
 from __future__ import annotations
 
-from typing import Any
-
-from conformance.fuzz.campaign import Campaign, CampaignConfig
+from conformance.fuzz.campaign import Campaign, CampaignConfig, CampaignResult
 from conformance.suite.context import CaseContext
 from conformance.suite.record import Requirement, case
 from conformance.suite.signature import Signature
@@ -30,7 +28,7 @@ FRAMES_S = 2.0
 SESSION_S = 1.0
 
 
-def _campaign(isight: CaseContext, name: str, seconds: float, stateful_share: float) -> dict[str, Any]:
+def _campaign(isight: CaseContext, name: str, seconds: float, stateful_share: float) -> CampaignResult:
     settings = isight.settings
     extension = isight.session.detect_extension(isight.transcript)
     isight.needs_liveness = True
@@ -42,12 +40,12 @@ def _campaign(isight: CaseContext, name: str, seconds: float, stateful_share: fl
         database=None, extension=extension, settle_s=settings.settle_s, log=lambda line: None,
         transcript=isight.transcript, name=f"{name}-failure",
     )
-    summary = Campaign(config).run()
+    result = Campaign(config).run()
+    summary = result.to_dict()
     isight.details["fuzz"] = {k: summary[k] for k in ("seed", "examples", "examples_per_s", "stateful", "connections",
-                                                      "liveness_checks", "by_kind", "stopped")}
-    isight.details["fuzz"]["failures"] = summary["failures"]
-    isight.details["fuzz"]["non_strict"] = summary["non_strict"]
-    return summary
+                                                      "liveness_checks", "by_kind", "stopped", "coverage",
+                                                      "failures", "non_strict")}
+    return result
 
 
 #: what a campaign's failures judge: the words and the clauses come from the oracle's findings
@@ -55,26 +53,26 @@ FINDINGS = {"failure": Requirement((), "{finding}", judged_from="clauses"),
             "non-strict": Requirement((), "{finding}", level=Level.SHOULD, judged_from="clauses")}
 
 
-def _judge(isight: CaseContext, summary: dict[str, Any]) -> None:
-    failures = summary["failures"]
+def _judge(isight: CaseContext, result: CampaignResult) -> None:
+    failures = result.failures
     if failures:
         first = failures[0]
         more = f" (and {len(failures) - 1} more distinct failures)" if len(failures) > 1 else ""
-        where = f"; vector {first['vector']}" if first["vector"] else ""
-        sent = bytes.fromhex(first["cases"][0]["hex"]) if first["cases"] else b""
-        clause = first["clauses"][0] if first["clauses"] else "R1"
+        where = f"; vector {first.vector}" if first.vector else ""
+        sent = first.cases[0].wire if first.cases else b""
+        clause = first.clauses[0] if first.clauses else "R1"
         # a malformed answer found by fuzzing groups with the cases that found the same malformation
-        signature = Signature.fuzz(clause, malformed_answer="conforming frames" in first["message"])
+        signature = Signature.fuzz(clause, malformed_answer=first.malformed_answer)
         raise isight.broken("failure", expected="no failure: every example answered as PROTOCOL.md allows",
-                            observed=f"fuzz failure ({first['kind']}, seed {summary['seed']}){where}", sent=sent,
-                            signature=signature, finding=f"{', '.join(first['clauses'])}: {first['message']}{more}",
-                            clauses=tuple(first["clauses"]))
-    if summary["non_strict"]:
-        obs = summary["non_strict"][0]
+                            observed=f"fuzz failure ({first.kind}, seed {result.seed}){where}", sent=sent,
+                            signature=signature, finding=f"{', '.join(first.clauses)}: {first.message}{more}",
+                            clauses=tuple(first.clauses))
+    if result.non_strict:
+        obs = result.non_strict[0]
         raise isight.broken("non-strict", expected="every SHOULD of PROTOCOL.md kept",
-                            observed=f"the box {obs['observed']} (×{obs['count']})", sent=bytes.fromhex(obs["hex"]),
-                            signature=Signature.fuzz(obs["clause"], key=obs["key"]), finding=f"[{obs['clause']}] {obs['requirement']}",
-                            clauses=(obs["clause"],))
+                            observed=f"the box {obs.observed} (×{obs.count})", sent=bytes.fromhex(obs.hex),
+                            signature=Signature.fuzz(obs.clause, key=obs.key), finding=f"[{obs.clause}] {obs.requirement}",
+                            clauses=(obs.clause,))
 
 
 @case("FUZZ-01", ["R1", "R2", "A1", "A3", "A5", "B3", "B4", "B5", "F5", "R6"], Level.MUST,

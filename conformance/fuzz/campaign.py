@@ -6,14 +6,19 @@ The campaign runs hypothesis in *chunks*: each chunk is one ``@given`` run of
 found once is replayed first next time). One hypothesis example is a *batch*: a list
 of up to ``batch`` fuzz cases, run one after the other on a reused connection;
 hypothesis pays its per-example overhead once per batch, and shrinks a failing batch
-down to the one case that fails and that case down to its simplest frame. Between
-chunks the campaign checks its budget (``max_examples`` cases or ``duration_s``); what
-is left of it after the frames (``stateful_share``) goes to the session state machine
-(:mod:`.stateful`), whose result the campaign adds to its own.
+down to the one case that fails and that case down to its simplest frame. After each
+hypothesis case one case of the boundary schedule (:mod:`.schedule`) runs, until the
+schedule is done: every block count, field boundary and float class early.
+
+Frame chunks alternate with chunks of the session state machine (:mod:`.stateful`)
+from the first second, so that the sessions get ``stateful_share`` of the time (or of
+the cases) all along. Between chunks the campaign checks its budget
+(``max_examples`` cases or ``duration_s``).
 
 This module is the loop. A failing case is confirmed, shrunk, stated plainly and
-written by :mod:`.triage`; a box that *dies* (R2) stops the campaign, and
-:mod:`.death` finds which input killed it.
+written by :mod:`.triage`; a box that *dies* (R2) is brought back, and :mod:`.death`
+finds which input (or sequence) killed it; the campaign then goes on, or stops when
+the box does not come back.
 """
 
 from __future__ import annotations
@@ -21,8 +26,6 @@ from __future__ import annotations
 import datetime as _dt
 import time
 from collections import deque
-from dataclasses import dataclass
-from typing import Any
 
 from hypothesis import HealthCheck, Phase, Verbosity, given, settings
 from hypothesis import strategies as st
@@ -33,11 +36,17 @@ from ..evidence.pcap import PcapRecorder
 from ..harness.transcript import Transcript
 from ..options import profile_flags
 from ..suite.verdicts import Verdict
+from .budget import Budget
 from .config import CampaignConfig, new_seed
-from .death import STOPPED, Seen, find_killer
+from .coverage import Coverage
+from .death import RESTART_HINT, STOPPED, Seen, death_key, find_killer
 from .evidence import Failure, write_summary
 from .executor import Executor, Result, alive
-from .stateful import run_stateful
+from .hyp import seed_test, set_database_key
+from .restart import recover
+from .result import CampaignResult, Observation, Sessions
+from .schedule import Schedule
+from .stateful import SessionRunner
 from .strategies import FuzzCase, Strategies
 from .triage import FuzzFailure, Triage
 
@@ -47,20 +56,8 @@ SEGMENT_CASES = 20_000
 KEEP_EVENTS = 20_000
 
 
-@dataclass
-class Observation:
-    """A SHOULD the box broke (NON-STRICT), first seen on ``hex``."""
-
-    clause: str
-    requirement: str
-    observed: str
-    kind: str
-    hex: str
-    count: int = 1
-
-
 class Campaign:
-    """``Campaign(config).run()``: the summary (also written to ``fuzz-summary.json``)."""
+    """``Campaign(config).run()``: the :class:`CampaignResult` (also written to ``fuzz-summary.json``)."""
 
     def __init__(self, config: CampaignConfig) -> None:
         cfg = self.config = config
@@ -70,15 +67,15 @@ class Campaign:
         self.stopped = ""
         self.strategies = Strategies(cfg.profile, cfg.extension, udp=cfg.udp_target is not None)
         self.cases = self.strategies.cases(cfg.categories)
+        self.schedule = Schedule(self.strategies) if not cfg.categories else None
+        self.coverage = Coverage(cfg.profile)
         self.disabled: set[str] = set()
         self.window: list[Seen] = []  # cases since the last good liveness check
         self.history: deque[FuzzCase] = deque(maxlen=16)  # cases on the current reused connection
-        self.started = time.monotonic()
+        self.budget = Budget(cfg)
+        self.started = self.budget.started
         self.started_wall = time.time()
-        self.frames_s = 0.0
-        self.stateful_steps = 0
-        self.stateful_runs = 0
-        self.stateful_started = 0.0
+        self.restarts = 0
         self.internal_error: Exception | None = None
         self._segment = 0
         self._segment_cases = 0
@@ -89,7 +86,11 @@ class Campaign:
             cfg.target, cfg.profile, self.transcript, udp_target=cfg.udp_target, extension=cfg.extension,
             liveness_every=cfg.liveness_every, settle_s=cfg.settle_s,
         )
-        self.triage = Triage(cfg, self.seed, self.strategies, self.executor, lambda: self.examples)
+        self.triage = Triage(cfg, self.seed, self.strategies, self.executor, lambda: self.examples,
+                             self.budget.elapsed)
+        self.sessions = SessionRunner(cfg, self.strategies, self.seed, self._sessions_left,
+                                      lambda: self.triage.next_number, self._bring_back) \
+            if cfg.stateful_share > 0 else None
         self.digest = f"isight-fuzz/frames/{sorted(cfg.profile.to_dict().items())}/{cfg.extension}/" \
                       f"{cfg.udp_target is not None}/{cfg.categories}".encode()
 
@@ -98,40 +99,21 @@ class Campaign:
         return self.triage.failures
 
     # -- budget ----------------------------------------------------------------------------
-    @property
-    def frames_budget(self) -> int | None:
-        cfg = self.config
-        if cfg.max_examples is None:
-            return None
-        frames = round(cfg.max_examples * (1 - cfg.stateful_share))
-        return frames if cfg.stateful_share >= 1 else max(1, frames)
-
-    def _frames_time(self) -> float | None:
-        d = self.config.duration_s
-        return None if d is None else d * (1 - self.config.stateful_share)
+    def _going(self) -> bool:
+        return not self.stopped and len(self.failures) < self.config.max_failures
 
     def budget_left(self) -> bool:
-        if self.stopped or len(self.failures) >= self.config.max_failures:
-            return False
-        budget = self.frames_budget
-        if budget is not None and self.examples >= budget:
-            return False
-        limit = self._frames_time()
-        return limit is None or time.monotonic() - self.started < limit
+        """May another frame case run?"""
+        return self._going() and self.budget.frames_left(self.examples)
 
-    def stateful_left(self, steps: int) -> bool:
-        """May the session state machine run another step, ``steps`` steps into its share?"""
-        cfg = self.config
-        if self.stopped or len(self.failures) >= cfg.max_failures:
-            return False
-        if cfg.max_examples is not None and steps >= max(1, cfg.max_examples - (self.frames_budget or 0)):
-            return False
-        if cfg.duration_s is not None:
-            return time.monotonic() - self.stateful_started < cfg.duration_s * cfg.stateful_share
-        return True
+    def _steps(self) -> int:
+        return self.sessions.ctx.steps if self.sessions is not None else 0
+
+    def _sessions_left(self) -> bool:
+        return self._going() and self.budget.sessions_left(self._steps())
 
     # -- running ---------------------------------------------------------------------------
-    def run(self) -> dict[str, Any]:
+    def run(self) -> CampaignResult:
         cfg = self.config
         target_flag = [] if cfg.bundled else [f"--target {cfg.target}"]
         rerun = " ".join(["isight-conformance fuzz", *target_flag, *profile_flags(cfg.profile), f"--seed {self.seed}"])
@@ -141,32 +123,40 @@ class Campaign:
                 f"database {cfg.database_label}")
         if cfg.max_examples is None and cfg.duration_s is None:
             raise ValueError("give a budget: max_examples or duration_s")
-        start = time.monotonic()
         chunk = 0
         try:
-            while self.budget_left():
-                self._run_chunk(chunk)
-                chunk += 1
-            self.frames_s = time.monotonic() - start
-            if cfg.stateful_share > 0 and not self.stopped and len(self.failures) < cfg.max_failures:
-                self._run_stateful()
+            while self._going():
+                part = self.budget.next_part(self.examples, self._steps(), self._sessions_possible())
+                if part is None:
+                    break
+                with self.budget.timing(part):
+                    if part == "sessions":
+                        self._session_chunk()
+                    else:
+                        self._run_chunk(chunk)
+                        chunk += 1
         finally:
             self.executor.close()
             if self._recorder is not None:
                 self._recorder.close()
-        if not self.frames_s:
-            self.frames_s = time.monotonic() - start
-        summary = self.summary()
+        result = self.result()
         if cfg.report_dir is not None:
-            write_summary(cfg.report_dir / "fuzz-summary.json", summary)
-        return summary
+            write_summary(cfg.report_dir / "fuzz-summary.json", result.to_dict())
+        return result
 
-    def _run_stateful(self) -> None:
-        self.stateful_started = time.monotonic()
-        result = run_stateful(self.config, self.strategies, self.seed, self.stateful_left, self.triage.next_number)
-        self.stateful_runs += result.runs
-        self.stateful_steps += result.steps
-        self.failures.extend(result.failures)
+    def _sessions_possible(self) -> bool:
+        return self.sessions is not None and not self.sessions.stopped
+
+    def _session_chunk(self) -> None:
+        assert self.sessions is not None
+        for failure in self.sessions.run_chunk():
+            failure.found_after = self.examples
+            failure.found_s = self.budget.elapsed()
+            self.failures.append(failure)
+        if self.sessions.stopped == "dead":
+            self.stopped = STOPPED
+        elif self.sessions.stopped:
+            self.sessions.stopped = ""  # a failure was recorded: the sessions go on (it is known now)
 
     def _chunk_seed(self, chunk: int) -> int:
         return (self.seed * 1_000_003 + chunk) % (2**63)
@@ -193,9 +183,8 @@ class Campaign:
                 raise FuzzFailure(failing)
 
         test = hyp(given(st.lists(self.cases, min_size=1, max_size=cfg.batch))(fuzz_frames))
-        # What @seed sets, without what @seed also does: switch the example database off.
-        test._hypothesis_internal_use_seed = self._chunk_seed(chunk)  # type: ignore[attr-defined]
-        test.hypothesis.inner_test._hypothesis_internal_add_digest = self.digest  # type: ignore[attr-defined]
+        seed_test(test, self._chunk_seed(chunk))
+        set_database_key(test, self.digest)
         self.triage.shrinking = False
         try:
             test()
@@ -238,52 +227,85 @@ class Campaign:
         return tr
 
     def _execute(self, batch: list[FuzzCase]) -> Result | None:
-        """Run a batch; the result of a confirmed failure to raise to hypothesis, else None."""
-        ex, triage = self.executor, self.triage
+        """Run a batch (a scheduled case after each of its cases); the confirmed failure to raise to hypothesis."""
+        triage = self.triage
         for case in batch:
             if self.stopped or (not triage.shrinking and not self.budget_left()):
                 return None
             if case.kind in self.disabled:
                 continue
-            result = ex.run(case)
-            self._segment_cases += 1
-            if triage.shrinking:
-                triage.shrink_runs += 1
-            else:
-                self.examples += 1
-            self.history.append(case)
-            self.window.append(Seen(case, result))
-            if result.liveness is not None:
-                if not alive(result.liveness):
-                    self._on_death()
-                    return None
-                self.window = []
-            self._progress()
-            self._observe(case, result)
-            failing = triage.new_failures(result)
-            if not failing:
-                if result.anomaly:
-                    self.history.clear()
-                continue
-            if triage.shrinking:
-                return result
-            history = list(self.history)  # the cases on this connection, before the confirmation run clears it
-            confirmed = triage.confirm(case)
-            self.history.clear()
-            if confirmed.liveness is not None and not alive(confirmed.liveness):
-                self.window.append(Seen(case, confirmed))
-                self._on_death()
-                return None
-            raised = triage.route(result, confirmed, {f.key for f in failing}, history)
+            raised = self._step(case, shrinkable=True)
             if raised is not None:
                 return raised
+            if not triage.shrinking and self.schedule is not None and self.budget_left():
+                scheduled = self.schedule.next()
+                if scheduled is not None and scheduled.kind not in self.disabled:
+                    self._step(scheduled, shrinkable=False)
+        return None
+
+    def _step(self, case: FuzzCase, shrinkable: bool) -> Result | None:
+        """One case: run, judged, confirmed if it fails; the result to raise to hypothesis (``shrinkable`` only)."""
+        ex, triage = self.executor, self.triage
+        result = ex.run(case)
+        self._segment_cases += 1
+        if triage.shrinking:
+            triage.shrink_runs += 1
+        else:
+            self.examples += 1
+            self.coverage.observe(case)
+        self.history.append(case)
+        self.window.append(Seen(case, result))
+        if result.liveness is not None:
+            if not alive(result.liveness):
+                self._on_death()
+                return None
+            self.window = []
+        self._progress()
+        self._observe(case, result)
+        failing = triage.new_failures(result)
+        if not failing:
+            if result.anomaly:
+                self.history.clear()
+            return None
+        if triage.shrinking:
+            return result
+        history = list(self.history)  # the cases on this connection, before the confirmation run clears it
+        confirmed = triage.confirm(case)
+        self.history.clear()
+        if confirmed.liveness is not None and not alive(confirmed.liveness):
+            self.window.append(Seen(case, confirmed))
+            self._on_death()
+            return None
+        keys = {f.key for f in failing}
+        if shrinkable:
+            return triage.route(result, confirmed, keys, history)
+        triage.settle(result, confirmed, keys, history)
         return None
 
     def _on_death(self) -> None:
         window, self.window = self.window, []
-        self.stopped = STOPPED
-        failure, evidence = find_killer(self.config, window, self.executor, self.triage.next_number)
-        self.triage.write(failure, evidence if evidence is not None else self.transcript)
+        self.history.clear()
+        death = find_killer(self.config, window, self.executor, self.triage.next_number)
+        key = death_key(death.failure)
+        if key in self.triage.known:
+            self.config.log("fuzz: the box died again the way it did before (not reported twice)")
+        else:
+            self.triage.known.add(key)
+            death.failure.keys.append(key)
+            self.triage.write(death.failure, death.evidence if death.evidence is not None else self.transcript)
+        if death.back:
+            self.restarts += 1
+            self.config.log("fuzz: the box is back; the campaign goes on")
+        else:
+            self.stopped = STOPPED
+
+    def _bring_back(self) -> bool:
+        """A session left the box dead: bring it back (False: it did not come back)."""
+        back = recover(self.config, self.executor)
+        self.restarts += back
+        self.executor.drop_connection()  # a restart may have cut the frames' reused connection: not the box's fault
+        self.history.clear()
+        return back
 
     def _observe(self, case: FuzzCase, result: Result) -> None:
         for f in result.judgement.findings:
@@ -293,7 +315,8 @@ class Campaign:
             if seen is not None:
                 seen.count += 1
                 continue
-            self.non_strict[f.key] = Observation(f.clause, f.requirement, f.observed, case.kind, case.wire.hex())
+            self.non_strict[f.key] = Observation(f.clause, f.requirement, f.observed, case.kind, case.wire.hex(),
+                                                 key=f.key)
             if f.key in ("end/hang",) or f.clause == "S5":
                 self.disabled.add(case.kind)
                 self.config.log(f"fuzz: NON-STRICT [{f.clause}] the box hung on a {case.kind} case; "
@@ -305,39 +328,32 @@ class Campaign:
             return
         self._last_progress = now
         rate = (self.examples + self.triage.shrink_runs) / max(1e-9, now - self.started)
-        self.config.log(f"fuzz: {self.examples:,} examples ({rate:,.0f}/s), {len(self.failures)} failures, "
-                        f"{len(self.non_strict)} kinds of NON-STRICT")
+        self.config.log(f"fuzz: {self.examples:,} examples ({rate:,.0f}/s), {self._steps():,} session steps, "
+                        f"{len(self.failures)} failures, {len(self.non_strict)} kinds of NON-STRICT")
 
-    # -- the summary ------------------------------------------------------------------------
-    def summary(self) -> dict[str, Any]:
+    # -- the result ---------------------------------------------------------------------------
+    def result(self) -> CampaignResult:
         cfg = self.config
-        elapsed = time.monotonic() - self.started
         stats = self.executor.stats
         shrink_runs = self.triage.shrink_runs
-        return {
-            "tool": f"isight-conformance {__version__} fuzz",
-            "command": cfg.command,
-            "seed": self.seed,
-            "rerun": f"add --seed {self.seed} (with --database none the campaign repeats exactly)",
-            "target": str(cfg.target),
-            "udp_target": str(cfg.udp_target) if cfg.udp_target else None,
-            "profile": cfg.profile.to_dict(),
-            "extension": cfg.extension,
-            "database": cfg.database_label,
-            "started": _dt.datetime.fromtimestamp(self.started_wall, _dt.timezone.utc).isoformat(timespec="seconds"),
-            "duration_s": round(elapsed, 3),
-            "examples": self.examples,
-            "examples_per_s": round((self.examples + shrink_runs) / self.frames_s, 1) if self.frames_s else None,
-            "shrink_runs": shrink_runs,
-            "stateful": {"runs": self.stateful_runs, "steps": self.stateful_steps},
-            "connections": stats.connections,
-            "liveness_checks": stats.liveness_checks,
-            "by_kind": dict(sorted(stats.by_kind.items())),
-            "disabled_kinds": sorted(self.disabled),
-            "stopped": self.stopped or None,
-            "failures": [f.to_dict() for f in self.failures],
-            "non_strict": [vars(o) | {"key": k} for k, o in self.non_strict.items()],
-        }
+        frames_s = self.budget.spent["frames"]
+        s = self.sessions
+        sessions = Sessions(s.ctx.runs, s.ctx.steps, s.coverage.to_dict()) if s is not None else Sessions()
+        dead_hint = any(f.kind == "death" and not f.confirmed for f in self.failures) and cfg.restart is None
+        return CampaignResult(
+            tool=f"isight-conformance {__version__} fuzz", command=cfg.command, seed=self.seed,
+            rerun=f"add --seed {self.seed} (with --database none the campaign repeats exactly)",
+            target=str(cfg.target), udp_target=str(cfg.udp_target) if cfg.udp_target else None,
+            profile=cfg.profile.to_dict(), extension=cfg.extension, database=cfg.database_label,
+            started=_dt.datetime.fromtimestamp(self.started_wall, _dt.timezone.utc).isoformat(timespec="seconds"),
+            duration_s=round(self.budget.elapsed(), 3), examples=self.examples,
+            examples_per_s=round((self.examples + shrink_runs) / frames_s, 1) if frames_s else None,
+            shrink_runs=shrink_runs, scheduled=self.schedule.sent if self.schedule is not None else 0,
+            coverage=self.coverage.to_dict(), stateful=sessions, connections=stats.connections,
+            liveness_checks=stats.liveness_checks, restarts=self.restarts, by_kind=dict(sorted(stats.by_kind.items())),
+            disabled_kinds=sorted(self.disabled), stopped=self.stopped or None, failures=list(self.failures),
+            non_strict=list(self.non_strict.values()), hint=RESTART_HINT if dead_hint else "",
+        )
 
 
-__all__ = ["KEEP_EVENTS", "SEGMENT_CASES", "Campaign", "CampaignConfig", "Observation"]
+__all__ = ["KEEP_EVENTS", "SEGMENT_CASES", "Campaign", "CampaignConfig", "CampaignResult", "Observation"]

@@ -11,7 +11,8 @@ import shlex
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from ..endpoints.bundled import Bundled, start_bundled
 from ..harness.client import TcpConnection
@@ -24,6 +25,9 @@ from ..rundirs import default_run_dirs
 from ..suite.extension import detect_extension
 from .database import DEFAULT_DATABASE, resolve_database
 from .strategies import Strategies
+
+if TYPE_CHECKING:
+    from .result import CampaignResult
 
 __all__ = ["DEFAULT_DATABASE", "add_fuzz_arguments", "add_replay_arguments", "main_fuzz", "main_replay",
            "resolve_database"]
@@ -68,6 +72,9 @@ def add_fuzz_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--liveness-every", type=int, default=64, metavar="K",
                    help=_("[R2] liveness check on a fresh connection every K cases, and after every anomaly (default: 64)"))
     p.add_argument("--max-failures", type=int, default=5, metavar="N", help=_("stop after N distinct failures (default: 5)"))
+    p.add_argument("--restart-cmd", metavar="CMD",
+                   help=_("[R2] a shell command that brings a dead box back (e.g. 'systemctl restart aibox'): a death "
+                   "is then confirmed, shrunk to the shortest killing sequence, and the campaign goes on"))
     p.add_argument("--quiet", action="store_true", help=_("no progress lines"))
     group = p.add_argument_group("profile")
     add_profile_options(group.add_argument)
@@ -164,7 +171,7 @@ def _fuzz(args: argparse.Namespace) -> int:
             duration_s=args.duration, report_dir=report_dir, pcap_dir=pcap_dir, capture=args.capture,
             database=database, database_label=db_label, extension=extension, batch=args.batch,
             liveness_every=args.liveness_every, max_failures=args.max_failures, categories=categories,
-            stateful_share=args.stateful_share, restart=box.restart if box is not None else None, bundled=box is not None,
+            stateful_share=args.stateful_share, restart=_restart(args, box), bundled=box is not None,
             log=(lambda line: None if line.startswith("fuzz: ") and " examples (" in line else print(line, flush=True))
             if quiet else (lambda line: print(line, flush=True)),
             command=" ".join(shlex.quote(a) for a in sys.argv),
@@ -172,23 +179,42 @@ def _fuzz(args: argparse.Namespace) -> int:
         if not quiet:
             print(f"fuzz: extension E {how}", flush=True)
         try:
-            summary = Campaign(config).run()
+            result = Campaign(config).run()
         except Exception as exc:  # the suite's own fault, never the box's
             print(f"isight-conformance fuzz: internal error: {type(exc).__name__}: {exc}", file=sys.stderr)
             return EXIT_USAGE
-    failures = summary["failures"]
-    rate = summary["examples_per_s"]
-    print(f"fuzz: {summary['examples']:,} examples in {summary['duration_s']:.1f} s "
-          f"({rate:,.0f}/s{' frames' if summary['stateful']['steps'] else ''}); "
-          f"{summary['stateful']['steps']:,} session steps in {summary['stateful']['runs']} sessions; "
-          f"{len(failures)} failures; {len(summary['non_strict'])} kinds of NON-STRICT")
-    for obs in summary["non_strict"]:
-        print(f"  NON-STRICT [{obs['clause']}] {obs['requirement']} (×{obs['count']}, first on {obs['hex'][:80]})")
-    for f in failures:
-        print(f"  FAIL {f['number']} [{', '.join(f['clauses'])}] {f['message']}")
-        print(f"       vector: {f['vector']}" + (f"  pcap: {f['pcap']}" if f["pcap"] else ""))
-    print(f"fuzz: summary {report_dir / 'fuzz-summary.json'}; seed {summary['seed']}")
-    return EXIT_FAILED if failures else EXIT_OK
+    _print_result(result, report_dir / "fuzz-summary.json")
+    return EXIT_FAILED if result.failures else EXIT_OK
+
+
+def _restart(args: argparse.Namespace, box: Bundled | None) -> Callable[[], None] | None:
+    if args.restart_cmd:
+        from .restart import restart_command
+
+        return restart_command(args.restart_cmd)
+    return box.restart if box is not None else None
+
+
+def _print_result(result: CampaignResult, summary: Path) -> None:
+    rate = result.examples_per_s or 0
+    sessions = result.stateful
+    print(f"fuzz: {result.examples:,} examples in {result.duration_s:.1f} s "
+          f"({rate:,.0f}/s{' frames' if sessions.steps else ''}); "
+          f"{sessions.steps:,} session steps in {sessions.runs} sessions; "
+          f"{len(result.failures)} failures; {len(result.non_strict)} kinds of NON-STRICT")
+    cov = result.coverage["fraction"]
+    line = ", ".join(f"{k} {v:.0%}" for k, v in cov.items())
+    if sessions.coverage:
+        line += f"; state transitions {sessions.coverage['reached']}/{sessions.coverage['of']}"
+    print(f"fuzz: coverage: {line}" + (f"; the box was restarted {result.restarts} times" if result.restarts else ""))
+    for obs in result.non_strict:
+        print(f"  NON-STRICT [{obs.clause}] {obs.requirement} (×{obs.count}, first on {obs.hex[:80]})")
+    for f in result.failures:
+        print(f"  FAIL {f.number} [{', '.join(f.clauses)}] {f.message}")
+        print(f"       vector: {f.vector}" + (f"  pcap: {f.pcap}" if f.pcap else ""))
+    if result.hint:
+        print(f"fuzz: hint: {result.hint}")
+    print(f"fuzz: summary {summary}; seed {result.seed}")
 
 
 # -- replay -------------------------------------------------------------------------------------------

@@ -42,6 +42,14 @@ class Failure:
     sequence: Path | None = None
     steps: list[str] = field(default_factory=list)  # stateful: the (shrunk) rule sequence
     found_after: int = 0  # examples generated before it was found
+    found_s: float = 0.0  # seconds into the campaign when it was found
+    keys: list[str] = field(default_factory=list)  # the oracle's finding keys (clause/rule/action/what)
+    new_connections: list[bool] = field(default_factory=list)  # a death's sequence: which case opened a connection
+
+    @property
+    def malformed_answer(self) -> bool:
+        """The box's answer itself was not a conforming frame (F1-F3, A2, E3)."""
+        return bool(self.keys) and self.keys[0].startswith("answer/")
 
     @property
     def hex(self) -> str:
@@ -53,6 +61,7 @@ class Failure:
             "cases": [{"kind": c.kind, "note": c.note, "transport": c.transport.value, "eof": c.eof,
                        "hex": c.wire.hex()} for c in self.cases],
             "shrunk": self.shrunk, "confirmed": self.confirmed, "steps": self.steps, "found_after": self.found_after,
+            "found_s": round(self.found_s, 3), "keys": self.keys,
             "vector": str(self.vector) if self.vector else None, "pcap": str(self.pcap) if self.pcap else None,
             "sequence": str(self.sequence) if self.sequence else None,
         }
@@ -107,16 +116,57 @@ def write_vectors(path: Path, failure: Failure, profile: Profile, description: s
                 "tests": [],
             }
         where = f" (case {i} of {len(failure.cases)}, in this order on one connection)" if failure.kind == "context" else ""
+        flags = _sequence_flags(failure, i - 1)
+        if flags:
+            where = f" (case {i} of {len(failure.cases)} of the sequence that kills the box, in this order)"
         comment = f"fuzz failure {failure.number} ({failure.kind}){where}: {case.describe()}. {failure.message}"
-        group["tests"].append(vector_entry(len(group["tests"]) + 1, case, profile, comment,
-                                           clauses_of(case, failure.clauses)))
+        entry = vector_entry(len(group["tests"]) + 1, case, profile, comment, clauses_of(case, failure.clauses))
+        entry["flags"] = flags + split_flags(case)
+        group["tests"].append(entry)
     path.parent.mkdir(parents=True, exist_ok=True)
     notes: dict[str, str] = {}
+    for flag in sorted({f for g in groups.values() for t in g["tests"] for f in t["flags"]}):
+        notes[flag] = SEQUENCE_NOTES.get(flag) or _split_note(flag)
     if profile.byte_order != "big" or profile.float_byte_order != "big":
         description += (f" Profile: byte order {profile.byte_order}, float byte order {profile.float_byte_order} "
                         "(the vectors are in that order).")
     write(path, list(groups.values()), notes, description)
     return path
+
+
+#: Flags of a death's sequence (``replay`` sends a file's KillSequence vectors in order, liveness after the last).
+SEQUENCE_NOTES = {
+    "KillSequence": "one step of a sequence that kills the box: replay sends the file's steps in order and checks "
+                    "liveness (R2) after the last",
+    "NewConnection": "this step of the sequence goes on a new connection (the ones before it on the previous one)",
+}
+
+
+def split_flags(case: FuzzCase) -> list[str]:
+    """R3: how a split case is written (``SplitAt<offset>``, ``PauseMs<ms>``); ``replay`` writes it so again."""
+    if not case.splits:
+        return []
+    return [f"SplitAt{c}" for c in case.splits] + [f"PauseMs{round(case.gap_s * 1000)}"]
+
+
+def splits_of(flags: Sequence[str]) -> tuple[tuple[int, ...], float]:
+    """The inverse of :func:`split_flags`: (cut offsets, pause in seconds)."""
+    cuts = tuple(int(f[7:]) for f in flags if f.startswith("SplitAt") and f[7:].isdigit())
+    gap = next((int(f[7:]) / 1000 for f in flags if f.startswith("PauseMs") and f[7:].isdigit()), 0.0)
+    return cuts, gap
+
+
+def _split_note(flag: str) -> str:
+    if flag.startswith("SplitAt"):
+        return f"R3: the bytes are written in pieces, one cut at offset {flag[7:]}"
+    return f"R3: a pause of {flag[7:]} ms between the pieces"
+
+
+def _sequence_flags(failure: Failure, i: int) -> list[str]:
+    if failure.kind != "death" or len(failure.cases) < 2:
+        return []
+    new = failure.new_connections[i] if i < len(failure.new_connections) else i == 0
+    return ["KillSequence"] + (["NewConnection"] if new or i == 0 else [])
 
 
 def write_pcap(transcript: Transcript, path: Path) -> Path:

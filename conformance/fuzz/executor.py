@@ -226,7 +226,8 @@ class Executor:
         wire = case.wire + probe_bytes
         text = note or case.describe()
         text += f"; then a {probe.name} probe" if probe is not None else " (no probe: the bytes hold every probe action)"
-        got = send_and_collect(conn, case.wire, probe, probe_bytes, text, self._settle(), self.time_out_s)
+        got = send_and_collect(conn, case.wire, probe, probe_bytes, text, self._settle(), self.time_out_s,
+                               splits=tuple(case.splits), gap_s=case.gap_s)
         outcomes, end = got.outcomes, got.end
         if got.probe_answered and got.kind is End.CLOSED:  # a refusal, then a close: the probe never read
             outcomes, end = [*outcomes, *got.answers()[-1:]], got.close

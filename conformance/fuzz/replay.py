@@ -28,6 +28,7 @@ from ..harness.transcript import Transcript
 from ..protocol import HEADER_LEN, Profile, TransferType, Transport
 from ..suite.verdicts import Verdict
 from ..vectors import Vector, load
+from .evidence import splits_of
 from .executor import Executor
 from .oracle import expectations
 from .strategies import FuzzCase
@@ -73,7 +74,9 @@ def case_of(v: Vector, profile: Profile, extension: bool) -> FuzzCase:
     if eof:
         filler, expects = expectations(v.data, profile, v.transport, extension, eof=True)
     clause = v.clauses[0] if v.clauses else ""
-    return FuzzCase(f"vector:{v.result}", clause, v.data, f"{v.name}: {v.comment[:100]}", v.transport, eof, filler, expects)
+    splits, gap = splits_of(v.flags)
+    return FuzzCase(f"vector:{v.result}", clause, v.data, f"{v.name}: {v.comment[:100]}", v.transport, eof, filler,
+                    expects, splits, gap)
 
 
 def replay(
@@ -102,6 +105,7 @@ def replay(
             if reason or dead:
                 item = Replayed(v, "SKIP" if reason else "NOT RUN", why=reason or dead)
             else:
+                _sequence_step(ex, v, vectors, one_connection)
                 result = ex.run(case_of(v, profile, extension), f"vector {v.name}")
                 judgement = result.judgement
                 status = {Verdict.FAIL: "FAIL", Verdict.NON_STRICT: "NON-STRICT"}.get(judgement.verdict, "OK")
@@ -117,6 +121,19 @@ def replay(
     finally:
         ex.close()
     return out
+
+
+def _sequence_step(ex: Executor, v: Vector, vectors: Sequence[Vector], one_connection: bool) -> None:
+    """A step of a sequence that killed the box (flag KillSequence): on the connection of the step before it unless
+    it opened a new one, and liveness checked only after the file's last step."""
+    if "KillSequence" not in v.flags:
+        ex.isolate, ex.liveness_every = not one_connection, 1
+        return
+    rest = [w for w in vectors if w.file == v.file and "KillSequence" in w.flags]
+    ex.isolate = False
+    if "NewConnection" in v.flags:
+        ex.drop_connection()
+    ex.liveness_every = 1 if v is rest[-1] else 10**9
 
 
 def load_files(paths: Sequence[str | Path], only: Sequence[int] = ()) -> list[Vector]:

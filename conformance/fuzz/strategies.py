@@ -18,7 +18,6 @@ from __future__ import annotations
 import dataclasses
 import struct
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 from hypothesis import strategies as st
 
@@ -32,8 +31,9 @@ from ..protocol import (
     Transport,
     codec_for,
 )
-from ..protocol.constants import MAX_BLOCK_COUNT
-from .oracle import Expectation, Rule, expectations
+from ..protocol.constants import MAX_BLOCK_COUNT, MAX_FRAME_LEN
+from .case import FuzzCase, _finite
+from .oracle import expectations
 
 #: IEEE-754 binary32 edge values that are legal (B4): a conforming box accepts them.
 F32_MAX = 3.4028234663852886e38
@@ -54,59 +54,8 @@ BLOCK_ACTIONS = (Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE)
 #: Block counts of valid frames: 1 first (shrinking), 255 = the largest legal frame.
 SMALL_COUNT = 4
 COUNTS = (1, 2, 3, 4, 255)
-
-
-@dataclass(frozen=True)
-class FuzzCase:
-    """One fuzz example: bytes to send to the box, and what the box may do with them."""
-
-    kind: str  # the strategy, e.g. "F1-start-word"
-    clause: str  # the clause the strategy means to break ("" for a valid request)
-    data: bytes
-    note: str
-    transport: Transport = Transport.TCP
-    eof: bool = False  # TCP: end the stream after the bytes (a truncated frame): no probe
-    filler: bytes = b""  # zero bytes completing a frame the data leaves open (sent after it)
-    expects: tuple[Expectation, ...] = field(default=(), compare=False)
-
-    @property
-    def wire(self) -> bytes:
-        """What goes on the wire (before the probe)."""
-        return self.data + self.filler
-
-    @property
-    def valid(self) -> bool:
-        """Every event is a well-formed request the box MUST answer."""
-        return bool(self.expects) and all(e.valid for e in self.expects)
-
-    @property
-    def actions(self) -> frozenset[int]:
-        """Header actions of the events (the probe must answer with another one)."""
-        return frozenset(e.action for e in self.expects if e.action is not None)
-
-    @property
-    def first_clause(self) -> str:
-        """The first clause the reference decoder reports (else the strategy's)."""
-        return next((e.clause for e in self.expects if e.clause and not e.valid), self.clause)
-
-    def describe(self) -> str:
-        tail = f" +{len(self.filler)} filler" if self.filler else ""
-        how = " then end of stream" if self.eof else ""
-        return f"{self.kind}: {self.note} [{len(self.data)} bytes{tail}{how}]"
-
-
-def f32_bits(value: float) -> int:
-    return int(struct.unpack(">I", struct.pack(">f", value))[0])
-
-
-def _finite(raw: bytes, order: str) -> bytes:
-    """float32 words with any all-ones exponent (NaN/inf) turned into a finite value."""
-    out = bytearray(raw)
-    for i in range(0, len(out) - 3, 4):
-        bits = int.from_bytes(out[i : i + 4], order)  # type: ignore[arg-type]
-        if bits & 0x7F800000 == 0x7F800000:
-            out[i : i + 4] = (bits ^ 0x40000000).to_bytes(4, order)  # type: ignore[arg-type]
-    return bytes(out)
+#: Pauses between the pieces of a split frame (R3).
+GAPS = (0.0, 0.001, 0.005, 0.02)
 
 
 def _skip(excluded: int) -> Callable[[int], int]:
@@ -139,7 +88,8 @@ class Strategies:
         self._block_action = st.sampled_from(BLOCK_ACTIONS + ((Action.PROG_IDX,) if extension else ()))
         self._float_action = st.sampled_from(BLOCK_ACTIONS)
         self._unknown_action = st.integers(0, len(unknown) - 1).map(unknown.__getitem__)
-        self._counts = st.sampled_from(COUNTS)
+        # the usual counts first (shrinking), else any count 1-255 (a box may fail at exactly 7 blocks)
+        self._counts = st.one_of(st.sampled_from(COUNTS), st.integers(1, MAX_BLOCK_COUNT))
         self._small = st.integers(1, SMALL_COUNT)
         self._binary: dict[int, st.SearchStrategy[bytes]] = {}
         self._request = _request(self)
@@ -244,6 +194,17 @@ class Strategies:
 
         return st.tuples(self._request, self.binary(2)).map(build)
 
+    def split(self) -> st.SearchStrategy[FuzzCase]:
+        """R3: a valid request written in up to three pieces, with a pause between them."""
+
+        def build(hc: tuple[tuple[Header, bytes], bytes, float]) -> FuzzCase:
+            data = self.raw(*hc[0])
+            cuts = tuple(sorted({1 + c % (len(data) - 1) for c in hc[1]}))
+            case = self.case("R3-split", "R3", data, f"{Action(hc[0][0].action).name} split at {list(cuts)}")
+            return dataclasses.replace(case, splits=cuts, gap_s=hc[2])
+
+        return st.tuples(self._request, st.binary(min_size=1, max_size=3), st.sampled_from(GAPS)).map(build)
+
     def oversized(self) -> st.SearchStrategy[FuzzCase]:
         return _oversized(self)
 
@@ -251,9 +212,10 @@ class Strategies:
         return _mutated(self)
 
     def garbage(self) -> st.SearchStrategy[FuzzCase]:
-        return st.binary(min_size=1, max_size=64).map(
-            lambda b: self.case("F1-garbage", "F1", b, f"{len(b)} bytes of garbage")
-        )
+        """Random bytes: up to 64 drawn, or a drawn pattern repeated up to beyond the largest legal frame."""
+        short = st.binary(min_size=1, max_size=64)
+        long = st.tuples(st.integers(65, 4 * MAX_FRAME_LEN), short).map(lambda sp: (sp[1] * sp[0])[: sp[0]])
+        return st.one_of(short, long).map(lambda b: self.case("F1-garbage", "F1", b, f"{len(b)} bytes of garbage"))
 
     def datagram(self) -> st.SearchStrategy[FuzzCase]:
         return _datagram(self)
@@ -266,7 +228,7 @@ class Strategies:
             "F3-direction": self.direction, "A5-unknown-action": self.unknown_action, "B5-shape": self.shape,
             "B3-index": self.index, "B4-floats": self.floats, "F5-trailing": self.trailing,
             "F5-spliced": self.spliced, "F5-truncated": self.truncated, "F6-check": self.tcp_check,
-            "A3-request-error-field": self.request_error_field, "R5-oversized": self.oversized,
+            "A3-request-error-field": self.request_error_field, "R3-split": self.split, "R5-oversized": self.oversized,
             "mutation": self.mutated, "F1-garbage": self.garbage,
         }
         if self.udp:
@@ -391,7 +353,8 @@ def _mutated(draw: st.DrawFn, s: Strategies) -> FuzzCase:
 
     The edits come from one ``binary`` draw, 4 bytes each (operation, position high and
     low byte, value): one choice however many edits, and it shrinks to "set byte 0 to 00"."""
-    data = bytearray(s.raw(*draw(s._request)))
+    header, body = draw(s._request)
+    data = bytearray(s.raw(header, body))
     ops = draw(s._edits)
     done = []
     for i in range(0, len(ops) - 3, 4):
@@ -406,7 +369,23 @@ def _mutated(draw: st.DrawFn, s: Strategies) -> FuzzCase:
         elif op == "delete" and len(data) > 1:
             del data[at]
         done.append(f"{op}@{at}" + (f"={value:02x}" if op in ("set", "insert") else ""))
+    recount = _recount(s, header, body, bytes(data))
+    if recount is not None:
+        return s.case("mutation", "", recount, f"a valid request mutated: {', '.join(done)}; "
+                      f"its blocks rebuilt for count {recount[7]} (a well-formed frame of that count)")
     return s.case("mutation", "", bytes(data), "a valid request mutated: " + ", ".join(done))
+
+
+def _recount(s: Strategies, header: Header, body: bytes, data: bytes) -> bytes | None:
+    """When the edits changed only the block count of a block request: a well-formed frame of the new
+    count (its blocks indexed and filled like the first ones), not a header whose body is zero filler."""
+    old = s.raw(header, body)
+    if len(data) < 12 or data[:7] != old[:7] or data[8:12] != old[8:12] or data[7] in (old[7], 0) \
+            or header.action not in BLOCK_ACTIONS:
+        return None
+    per = header.block_length - 1
+    values = b"".join(body[i * (per + 1) + 1 : (i + 1) * (per + 1)] for i in range(min(header.block_count, SMALL_COUNT)))
+    return s.raw(dataclasses.replace(header, block_count=data[7]), s.blocks(header.block_type, data[7], values))
 
 
 @st.composite
@@ -432,6 +411,3 @@ def _datagram(draw: st.DrawFn, s: Strategies) -> FuzzCase:
         return s.case("F7-index", "B3", s.raw(header, body, transport=U), f"{name} datagram (good CRC), first index wrong", U)
     return s.case("F7-valid", "", frame, f"{name} datagram with its CRC", U)
 
-
-def expected_rules(case: FuzzCase) -> tuple[Rule, ...]:
-    return tuple(e.rule for e in case.expects)

@@ -56,8 +56,9 @@ class Triage:
     """
 
     def __init__(self, config: CampaignConfig, campaign_seed: int, strategies: Strategies, executor: Executor,
-                 examples: Callable[[], int]) -> None:
+                 examples: Callable[[], int], clock: Callable[[], float] = lambda: 0.0) -> None:
         self.config = config
+        self.clock = clock
         self.seed = campaign_seed
         self.strategies = strategies
         self.executor = executor
@@ -106,11 +107,22 @@ class Triage:
         self.executor.isolate = True
         return confirmed
 
+    def settle(self, result: Result, confirmed: Result, keys: set[str], history: list[FuzzCase]) -> None:
+        """A failure found outside hypothesis (a case of the boundary schedule): hypothesis cannot shrink it, so
+        the plain strategy of its clause looks for it again (:meth:`rederive`); else it is written as it is."""
+        if not self.new_failures(confirmed):
+            self.record_context(result, history)
+        else:
+            plainer = self.rederive(confirmed)
+            self.record(plainer or confirmed, "oracle", shrunk=plainer is not None)
+        self.known |= keys
+
     # -- after hypothesis ------------------------------------------------------------------
     def record_shrunk(self, result: Result) -> None:
         plainer = self.rederive(result)
+        # only what the recorded failure shows becomes known: hypothesis may have shrunk one failure into
+        # another (the same raise site), and the first must then still count when it comes again
         self.record(plainer or result, "oracle", shrunk=True)
-        self.known |= self.known_before_shrink
 
     def record_pending(self) -> None:
         """Hypothesis could not replay the failure it was shrinking: it is written as found, unshrunk."""
@@ -188,7 +200,7 @@ class Triage:
         if not reproduced:
             message += " (the evidence run on a fresh connection did not reproduce it)"
         failure = Failure(number, kind, clauses_of(case, [f.clause for f in best.judgement.failures]), message,
-                          [case], shrunk=shrunk, confirmed=reproduced)
+                          [case], shrunk=shrunk, confirmed=reproduced, keys=[f.key for f in best.judgement.failures])
         self.known |= {f.key for f in result.judgement.failures} | {f.key for f in evidence.judgement.failures}
         return self.write(failure, tr)
 
@@ -197,7 +209,7 @@ class Triage:
         message = (f"{first.requirement}; the box {result.observed()} — only after the cases before it on the same "
                    "connection (on a fresh connection the last case passes)")
         failure = Failure(self.next_number, "context", clauses_of(result.case, [first.clause]), message,
-                          history or [result.case], confirmed=False)
+                          history or [result.case], confirmed=False, keys=[first.key])
         self.write(failure, self.executor.transcript)
 
     def write(self, failure: Failure, transcript: Transcript) -> Failure:
@@ -207,6 +219,7 @@ class Triage:
         desc = (f"isight-conformance {__version__} fuzz: failure {failure.number} against {cfg.target} "
                 f"(seed {self.seed}, profile {cfg.profile.describe()})")
         failure.found_after = self.examples()
+        failure.found_s = self.clock()
         if cfg.report_dir is not None:
             failure.vector = write_vectors(cfg.report_dir / f"{name}.json", failure, cfg.profile, desc)
         if cfg.capture != "off" and cfg.pcap_dir is not None:

@@ -156,12 +156,17 @@ class Collected:
 
 
 def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_bytes: bytes, note: str,
-                     settle: Settle, timeout_s: float | None = None) -> Collected:
+                     settle: Settle, timeout_s: float | None = None, splits: tuple[int, ...] = (),
+                     gap_s: float = 0.0) -> Collected:
     """``data`` and the probe behind it in one write (the box sees them as one segment, every time:
-    R4 requires it to answer both), then :func:`collect`. If the write fails, what had already
-    arrived and the close."""
+    R4 requires it to answer both), or cut at the offsets ``splits`` with ``gap_s`` between the
+    pieces (R3), then :func:`collect`. If the write fails, what had already arrived and the close."""
     start = time.monotonic()
-    if not conn.send(data + probe_bytes, note):
+    wire = data + probe_bytes
+    cuts = [0, *splits, len(wire)]
+    sent = conn.send_pieces([wire[a:b] for a, b in zip(cuts, cuts[1:]) if b > a], gap_s, note) if splits \
+        else conn.send(wire, note)
+    if not sent:
         arrived: list[Outcome] = [o for o in conn.poll() if not isinstance(o, Closed)]
         return Collected(arrived, conn.closed_by_peer or Closed(False, time.monotonic() - start))
     return collect(conn, probe, start, settle, timeout_s)
