@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 from . import __version__, clauses_cli, wireshark_cli
 from .analyze import cli as analyze_cli
+from .monitor import cli as monitor_cli
 from .options import add_profile_options, profile_from_options
 from .protocol import (
     ProtocolError,
@@ -85,6 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     wireshark_cli.add_parser(sub)
     diff_cli.add_parser(sub)
     analyze_cli.add_parser(sub)
+    monitor_cli.add_parser(sub)
     return parser
 
 

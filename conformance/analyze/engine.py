@@ -18,10 +18,11 @@ from pathlib import Path
 from .capture import CaptureError, CaptureReader
 from .context import AnalyzeConfig, Context
 from .conversations import Conversations
+from .findings import Findings
 from .packets import TCP, PacketDecoder
 from .sessions import SessionTracker
 
-__all__ = ["Analysis", "CaptureError", "analyze"]
+__all__ = ["Analysis", "CaptureError", "Feed", "analyze"]
 
 PROGRESS_EVERY = 1 << 14
 _TCP_FIELDS = struct.Struct("!IIBB").unpack_from  # seq, ack, data offset, flags (at TCP offset 4)
@@ -43,6 +44,47 @@ class Analysis:
         return bool(s.tcp_connections or s.udp_conversations)
 
 
+class Feed:
+    """The engine fed one packet at a time, for traffic that is not in a file (the live
+    ``monitor``): the same context, conversations and session judgement :func:`analyze` uses.
+    ``findings`` replaces the context's (a subclass that watches what is filed)."""
+
+    def __init__(self, config: AnalyzeConfig, source: Path | None = None, findings: Findings | None = None) -> None:
+        self.ctx = Context(config, source)
+        if findings is not None:
+            self.ctx.findings = findings
+        self.decoder = PacketDecoder()
+        self.sessions = SessionTracker(self.ctx)
+        self.conversations = Conversations(self.ctx, self.sessions)
+
+    def packet(self, linktype: int, data: bytes, no: int, ts: float) -> None:
+        """One captured frame, decoded as :func:`analyze` decodes a file's."""
+        segment = self.decoder.decode(linktype, data)
+        if segment is None:
+            return
+        proto, key, seq, ack, flags, payload, missing = segment
+        self.ctx.now, self.ctx.frame = ts, no
+        if proto == TCP:
+            self.conversations.tcp_packet(key, seq, ack, flags, payload, missing, no, ts)
+        else:
+            self.conversations.udp_packet(key, payload, missing, no, ts)
+
+    def tcp(self, key: bytes, seq: int, ack: int, flags: int, payload: bytes, no: int, ts: float) -> None:
+        """One TCP segment (``key``: :mod:`.packets`' direction key) as frame ``no`` at time ``ts``."""
+        self.ctx.now, self.ctx.frame = ts, no
+        self.conversations.tcp_packet(key, seq, ack, flags, payload, 0, no, ts)
+
+    def udp(self, key: bytes, payload: bytes, no: int, ts: float) -> None:
+        self.ctx.now, self.ctx.frame = ts, no
+        self.conversations.udp_packet(key, payload, 0, no, ts)
+
+    def finish(self, ts: float, no: int) -> None:
+        """The traffic ends: every connection still open is judged as open at the end."""
+        self.ctx.now, self.ctx.frame = ts, no
+        self.conversations.finish(ts, no)
+        self.ctx.stats.skipped = dict(self.decoder.skipped)
+
+
 def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
             progress: Callable[[int, int], None] | None = None) -> Analysis:
     """Judge the capture at ``path``; raises :class:`CaptureError` (one line) for a bad file,
@@ -50,16 +92,15 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
     config = config or AnalyzeConfig()
     started = time.perf_counter()
     reader = CaptureReader(path)
-    ctx = Context(config, Path(path))
+    feed = Feed(config, Path(path))
+    ctx = feed.ctx
     stats = ctx.stats
     try:
         if reader.truncated and not config.accept_truncated:
             raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "
                                "frames before the cut)")
-        decoder = PacketDecoder()
-        decode = decoder.decode
-        sessions = SessionTracker(ctx)
-        conversations = Conversations(ctx, sessions)
+        decode = feed.decoder.decode
+        conversations = feed.conversations
         tcp_packet, udp_packet, settle = conversations.tcp_packet, conversations.udp_packet, conversations.settle
         known = conversations.tcp.get
         no, ts = 0, 0.0
@@ -97,9 +138,7 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
         stats.truncated = reader.truncated
         stats.frames = reader.frames
         stats.last_ts = ts if reader.frames else None
-        ctx.now, ctx.frame = ts, no
-        conversations.finish(ts, no)
-        stats.skipped = dict(decoder.skipped)
+        feed.finish(ts, no)
         if progress is not None:
             progress(reader.size, reader.size)
     finally:

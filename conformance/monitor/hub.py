@@ -1,0 +1,145 @@
+"""The monitor's state: the wire, the engine, the ring, the faults and what the robot did after them.
+
+:class:`Hub` is what the proxies (:mod:`.proxy`, :mod:`.udp`) tell about each connection:
+it opened, one side sent bytes, one side closed, the box could not be reached, a fault
+was injected. It keeps the counts the live view shows. Nothing here does I/O but the
+ring's writes.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..analyze.context import AnalyzeConfig
+from ..analyze.engine import Feed
+from ..analyze.findings import Finding
+from .faults import Fault, FaultPlan
+from .judge import Cause, LiveFindings
+from .reactions import Injection, Reactions
+from .ring import Ring
+from .split import Splitter
+from .wire import Line, Wire
+
+__all__ = ["Conn", "Hub", "MonitorSettings"]
+
+EVENTS_KEPT = 200
+
+
+@dataclass
+class MonitorSettings:
+    listen: tuple[str, int]
+    upstream: tuple[str, int]
+    config: AnalyzeConfig
+    pcap_dir: Path | None
+    ring_files: int = 10
+    ring_mb: float = 100.0
+    faults: list[str] = field(default_factory=list)
+    seed: int = 0
+    udp: bool = False
+    connect_timeout_s: float = 5.0
+
+
+@dataclass
+class Conn:
+    """One robot connection through the monitor."""
+
+    line: Line
+    robot_host: str
+    opened: float
+    requests: Splitter | None = None  # the robot's requests, when faults are on (for the reaction log)
+    closed: bool = False
+
+
+class Hub:
+    def __init__(self, settings: MonitorSettings, on_finding: Callable[[str, str, Finding, Cause], None] | None = None,
+                 clock: Callable[[], float] = time.time) -> None:
+        self.settings = settings
+        self.clock = clock
+        self.started = clock()
+        self.findings = LiveFindings(on_finding, clock)
+        self.feed = Feed(settings.config, settings.pcap_dir, self.findings)
+        self.ring = (Ring(settings.pcap_dir, settings.ring_files, settings.ring_mb)
+                     if settings.pcap_dir is not None else None)
+        self.wire = Wire(self.feed, self.ring, f"monitor-{int(self.started)}", clock)
+        self.faults = FaultPlan(settings.faults, settings.seed)
+        self.reactions = Reactions(settings.config.profile.time_out_ms)
+        self.open: dict[int, Conn] = {}
+        self.connections = 0
+        self.upstream_failures = 0
+        self.events: deque[str] = deque(maxlen=EVENTS_KEPT)  # the monitor's own events (upstream failures ...)
+        self.big_endian = settings.config.profile.byte_order == "big"
+
+    @property
+    def ctx(self):  # type: ignore[no-untyped-def]
+        return self.feed.ctx
+
+    def elapsed(self) -> float:
+        return self.clock() - self.started
+
+    def note(self, text: str) -> None:
+        self.events.append(f"{time.strftime('%H:%M:%S')} {text}")
+
+    # -- connections ------------------------------------------------------------------------------
+    def opened(self, robot: tuple[str, int], box: tuple[str, int], transport: str = "tcp") -> Conn:
+        line = self.wire.line(robot, box, transport)
+        conn = Conn(line, robot[0], self.clock(), Splitter(self.big_endian) if self.faults else None)
+        self.connections += 1
+        self.open[line.number] = conn
+        if transport == "tcp":
+            self.wire.opened(line)
+        if self.faults:
+            self.reactions.connected(robot[0], conn.opened)
+        return conn
+
+    def upstream_failed(self, conn: Conn, why: str) -> None:
+        """The box could not be reached for this robot connection: the robot's side is reset."""
+        self.upstream_failures += 1
+        text = f"connection {conn.line.number} from {conn.line.robot}: the box {conn.line.box} {why}; the robot's " \
+               "connection was reset"
+        self.note(text)
+        self.closed(conn, from_robot=False, reset=True, comment=f"monitor: {text}")
+
+    def data(self, conn: Conn, from_robot: bool, payload: bytes, comments: list[str] | None = None) -> int:
+        frame = self.wire.data(conn.line, from_robot, payload, comments)
+        if from_robot and conn.requests is not None:
+            t = self.clock()
+            for _piece, action in conn.requests.feed(payload):
+                if action is not None:
+                    self.reactions.request(conn.line.number, action, t)
+        return frame
+
+    def closed(self, conn: Conn, from_robot: bool, reset: bool = False, comment: str = "") -> None:
+        if self.wire.closed(conn.line, from_robot, reset, comment) is not None and from_robot and self.faults:
+            self.reactions.closed(conn.line.number, reset, self.clock())
+
+    def gone(self, conn: Conn) -> None:
+        """Both sockets of the connection are closed."""
+        conn.closed = True
+        self.open.pop(conn.line.number, None)
+
+    # -- faults -------------------------------------------------------------------------------------
+    def pick(self, action: int) -> Fault | None:
+        return self.faults.pick(action, self.elapsed()) if self.faults else None
+
+    def injected(self, conn: Conn, fault: Fault, action: int, what: str) -> Injection:
+        """Call just before writing what carries the fault (the next frame); the box's findings on the
+        connection from that frame on are the fault's."""
+        frame = self.wire.frames + 1
+        self.note(f"connection {conn.line.number}: injected {fault.spec}: {what}")
+        inj = self.reactions.injected(fault.spec, fault.kind, fault.clause, conn.line.number, conn.robot_host,
+                                      action, self.clock(), frame, what)
+        self.findings.fault_on(conn.line.number, frame, inj.id)
+        return inj
+
+    def comment(self, fault: Fault, what: str) -> str:
+        return f"isight-conformance monitor: INJECTED FAULT ({fault.spec}): {what}; not the box's doing"
+
+    # -- the end ------------------------------------------------------------------------------------
+    def finish(self) -> None:
+        self.feed.finish(self.clock(), self.wire.frames)
+        if self.ring is not None:
+            self.ring.close()
