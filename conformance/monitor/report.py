@@ -72,8 +72,8 @@ def _root_causes(causes: list[Cause], cases: list[CaseResult]) -> list[RootCause
     by_id = {c.id: c for c in cases}
     out: list[RootCause] = []
     for cause in causes:
-        if cause.verdict in (Verdict.PASS, Verdict.INFORMATIONAL, Verdict.SKIP):
-            continue
+        if cause.verdict not in (Verdict.FAIL, Verdict.NON_STRICT, Verdict.ERROR):
+            continue  # a root cause is a defect; INCONCLUSIVE ones stay in monitor.json
         rc = RootCause(f"RC{len(out) + 1}", (cause.clause,), f"{cause.side}: {cause.signature} ({cause.count:,}×)",
                        f"{cause.count:,} time(s), first seen {_iso(cause.first_seen)}, last seen "
                        f"{_iso(cause.last_seen)}; first: {cause.first.line()}"

@@ -1,0 +1,76 @@
+"""Running the monitor in-process for the tests: ``async with monitored(box_port, tmp_path) as m``.
+
+The monitor runs in the test's event loop (a task), listening on a free loopback port
+(``m.port``); leaving the block stops it as a signal would and leaves the outcome in
+``m.outcome`` (hub, suite, cases) and the reports in ``m.report_dir``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import io
+import json
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from conformance.analyze.context import AnalyzeConfig
+from conformance.monitor.hub import MonitorSettings
+from conformance.monitor.runner import MonitorOutcome, run_monitor
+from conformance.monitor.view import View
+from conformance.protocol import DEFAULT_PROFILE, Profile
+
+
+@dataclass
+class Monitored:
+    settings: MonitorSettings
+    report_dir: Path
+    view_out: io.StringIO
+    outcome: MonitorOutcome | None = None
+    stop: asyncio.Event = field(default_factory=asyncio.Event)
+
+    @property
+    def port(self) -> int:
+        return self.settings.listen[1]
+
+    @property
+    def target(self) -> tuple[str, int]:
+        return ("127.0.0.1", self.port)
+
+    def summary(self) -> dict[str, Any]:
+        return json.loads((self.report_dir / "summary.json").read_text())
+
+    def verdicts(self) -> dict[str, str]:
+        return {c["id"]: c["verdict"] for c in self.summary()["cases"]}
+
+    def failing(self) -> dict[str, str]:
+        return {k: v for k, v in self.verdicts().items() if v in ("FAIL", "NON-STRICT", "ERROR")}
+
+    def monitor_json(self) -> dict[str, Any]:
+        return json.loads((self.report_dir / "monitor.json").read_text())
+
+
+@asynccontextmanager
+async def monitored(box_port: int, tmp_path: Path, faults: list[str] | tuple[str, ...] = (),
+                    profile: Profile = DEFAULT_PROFILE, pcaps: bool = True, udp: bool = False,
+                    connect_timeout_s: float = 5.0, **ring: Any) -> AsyncIterator[Monitored]:
+    config = AnalyzeConfig(profile=profile, ports=(box_port,), heuristic=False)
+    settings = MonitorSettings(("127.0.0.1", 0), ("127.0.0.1", box_port), config,
+                               tmp_path / "pcaps" if pcaps else None, faults=list(faults), udp=udp,
+                               connect_timeout_s=connect_timeout_s, **ring)
+    m = Monitored(settings, tmp_path / "report", io.StringIO())
+    view = View(m.view_out, tty=False)
+    task = asyncio.ensure_future(run_monitor(settings, m.report_dir, view, m.stop, out=io.StringIO()))
+    for _ in range(500):  # the monitor sets settings.listen to the address it got
+        if settings.listen[1] or task.done():
+            break
+        await asyncio.sleep(0.01)
+    if task.done():
+        task.result()  # raises the monitor's error
+    try:
+        yield m
+    finally:
+        m.stop.set()
+        m.outcome = await asyncio.wait_for(task, 60)
