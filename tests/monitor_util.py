@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import io
 import json
+import struct
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
@@ -74,3 +75,27 @@ async def monitored(box_port: int, tmp_path: Path, faults: list[str] | tuple[str
     finally:
         m.stop.set()
         m.outcome = await asyncio.wait_for(task, 60)
+
+
+def pcapng_comments(path: Path) -> list[tuple[int, str]]:
+    """(packet number from 1, comment) of every Enhanced Packet Block's comments, parsed block by block."""
+    data = path.read_bytes()
+    out: list[tuple[int, str]] = []
+    at, packet = 0, 0
+    while at + 12 <= len(data):
+        kind, total = struct.unpack_from("<II", data, at)
+        if total < 12 or at + total > len(data):
+            raise ValueError(f"{path}: a block cut short at byte {at}")
+        if kind == 6:
+            packet += 1
+            caplen = struct.unpack_from("<I", data, at + 20)[0]
+            opt = at + 28 + caplen + (-caplen % 4)
+            while opt + 4 <= at + total - 4:
+                code, length = struct.unpack_from("<HH", data, opt)
+                if code == 0:
+                    break
+                if code == 1:
+                    out.append((packet, data[opt + 4 : opt + 4 + length].decode("utf-8", "replace")))
+                opt += 4 + length + (-length % 4)
+        at += total
+    return out

@@ -27,6 +27,7 @@ from .wire import Line, Wire
 __all__ = ["Conn", "Hub", "MonitorSettings"]
 
 EVENTS_KEPT = 200
+OUTSTANDING = 4096  # request frames remembered per connection and action
 
 
 @dataclass
@@ -52,6 +53,8 @@ class Conn:
     opened: float
     requests: Splitter | None = None  # the robot's requests, when faults are on (for the reaction log)
     closed: bool = False
+    #: per action, the frame numbers of the requests not answered yet (faults on; bounded)
+    outstanding: dict[int, deque[int]] = field(default_factory=dict)
 
 
 class Hub:
@@ -110,7 +113,16 @@ class Hub:
             for _piece, action in conn.requests.feed(payload):
                 if action is not None:
                     self.reactions.request(conn.line.number, action, t)
+                    waiting = conn.outstanding.get(action)
+                    if waiting is None:
+                        waiting = conn.outstanding[action] = deque(maxlen=OUTSTANDING)
+                    waiting.append(frame)
         return frame
+
+    def answered(self, conn: Conn, action: int) -> int | None:
+        """The box answers ``action``: the frame of the request it answers (the oldest waiting), if known."""
+        waiting = conn.outstanding.get(action)
+        return waiting.popleft() if waiting else None
 
     def closed(self, conn: Conn, from_robot: bool, reset: bool = False, comment: str = "") -> None:
         if self.wire.closed(conn.line, from_robot, reset, comment) is not None and from_robot and self.faults:
@@ -125,14 +137,14 @@ class Hub:
     def pick(self, action: int) -> Fault | None:
         return self.faults.pick(action, self.elapsed()) if self.faults else None
 
-    def injected(self, conn: Conn, fault: Fault, action: int, what: str) -> Injection:
+    def injected(self, conn: Conn, fault: Fault, action: int, what: str, request: int | None = None) -> Injection:
         """Call just before writing what carries the fault (the next frame); the box's findings on the
-        connection from that frame on are the fault's."""
+        connection from that frame on, or from the ``request`` it answers, are the fault's."""
         frame = self.wire.frames + 1
         self.note(f"connection {conn.line.number}: injected {fault.spec}: {what}")
         inj = self.reactions.injected(fault.spec, fault.kind, fault.clause, conn.line.number, conn.robot_host,
                                       action, self.clock(), frame, what)
-        self.findings.fault_on(conn.line.number, frame, inj.id)
+        self.findings.fault_on(conn.line.number, min(frame, request or frame), inj.id, frame)
         return inj
 
     def comment(self, fault: Fault, what: str) -> str:

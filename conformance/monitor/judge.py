@@ -5,9 +5,11 @@
 
 * every finding that is not PASS is handed to ``on_finding`` as it is filed (the
   terminal prints it);
-* a box-side finding on a connection where the monitor injected a fault, at or after the
-  fault's first frame, is the monitor's doing: it is not filed against the box but kept
-  with the fault (:attr:`excused`);
+* a finding on a connection where the monitor injected a fault, from the request whose
+  answer it changed on, is the monitor's doing (the box's) or the robot's reaction to it
+  (INFORMATIONAL, the robot's): it is not filed but kept with the fault (:attr:`excused`).
+  A frame-format finding is the box's unless the monitor corrupted that very frame, and
+  always the robot's for its own frames;
 * findings are grouped into root causes (:class:`RootCauses`): the side, the clause, the
   verdict and the finding's text with its numbers and addresses taken out, each with a
   count and when it was first and last seen. At most :data:`MAX_CAUSES` groups are kept;
@@ -98,15 +100,16 @@ class LiveFindings(Findings):
         self.excused_count = 0
         self.corrupted: dict[int, int] = {}  # frame the monitor wrote corrupted -> the fault's event id (bounded)
 
-    def fault_on(self, conn: int, frame: int, event: int) -> None:
-        """A fault was injected on connection ``conn`` at ``frame``: the box's later pairing, timing and
-        content findings there are the fault's (its format findings only for the frames the monitor wrote)."""
+    def fault_on(self, conn: int, frame: int, event: int, written: int | None = None) -> None:
+        """A fault was injected on connection ``conn`` from ``frame`` on (the request whose answer it
+        changed): both sides' later pairing, timing and content findings there are the fault's; the box's
+        format findings only for the frame the monitor ``written`` (a corrupted answer)."""
         self.faulted.setdefault(conn, (frame, event))
-        if len(self.corrupted) < 100_000:
-            self.corrupted[frame] = event
+        if written is not None and len(self.corrupted) < 100_000:
+            self.corrupted[written] = event
 
     def _excuse(self, side: str, text: str, frames: tuple[int, ...]) -> int | None:
-        if side != BOX or not self.faulted:
+        if not self.faulted:
             return None
         m = _CONN.search(text)
         entry = self.faulted.get(int(m.group(2))) if m else None
@@ -128,7 +131,7 @@ class LiveFindings(Findings):
             self.excused_count += 1
             kept = self.excused.setdefault(event, [])
             if len(kept) < KEEP_EXCUSED:
-                kept.append(f"{clause} {verdict.value}: {Finding(verdict, text, frames).line()}")
+                kept.append(f"{side} {clause} {verdict.value}: {Finding(verdict, text, frames).line()}")
             return
         super().add(clause, side, verdict, text, frames, robot, box)
         if verdict is Verdict.PASS:

@@ -195,6 +195,7 @@ class TcpProxy:
         pending = bytearray()
         for piece, action in pieces:
             answer = action is not None and len(piece) > 4 and piece[4] == _ANSWER
+            request = hub.answered(conn, action) if answer and action is not None else None
             fault = hub.pick(action) if answer and action is not None else None
             held = self.stall_until - loop.time() if answer else 0.0
             if fault is None and held <= 0:
@@ -204,19 +205,19 @@ class TcpProxy:
                 await self._send(conn, writer, bytes(pending))
                 pending.clear()
             if fault is not None and action is not None:
-                if not await self._inject(conn, fault, action, piece, writer, up_w):
+                if not await self._inject(conn, fault, action, piece, request, writer, up_w):
                     return False
                 continue
             note = f"answer held {held * 1000:.0f} ms by an injected stall"
-            hub.findings.fault_on(conn.line.number, hub.wire.frames + 1, 0)
+            hub.findings.fault_on(conn.line.number, min(hub.wire.frames + 1, request or hub.wire.frames + 1), 0)
             await asyncio.sleep(held)
             await self._send(conn, writer, piece, [f"isight-conformance monitor: INJECTED FAULT: {note}"])
         if pending:
             await self._send(conn, writer, bytes(pending))
         return not writer.is_closing()
 
-    async def _inject(self, conn: Conn, fault: Fault, action: int, piece: bytes, writer: asyncio.StreamWriter,
-                      up_w: asyncio.StreamWriter) -> bool:
+    async def _inject(self, conn: Conn, fault: Fault, action: int, piece: bytes, request: int | None,
+                      writer: asyncio.StreamWriter, up_w: asyncio.StreamWriter) -> bool:
         from ..protocol import action_name
 
         hub, kind, name = self.hub, fault.kind, action_name(action)
@@ -228,11 +229,18 @@ class TcpProxy:
                     "error": f"{name} answered with error code {fault.code} instead",
                     "corrupt": f"{name} answer's {fault.field_name} field inverted",
                     "close": f"the robot's connection closed instead of the {name} answer"}[kind]
-        inj = hub.injected(conn, fault, action, what)
+        inj = hub.injected(conn, fault, action, what, request)
         comment = [hub.comment(fault, what)]
         if kind == "delay":
-            await asyncio.sleep(fault.ms / 1000.0)
+            try:
+                await asyncio.sleep(fault.ms / 1000.0)
+            except asyncio.CancelledError:
+                inj.frame = hub.wire.marker(conn.line, False, comment[0] + "; the monitor stopped before it was due")
+                raise
             inj.frame = await self._send(conn, writer, piece, comment)
+            if not inj.frame:  # the robot's connection is gone: the late answer had nowhere to go
+                inj.frame = hub.wire.marker(conn.line, False, comment[0] + "; the robot's connection was closed "
+                                            "before it was due, so it was not sent")
         elif kind == "drop":
             hub.wire.marker(conn.line, False, comment[0] + f" (the box's bytes: {piece[:64].hex(' ')})")
         elif kind == "error":
