@@ -168,7 +168,7 @@ def corrupt(frame: bytes, field_name: str) -> bytes:
     """``frame`` with every bit of one field inverted (a field the frame is too short for: its last byte)."""
     offset, width = FIELDS[field_name]
     start = offset if offset >= 0 else len(frame) + offset
-    if start < 0 or start + width > len(frame):
+    if start < 0 or start + width > len(frame) or (field_name == "body" and len(frame) <= HEADER_LEN + 2):
         start, width = len(frame) - 1, 1
     out = bytearray(frame)
     for i in range(start, start + width):

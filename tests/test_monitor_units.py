@@ -1,0 +1,147 @@
+"""The monitor's sans-I/O parts: the splitter, fault specs, root causes, excused findings, the ring."""
+
+from __future__ import annotations
+
+import random
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from conformance.analyze.capture import CaptureReader
+from conformance.analyze.findings import BOX, ROBOT
+from conformance.monitor.faults import FaultPlan, corrupt, parse_fault
+from conformance.monitor.judge import MAX_CAUSES, LiveFindings, signature
+from conformance.monitor.ring import Ring
+from conformance.monitor.split import Splitter
+from conformance.protocol import Action
+from conformance.suite.verdicts import Verdict
+
+POSE = bytes.fromhex("fefe0001102300000000000000 00".replace(" ", ""))  # a pose answer, 0000
+CYCLE_ON = bytes.fromhex("fefe00010101000000000000 0000".replace(" ", ""))
+
+pieces = st.lists(st.one_of(st.sampled_from([POSE, CYCLE_ON, b"\xfe", b"\xfe\xfe", b"\xfe\xfe\x00\x01"]),
+                            st.binary(max_size=40)), max_size=40)
+
+
+@settings(max_examples=200, deadline=None)
+@given(pieces, st.lists(st.integers(1, 50), min_size=1, max_size=20))
+def test_the_splitter_gives_every_byte_back_in_order(parts: list[bytes], cuts: list[int]) -> None:
+    data = b"".join(parts)
+    split, out, at, i = Splitter(), [], 0, 0
+    while at < len(data):
+        n = cuts[i % len(cuts)]
+        out += split.feed(data[at : at + n])
+        at, i = at + n, i + 1
+    rest = split.flush()
+    assert b"".join(p for p, _ in out) + rest == data
+    assert split.pending == 0
+
+
+def test_the_splitter_names_each_frames_action() -> None:
+    out = Splitter().feed(b"xy" + POSE + CYCLE_ON)
+    assert out == [(b"xy", None), (POSE, Action.POSE), (CYCLE_ON, Action.CYCLE_ON)]
+
+
+@pytest.mark.parametrize(("spec", "kind", "action", "value"), [
+    ("delay:CYCLE_ON:6000", "delay", 1, 6000.0), ("drop:pose,every=10", "drop", 0x23, None),
+    ("error:cycle-on:1", "error", 1, 1), ("corrupt:0x02:check", "corrupt", 2, "check"),
+    ("close:CycleOff", "close", 2, None), ("stall:any:250", "stall", None, 250.0),
+])
+def test_fault_specs(spec: str, kind: str, action: int | None, value: object) -> None:
+    fault = parse_fault(spec)
+    assert (fault.kind, fault.action) == (kind, action)
+    assert value in (None, fault.ms, fault.code, fault.field_name)
+
+
+@pytest.mark.parametrize("spec", ["delay:CYCLE_ON", "nope:1", "drop:BOGUS", "drop:1,every=0", "drop:1,p=2",
+                                  "corrupt:1:nofield", "delay:1:-5", "drop:1,colour=red", "error:1:70000"])
+def test_bad_fault_specs_are_one_line_errors(spec: str) -> None:
+    with pytest.raises(ValueError, match="--fault") as info:
+        parse_fault(spec)
+    assert "\n" not in str(info.value)
+
+
+def test_every_nth_and_count_and_after() -> None:
+    fault = parse_fault("drop:POSE,every=3,count=2")
+    hits = [fault.hit(0x23, 1.0) for _ in range(12)]
+    assert hits == [False, False, True, False, False, True] + [False] * 6
+    assert not parse_fault("drop:POSE,after=5").hit(0x23, 4.9)
+    assert not parse_fault("drop:POSE").hit(0x01, 1.0)
+
+
+def test_probability_faults_repeat_with_their_seed() -> None:
+    plans = [FaultPlan(["drop:POSE,p=0.3"], seed=11) for _ in range(2)]
+    runs = [[plan.pick(0x23, 0.0) is not None for _ in range(100)] for plan in plans]
+    assert runs[0] == runs[1] and 10 < sum(runs[0]) < 60
+
+
+def test_corrupt_inverts_one_field() -> None:
+    assert corrupt(CYCLE_ON, "version")[2:4] == b"\xff\xfe"
+    assert corrupt(CYCLE_ON, "check")[-2:] == b"\xff\xff"
+    assert corrupt(CYCLE_ON, "body") == CYCLE_ON[:-1] + b"\xff"  # no body: its last byte
+    assert corrupt(CYCLE_ON, "action")[5] == 0xFE
+
+
+def test_findings_are_grouped_by_what_stays_the_same() -> None:
+    a = "conn 3 (10.0.0.2:5100 → 10.0.0.1:9004): CYCLE_ON answered after 6012.3 ms; the bound is 5000 ms"
+    b = "conn 9 (10.0.0.2:5230 → 10.0.0.1:9004): CYCLE_ON answered after 6100.0 ms; the bound is 5000 ms"
+    assert signature(a) == signature(b)
+    seen = []
+    f = LiveFindings(lambda clause, side, finding, cause: seen.append((clause, side, cause.count)), clock=lambda: 5.0)
+    f.add("T1", BOX, Verdict.FAIL, a, (10, 11))
+    f.add("T1", BOX, Verdict.FAIL, b, (20, 21))
+    f.add("S1", ROBOT, Verdict.FAIL, "session 1: CycleOn before the stream")
+    assert seen == [("T1", BOX, 1), ("T1", BOX, 2), ("S1", ROBOT, 1)]
+    assert [(c.clause, c.count) for c in f.roots.ordered()] == [("T1", 2), ("S1", 1)]
+    assert f.count("T1", BOX, Verdict.FAIL) == 2  # analyze's tallies, as ever
+
+
+def test_root_causes_stay_bounded() -> None:
+    f = LiveFindings()
+    for n in range(MAX_CAUSES + 50):
+        f.add("F1", BOX, Verdict.FAIL, f"conn 1 (a → b): odd thing {'x' * (n % 300)}")
+    assert len(f.roots.causes) == MAX_CAUSES + 1
+    assert sum(c.count for c in f.roots.causes.values()) == MAX_CAUSES + 50
+
+
+def test_a_fault_excuses_what_it_caused_and_nothing_else() -> None:
+    f = LiveFindings()
+    f.fault_on(2, 50, event=1, written=52)
+    f.add("T1", BOX, Verdict.FAIL, "conn 2 (a → b): no answer to CYCLE_ON within 5000 ms", (50,))
+    f.add("A1", ROBOT, Verdict.FAIL, "conn 2 (a → b): CYCLE_OFF sent before the answer", (60,))
+    f.add("F2", BOX, Verdict.FAIL, "conn 2 (a → b), offset 14: version", (52,))
+    assert f.excused_count == 3 and len(f.excused[1]) == 3 and not f.roots.causes
+    f.add("T1", BOX, Verdict.FAIL, "conn 2 (a → b): no answer to NONE within 5000 ms", (40,))  # before the fault
+    f.add("F2", BOX, Verdict.FAIL, "conn 2 (a → b), offset 28: version", (70,))  # a frame the box wrote
+    f.add("T1", BOX, Verdict.FAIL, "conn 3 (a → b): no answer to CYCLE_ON within 5000 ms", (80,))  # another conn
+    f.add("F3", ROBOT, Verdict.FAIL, "conn 2 (a → b), offset 0: transfer type 10", (61,))  # the robot's frame
+    assert f.excused_count == 3 and len(f.roots.causes) == 4
+
+
+def test_the_ring_keeps_n_files_each_readable_on_its_own(tmp_path: Path) -> None:
+    ring = Ring(tmp_path, files=3, file_mb=0.01)
+    frame = bytes(12) + b"\x08\x00" + random.Random(1).randbytes(500)
+    for no in range(1, 201):
+        ring.write(frame, 1_700_000_000.0 + no / 1000, no, ["a comment"] if no == 7 else None)
+    ring.close()
+    files = sorted(tmp_path.glob("*.pcapng"))
+    assert [p.name for p in files] == [e["file"] for e in ring.index()] and len(files) == 3
+    assert ring.deleted > 0 and ring.disk_bytes() <= 3 * (10_000 + 600)
+    counted = 0
+    for path, entry in zip(files, ring.index()):
+        reader = CaptureReader(path)
+        packets = list(reader.packets())
+        reader.close()
+        assert reader.truncated is None and packets and packets[0][3] == frame
+        counted += len(packets)
+    assert ring.index()[-1]["first_frame"] == 200 - len(packets) + 1
+    assert counted == 200 - ring.index()[0]["first_frame"] + 1
+
+
+def test_the_ring_refuses_nonsense() -> None:
+    with pytest.raises(ValueError):
+        Ring(Path("x"), files=0)
+    with pytest.raises(ValueError):
+        Ring(Path("x"), file_mb=0)
