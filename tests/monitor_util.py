@@ -56,13 +56,13 @@ class Monitored:
 @asynccontextmanager
 async def monitored(box_port: int, tmp_path: Path, faults: list[str] | tuple[str, ...] = (),
                     profile: Profile = DEFAULT_PROFILE, pcaps: bool = True, udp: bool = False,
-                    connect_timeout_s: float = 5.0, **ring: Any) -> AsyncIterator[Monitored]:
+                    connect_timeout_s: float = 5.0, tty: bool = False, **ring: Any) -> AsyncIterator[Monitored]:
     config = AnalyzeConfig(profile=profile, ports=(box_port,), heuristic=False)
     settings = MonitorSettings(("127.0.0.1", 0), ("127.0.0.1", box_port), config,
                                tmp_path / "pcaps" if pcaps else None, faults=list(faults), udp=udp,
                                connect_timeout_s=connect_timeout_s, **ring)
     m = Monitored(settings, tmp_path / "report", io.StringIO())
-    view = View(m.view_out, tty=False)
+    view = View(m.view_out, tty=tty)
     task = asyncio.ensure_future(run_monitor(settings, m.report_dir, view, m.stop, out=io.StringIO()))
     for _ in range(500):  # the monitor sets settings.listen to the address it got
         if settings.listen[1] or task.done():

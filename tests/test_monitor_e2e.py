@@ -126,3 +126,17 @@ def test_the_reports_are_whole_json_and_name_the_ring(box, tmp_path: Path) -> No
     assert (m.report_dir / "junit.xml").read_text().startswith("<?xml")
     assert "live line" in (m.report_dir / "report.html").read_text()
     assert m.monitor_json()["ring"][0] == {"file": "monitor_00001.pcapng", "first_frame": 1}
+
+
+def test_the_live_panel_on_a_terminal(box, tmp_path: Path) -> None:
+    async def main():  # type: ignore[no-untyped-def]
+        async with monitored(box.target.port, tmp_path, tty=True) as m:
+            await _robot(m.target).run()
+            await asyncio.sleep(0.6)  # one refresh of the panel after the session
+        return m
+
+    m = asyncio.run(main())
+    shown = m.view_out.getvalue()
+    for row in ("connections", "sessions completed", "frames", "answer latency", "pose stream", "root causes"):
+        assert row in shown
+    assert "robot → box" in shown and "2 in all" in shown
