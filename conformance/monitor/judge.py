@@ -29,7 +29,8 @@ from ..suite.verdicts import Verdict
 __all__ = ["MAX_CAUSES", "Cause", "LiveFindings", "RootCauses", "signature"]
 
 MAX_CAUSES = 200
-KEEP_EXCUSED = 50
+KEEP_EXCUSED = 50  # findings kept per injection
+MAX_FAULTED = 10_000  # faulted connections (and injections with findings kept) remembered
 _CONN = re.compile(r"\b(conn|udp) (\d+) \([^)]*\)")
 #: the clauses of a frame's format: a finding of these is excused only for a frame the monitor wrote
 FORMAT = frozenset({"F1", "F2", "F3", "F4", "F5", "F6", "F7", "B1", "B2", "B3", "B4", "B5", "E1", "A4"})
@@ -104,6 +105,8 @@ class LiveFindings(Findings):
         """A fault was injected on connection ``conn`` from ``frame`` on (the request whose answer it
         changed): both sides' later pairing, timing and content findings there are the fault's; the box's
         format findings only for the frame the monitor ``written`` (a corrupted answer)."""
+        if conn not in self.faulted and len(self.faulted) >= MAX_FAULTED:
+            del self.faulted[next(iter(self.faulted))]  # the connection faulted longest ago
         self.faulted.setdefault(conn, (frame, event))
         if written is not None and len(self.corrupted) < 100_000:
             self.corrupted[written] = event
@@ -129,8 +132,10 @@ class LiveFindings(Findings):
         event = self._excuse(side, text, frames) if clause not in FORMAT else self._excuse_format(side, text, frames)
         if event is not None and verdict is not Verdict.PASS:
             self.excused_count += 1
-            kept = self.excused.setdefault(event, [])
-            if len(kept) < KEEP_EXCUSED:
+            kept = self.excused.get(event)
+            if kept is None and len(self.excused) < MAX_FAULTED:
+                kept = self.excused[event] = []
+            if kept is not None and len(kept) < KEEP_EXCUSED:
                 kept.append(f"{side} {clause} {verdict.value}: {Finding(verdict, text, frames).line()}")
             return
         super().add(clause, side, verdict, text, frames, robot, box)
