@@ -19,7 +19,7 @@ this process (asyncio).
   14-byte answer by the batch (so the box is not what is measured). Printed: frames/s
   forwarded each way, with the pcapng ring on and with ``--no-pcap``.
 * **soak**: 10 robot simulators (``RobotSession``, canonical sessions of 10 s, one after
-  another) at 50 Hz through the monitor with ``--ring 5 --ring-mb 5``; the monitor's
+  another; each from its own loopback address 127.0.0.10-19, as robots at a plant) at 50 Hz through the monitor with ``--ring 5 --ring-mb 5``; the monitor's
   RSS (VmRSS) and open files (/proc/PID/fd) sampled every ``--sample-s``. Printed: the
   samples, and the RSS change from the first sample after minute 1 (or the first) to the last.
 * **ring**: the pcapng ring's files and bytes on disk at the end of the soak, and the
@@ -31,6 +31,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import contextvars
 import json
 import os
 import signal
@@ -194,9 +195,25 @@ def _proc_figures(pid: int) -> tuple[float, int]:
     return rss, len(os.listdir(f"/proc/{pid}/fd"))
 
 
-async def _sessions(target: tuple[str, int], until: float, counts: list[int]) -> None:
+_SOURCE: contextvars.ContextVar[str] = contextvars.ContextVar("source", default="127.0.0.1")
+
+
+def _from_source(loop: asyncio.AbstractEventLoop) -> None:
+    """The robots' connections leave from their own loopback address (127.0.0.N): as at a plant, each robot
+    is its own address, so each robot's sessions end (one address is one robot to the engine)."""
+    create = loop.create_connection
+
+    async def create_connection(*args, **kw):  # type: ignore[no-untyped-def]
+        kw.setdefault("local_addr", (_SOURCE.get(), 0))
+        return await create(*args, **kw)
+
+    loop.create_connection = create_connection  # type: ignore[method-assign]
+
+
+async def _sessions(target: tuple[str, int], until: float, counts: list[int], source: str) -> None:
     from conformance.endpoints.robot import RobotSession
 
+    _SOURCE.set(source)
     while time.monotonic() < until:
         result = await RobotSession(target, duration=10.0).run()
         counts[0 if result.ok else 1] += 1
@@ -207,7 +224,8 @@ async def _sessions(target: tuple[str, int], until: float, counts: list[int]) ->
 async def _soak_load(target: tuple[str, int], minutes: float, pid: int, sample_s: float) -> list[tuple[float, float, int]]:
     until = time.monotonic() + minutes * 60.0
     counts = [0, 0]
-    tasks = [asyncio.ensure_future(_sessions(target, until, counts)) for _ in range(10)]
+    _from_source(asyncio.get_running_loop())
+    tasks = [asyncio.ensure_future(_sessions(target, until, counts, f"127.0.0.{10 + i}")) for i in range(10)]
     samples = []
     start = time.monotonic()
     while time.monotonic() < until:

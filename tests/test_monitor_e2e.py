@@ -55,13 +55,17 @@ def test_clean_session_through_the_monitor_and_analyze_agrees(box, tmp_path: Pat
     verdicts = m.verdicts()
     assert verdicts["OBS-S1-robot"] == "PASS" and verdicts["OBS-E4-robot"] == "PASS"
     assert verdicts["OBS-T1-box"] == "PASS" and verdicts["OBS-A1-box"] == "PASS"
-    # analyze on the monitor's own capture finds exactly what the monitor found
+    assert _analyze_agrees(m, tmp_path, box.target.port).ctx.stats.sessions == 2
+
+
+def _analyze_agrees(m, tmp_path: Path, port: int, profile=DEFAULT_PROFILE):  # type: ignore[no-untyped-def]
+    """analyze on the monitor's own capture finds exactly what the monitor found."""
     pcaps = sorted((tmp_path / "pcaps").glob("*.pcapng"))
     assert len(pcaps) == 1
-    analysis = analyze(pcaps[0], AnalyzeConfig(ports=(box.target.port,), heuristic=False))
-    assert analysis.ctx.stats.sessions == 2
+    analysis = analyze(pcaps[0], AnalyzeConfig(profile=profile, ports=(port,), heuristic=False))
     monitor_cases = {k: v for k, v in _verdicts(m.outcome.cases).items() if k.startswith("OBS-")}
     assert _verdicts(build_cases(analysis)) == monitor_cases
+    return analysis
 
 
 def test_bytes_pass_unchanged_and_the_box_log_matches(box, tmp_path: Path) -> None:
@@ -94,6 +98,7 @@ def test_a_broken_box_is_blamed_with_its_clause(tmp_path: Path, variant: str, cl
     roots = m.summary()["root_causes"]
     assert roots[0]["title"].startswith("box:"), roots
     assert clause in {rc["clauses"][0] for rc in roots if rc["title"].startswith("box:")}
+    _analyze_agrees(m, tmp_path, impl.port, profile)
     assert f"FAIL BOX {clause}" in m.view_out.getvalue()  # printed as it happened
 
 
@@ -112,6 +117,7 @@ def test_a_broken_robot_is_blamed_with_its_clause(box, tmp_path: Path, variant: 
     assert not any(k.endswith("-box") for k in failing), failing
     roots = m.summary()["root_causes"]
     assert roots[0]["title"].startswith("robot:") and roots[0]["clauses"] == [clause], roots
+    _analyze_agrees(m, tmp_path, box.target.port, profile)
 
 
 def test_the_reports_are_whole_json_and_name_the_ring(box, tmp_path: Path) -> None:

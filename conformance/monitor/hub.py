@@ -152,6 +152,13 @@ class Hub:
 
     # -- the end ------------------------------------------------------------------------------------
     def finish(self) -> None:
-        self.feed.finish(self.clock(), self.wire.frames)
+        """The monitor stops: each connection still open gets an empty ACK saying so (the capture's end
+        is then the moment the monitor stopped, for ``analyze`` as for the engine here), then the engine
+        judges what is left as open at the end."""
+        for conn in list(self.open.values()):
+            if conn.line.transport == "tcp" and not conn.line.flow.reset:
+                self.wire.marker(conn.line, False, "isight-conformance monitor: stopped while the connection was "
+                                 "open")
+        self.feed.finish(self.wire.last_t, self.wire.frames)
         if self.ring is not None:
             self.ring.close()

@@ -53,6 +53,7 @@ class Wire:
         self.frames = 0
         self.lines = 0
         self.bytes = {"robot": 0, "box": 0}
+        self.last_t = clock()  # the time stamp of the latest packet
 
     def line(self, robot: tuple[str, int], box: tuple[str, int], transport: str = "tcp") -> Line:
         self.lines += 1
@@ -64,7 +65,7 @@ class Wire:
     def _emit(self, frames: list[bytes], comments: list[str] | None = None) -> int:
         """Number, write and judge ``frames``; ``comments`` go on the first. Its frame number."""
         first = self.frames + 1
-        t = self.clock()
+        t = self.last_t = self.clock()
         ring, feed = self.ring, self.feed
         for frame in frames:
             self.frames += 1
