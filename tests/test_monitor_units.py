@@ -145,3 +145,27 @@ def test_the_ring_refuses_nonsense() -> None:
         Ring(Path("x"), files=0)
     with pytest.raises(ValueError):
         Ring(Path("x"), file_mb=0)
+
+
+def test_without_a_terminal_a_status_line_every_minute(tmp_path: Path) -> None:
+    import io
+
+    from conformance.analyze.context import AnalyzeConfig
+    from conformance.monitor.hub import Hub, MonitorSettings
+    from conformance.monitor.view import STATUS_EVERY_S, View
+
+    out = io.StringIO()
+    view = View(out, tty=False)
+    hub = Hub(MonitorSettings(("127.0.0.1", 1), ("127.0.0.1", 9004), AnalyzeConfig(ports=(9004,)), None),
+              on_finding=view.finding)
+    view.start(hub)
+    view.tick()
+    assert out.getvalue() == ""  # not a minute yet
+    view.last_status -= STATUS_EVERY_S
+    conn = hub.opened(("127.0.0.1", 40000), ("127.0.0.1", 9004))
+    hub.data(conn, True, bytes.fromhex("fefe00010101000000000000 0000".replace(" ", "")))
+    hub.data(conn, False, bytes.fromhex("fefe00010101000000000000 0000".replace(" ", "")))  # transfer type 01: F3
+    view.tick()
+    lines = out.getvalue().splitlines()
+    assert lines[0].split(" ", 1)[1].startswith("FAIL BOX F3: frame")
+    assert "status: 1 open / 1 connection(s)" in lines[1] and "frames robot→box 1 box→robot 1" in lines[1]
