@@ -31,6 +31,15 @@ class Monitored:
     view_out: io.StringIO
     outcome: MonitorOutcome | None = None
     stop: asyncio.Event = field(default_factory=asyncio.Event)
+    view: View | None = None
+
+    async def settled(self, timeout: float = 10.0) -> None:
+        """Until every connection through the monitor has closed on both sides (bounded)."""
+        for _ in range(int(timeout / 0.01)):
+            hub = self.view.hub if self.view is not None else None
+            if hub is not None and not hub.open:
+                return
+            await asyncio.sleep(0.01)
 
     @property
     def port(self) -> int:
@@ -62,7 +71,7 @@ async def monitored(box_port: int, tmp_path: Path, faults: list[str] | tuple[str
                                tmp_path / "pcaps" if pcaps else None, faults=list(faults), udp=udp,
                                connect_timeout_s=connect_timeout_s, **ring)
     m = Monitored(settings, tmp_path / "report", io.StringIO())
-    view = View(m.view_out, tty=tty)
+    view = m.view = View(m.view_out, tty=tty)
     task = asyncio.ensure_future(run_monitor(settings, m.report_dir, view, m.stop, out=io.StringIO()))
     for _ in range(500):  # the monitor sets settings.listen to the address it got
         if settings.listen[1] or task.done():

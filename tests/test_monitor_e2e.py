@@ -42,6 +42,7 @@ def test_clean_session_through_the_monitor_and_analyze_agrees(box, tmp_path: Pat
         async with monitored(box.target.port, tmp_path) as m:
             result = await _robot(m.target).run()
             extension = await _robot(m.target, extension=True, result_wait=0.1).run()
+            await m.settled()  # the box's closes pass through before the monitor stops
         return m, result, extension
 
     m, result, extension = asyncio.run(main())

@@ -69,15 +69,6 @@ class Feed:
         else:
             self.conversations.udp_packet(key, payload, missing, no, ts)
 
-    def tcp(self, key: bytes, seq: int, ack: int, flags: int, payload: bytes, no: int, ts: float) -> None:
-        """One TCP segment (``key``: :mod:`.packets`' direction key) as frame ``no`` at time ``ts``."""
-        self.ctx.now, self.ctx.frame = ts, no
-        self.conversations.tcp_packet(key, seq, ack, flags, payload, 0, no, ts)
-
-    def udp(self, key: bytes, payload: bytes, no: int, ts: float) -> None:
-        self.ctx.now, self.ctx.frame = ts, no
-        self.conversations.udp_packet(key, payload, 0, no, ts)
-
     def finish(self, ts: float, no: int) -> None:
         """The traffic ends: every connection still open is judged as open at the end."""
         self.ctx.now, self.ctx.frame = ts, no
@@ -99,9 +90,9 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
         if reader.truncated and not config.accept_truncated:
             raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "
                                "frames before the cut)")
-        decode = feed.decoder.decode
+        packet = feed.packet
         conversations = feed.conversations
-        tcp_packet, udp_packet, settle = conversations.tcp_packet, conversations.udp_packet, conversations.settle
+        settle = conversations.settle
         known = conversations.tcp.get
         no, ts = 0, 0.0
         for no, ts, linktype, data in reader.packets():
@@ -122,15 +113,7 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
                         settle(entry[2], result, data[26:38], seq, ack, flags & 0x3F,
                                data[34 + ((off >> 4) << 2) : end], 0, no, ts)
                     continue
-            segment = decode(linktype, data)
-            if segment is None:
-                continue
-            ctx.now, ctx.frame = ts, no
-            proto, key, seq, ack, flags, payload, missing = segment
-            if proto == TCP:
-                tcp_packet(key, seq, ack, flags, payload, missing, no, ts)
-            else:
-                udp_packet(key, payload, missing, no, ts)
+            packet(linktype, data, no, ts)
         stats.first_ts = reader.first_ts
         if reader.truncated and not config.accept_truncated:
             raise CaptureError(f"{reader.path}: cut short: {reader.truncated} (--accept-truncated judges the "

@@ -65,7 +65,8 @@ class Wire:
     def _emit(self, frames: list[bytes], comments: list[str] | None = None) -> int:
         """Number, write and judge ``frames``; ``comments`` go on the first. Its frame number."""
         first = self.frames + 1
-        t = self.last_t = self.clock()
+        # the engine gets the time stamp the pcapng keeps (microseconds), so analyze on it computes the same
+        t = self.last_t = round(self.clock() * 1_000_000) / 1_000_000
         ring, feed = self.ring, self.feed
         for frame in frames:
             self.frames += 1
