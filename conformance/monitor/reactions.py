@@ -14,6 +14,7 @@ Bounded: the first :data:`DETAILED` injections of each spec are followed; the re
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ..protocol import action_name
@@ -79,21 +80,18 @@ class Reactions:
             self._watching.append(inj)
         return inj
 
-    def _move(self, t: float, what: str, line: int | None, host: str | None, request: bool = False) -> None:
-        if not self._watching:
-            return
+    def _record(self, t: float, what: str | Callable[[Injection], str], mine: Callable[[Injection], bool],
+                request: bool = False) -> None:
+        """A move of the robot at ``t``, for every injection it concerns (``mine(injection)``)."""
         for inj in self._watching:
-            if t < inj.t:
+            if t < inj.t or not mine(inj):
                 continue
             if t - inj.t > self.window_s:
                 inj.done = True
                 continue
-            mine = line == inj.line or (line is None and host == inj.robot_host)
-            if mine and len(inj.moves) < MOVES:
-                inj.moves.append(((t - inj.t) * 1000.0, what))
-                inj.requested = inj.requested or request
-                if len(inj.moves) >= MOVES:
-                    inj.done = True
+            inj.moves.append(((t - inj.t) * 1000.0, what(inj) if callable(what) else what))
+            inj.requested = inj.requested or request
+            inj.done = len(inj.moves) >= MOVES
         self._watching = [i for i in self._watching if not i.done]
 
     def request(self, line: int, action: int, t: float) -> None:
@@ -101,22 +99,12 @@ class Reactions:
             if inj.line == line and inj.requested and action == 0x23:
                 inj.done = True  # the stream goes on: its poses say nothing more
         self._watching = [i for i in self._watching if not i.done]
-        for inj in self._watching:
-            if inj.line != line or t < inj.t:
-                continue
-            what = f"sent {action_name(action)} again" if action == inj.action else f"carried on with {action_name(action)}"
-            self._move_one(inj, t, what, request=True)
-
-    def _move_one(self, inj: Injection, t: float, what: str, request: bool = False) -> None:
-        if t - inj.t > self.window_s:
-            inj.done = True
-        elif len(inj.moves) < MOVES:
-            inj.moves.append(((t - inj.t) * 1000.0, what))
-            inj.requested = inj.requested or request
-        self._watching = [i for i in self._watching if not i.done]
+        self._record(t, lambda inj: (f"sent {action_name(action)} again" if action == inj.action
+                                     else f"carried on with {action_name(action)}"),
+                     lambda inj: inj.line == line, request=True)
 
     def closed(self, line: int, reset: bool, t: float) -> None:
-        self._move(t, "reset the connection" if reset else "closed the connection", line, None)
+        self._record(t, "reset the connection" if reset else "closed the connection", lambda inj: inj.line == line)
 
     def connected(self, host: str, t: float) -> None:
-        self._move(t, "reconnected", None, host)
+        self._record(t, "reconnected", lambda inj: inj.robot_host == host)
