@@ -169,3 +169,24 @@ def test_without_a_terminal_a_status_line_every_minute(tmp_path: Path) -> None:
     lines = out.getvalue().splitlines()
     assert lines[0].split(" ", 1)[1].startswith("FAIL BOX F3: frame")
     assert "status: 1 open / 1 connection(s)" in lines[1] and "frames robot→box 1 box→robot 1" in lines[1]
+
+
+def test_what_the_robot_did_after_a_fault() -> None:
+    from conformance.monitor.reactions import DETAILED, Reactions
+
+    r = Reactions(time_out_ms=5000)
+    a = r.injected("drop:CYCLE_ON", "drop", "A1", line=1, robot_host="10.0.0.2", action=1, t=100.0, frame=9,
+                   what="CYCLE_ON answer dropped")
+    b = r.injected("drop:CYCLE_OFF", "drop", "A1", line=3, robot_host="10.0.0.3", action=2, t=100.0, frame=9,
+                   what="CYCLE_OFF answer dropped")
+    r.request(1, 1, 100.5)  # robot 10.0.0.2 sends CycleOn again on the same connection
+    r.closed(1, False, 105.002)
+    r.connected("10.0.0.2", 105.2)
+    r.request(3, 0x23, 99.0)  # before the fault: not a reaction
+    r.closed(3, True, 200.0)  # after the window (2 x time_out + 5 s): not followed any more
+    assert a.summary(5000) == ("sent CYCLE_ON again after 500 ms; then closed the connection after 5002 ms "
+                               "(its time_out, 5000 ms); then reconnected after 5200 ms")
+    assert b.moves == [] and b.summary(5000) == "the robot did nothing the monitor saw afterwards"
+    for n in range(DETAILED + 5):
+        r.injected("drop:POSE", "drop", "A1", 4, "h", 0x23, 300.0 + n, 100 + n, "POSE answer dropped")
+    assert r.total == 2 + DETAILED + 5 and len(r.injections) == 2 + DETAILED
