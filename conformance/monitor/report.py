@@ -100,9 +100,8 @@ def snapshot(hub: Hub, command: str = "") -> tuple[SuiteInfo, list[CaseResult], 
     suite = suite_info(analysis, cases, command)
     s = hub.settings
     suite.target = (f"live line: robots → monitor {s.listen[0]}:{s.listen[1]} → box {s.upstream[0]}:{s.upstream[1]}"
-                    f"{' (and UDP)' if s.udp else ''}; {hub.connections:,} connection(s), "
-                    f"{hub.ctx.stats.sessions:,} session(s) completed, {hub.wire.frames:,} packets over "
-                    f"{hub.elapsed():.0f} s; {describe(hub)}")
+                    f"{' (and UDP)' if s.udp else ''}; {hub.connections:,} connection(s) in {hub.elapsed():.0f} s; "
+                    f"{describe(hub)}; {suite.target}")
     suite.started = _iso(hub.started)
     roots = _root_causes(hub.findings.roots.ordered(), cases)
     return suite, cases, roots
