@@ -81,6 +81,8 @@ def test_bytes_pass_unchanged_and_the_box_log_matches(box, tmp_path: Path) -> No
     doc = m.monitor_json()
     assert doc["bytes"]["robot"] == 14 * 3 + 39 * result.poses_sent  # NONE, CycleOn, CycleOff (14 bytes), poses (39)
     assert doc["latency_ms"]["n"] == 3  # NONE, CycleOn, CycleOff
+    n = result.poses_sent + 3
+    assert doc["frames"] == {"robot": n, "box": n, "poses": result.poses_sent}
 
 
 @pytest.mark.parametrize(("variant", "clause"), [("swapped-version", "F2"), ("late-cycle-on", "T1")])

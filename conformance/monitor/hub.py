@@ -13,6 +13,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from ..analyze.context import AnalyzeConfig
 from ..analyze.engine import Feed
@@ -55,6 +56,15 @@ class Conn:
     closed: bool = False
     #: per action, the frame numbers of the requests not answered yet (faults on; bounded)
     outstanding: dict[int, deque[int]] = field(default_factory=dict)
+    judge: Any = None  # the engine's judge of this connection (its counts, for the live view)
+
+
+def judge_counts(j: Any) -> tuple[int, int, int]:
+    """(requests, answers, poses) the engine's judge of one connection has seen."""
+    if j is None:
+        return (0, 0, 0)
+    return (sum(j.robot_counts.values()) + j.poses + j.robot_errors,
+            sum(j.box_counts.values()) + j.box_poses + j.box_errors, j.poses)
 
 
 class Hub:
@@ -75,6 +85,7 @@ class Hub:
         self.upstream_failures = 0
         self.events: deque[str] = deque(maxlen=EVENTS_KEPT)  # the monitor's own events (upstream failures ...)
         self.big_endian = settings.config.profile.byte_order == "big"
+        self.counted = [0, 0, 0]  # requests, answers, poses of the connections that are gone
 
     @property
     def ctx(self):  # type: ignore[no-untyped-def]
@@ -94,6 +105,8 @@ class Hub:
         self.open[line.number] = conn
         if transport == "tcp":
             self.wire.opened(line)
+            followed = self.feed.conversations.open.get(line.number)  # the engine numbers connections as we do
+            conn.judge = followed.judge if followed is not None else None
         if self.faults:
             self.reactions.connected(robot[0], conn.opened)
         return conn
@@ -131,7 +144,15 @@ class Hub:
     def gone(self, conn: Conn) -> None:
         """Both sockets of the connection are closed."""
         conn.closed = True
-        self.open.pop(conn.line.number, None)
+        if self.open.pop(conn.line.number, None) is not None:
+            self.counted = [a + b for a, b in zip(self.counted, judge_counts(conn.judge))]
+
+    def counts(self) -> tuple[int, int, int]:
+        """(requests, answers, poses) over every TCP connection so far."""
+        totals = list(self.counted)
+        for conn in self.open.values():
+            totals = [a + b for a, b in zip(totals, judge_counts(conn.judge))]
+        return totals[0], totals[1], totals[2]
 
     # -- faults -------------------------------------------------------------------------------------
     def pick(self, action: int) -> Fault | None:

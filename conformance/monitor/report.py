@@ -127,6 +127,7 @@ def monitor_doc(hub: Hub) -> dict[str, Any]:
         "started": _iso(hub.started), "seconds": round(hub.elapsed(), 3),
         "connections": hub.connections, "open": len(hub.open), "sessions": ctx.stats.sessions,
         "packets": hub.wire.frames, "bytes": dict(hub.wire.bytes), "upstream_failures": hub.upstream_failures,
+        "frames": dict(zip(("robot", "box", "poses"), hub.counts())),
         "latency_ms": {"n": ctx.latency.n, "p50": _num(ctx.latency.percentile(50)),
                        "p99": _num(ctx.latency.percentile(99))},
         "root_causes": [c.to_dict() for c in hub.findings.roots.ordered()],

@@ -7,8 +7,8 @@ terminal a live panel (rich) shows connections, sessions completed, frames each 
 the latency of the answers (p50/p99), the pose stream's rate and the root causes so
 far; without one, a status line every :data:`STATUS_EVERY_S` seconds.
 
-The counts are read from the engine's open connections (:class:`~conformance.analyze.
-exchanges.ConnJudge`: requests, poses, answers) and carried over when they close.
+The counts are the engine's (each connection's :class:`~conformance.analyze.exchanges.ConnJudge`:
+requests, poses, answers; :meth:`~.hub.Hub.counts`).
 """
 
 from __future__ import annotations
@@ -29,33 +29,24 @@ STATUS_EVERY_S = 60.0
 
 
 class Counts:
-    """Frames each way and poses, over every connection the engine has followed."""
+    """Frames each way and poses so far, and the pose stream's rate (poses per second since the last look)."""
 
     def __init__(self) -> None:
-        self.done = [0, 0, 0]  # requests, answers, poses of connections that closed
-        self.live: dict[int, tuple[int, int, int]] = {}
         self.last_poses = 0
         self.last_t = time.monotonic()
         self.rate = 0.0
 
     def update(self, hub: Hub) -> tuple[int, int, int, list[float]]:
-        now: dict[int, tuple[int, int, int]] = {}
+        requests, answers, poses = hub.counts()
         recent: list[float] = []
-        for conn in hub.feed.conversations.open.values():
-            j = conn.judge
-            now[conn.number] = (sum(j.robot_counts.values()) + j.poses + j.robot_errors,
-                                sum(j.box_counts.values()) + j.box_poses + j.box_errors, j.poses)
-            recent.extend(j._latencies[-200:])
-        for number, counts in self.live.items():
-            if number not in now:
-                self.done = [a + b for a, b in zip(self.done, counts)]
-        self.live = now
-        totals = [self.done[i] + sum(c[i] for c in now.values()) for i in range(3)]
+        for conn in hub.open.values():
+            if conn.judge is not None:
+                recent.extend(conn.judge._latencies[-200:])
         t = time.monotonic()
         if t - self.last_t >= 1.0:
-            self.rate = (totals[2] - self.last_poses) / (t - self.last_t)
-            self.last_poses, self.last_t = totals[2], t
-        return totals[0], totals[1], totals[2], recent
+            self.rate = (poses - self.last_poses) / (t - self.last_t)
+            self.last_poses, self.last_t = poses, t
+        return requests, answers, poses, recent
 
 
 def _ms(v: float) -> str:
