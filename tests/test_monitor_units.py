@@ -190,3 +190,25 @@ def test_what_the_robot_did_after_a_fault() -> None:
     for n in range(DETAILED + 5):
         r.injected("drop:POSE", "drop", "A1", 4, "h", 0x23, 300.0 + n, 100 + n, "POSE answer dropped")
     assert r.total == 2 + DETAILED + 5 and len(r.injections) == 2 + DETAILED
+
+
+def test_a_judgement_that_fails_is_the_suites_error_and_the_line_goes_on(tmp_path: Path) -> None:
+    from conformance.monitor.wire import Wire
+
+    class Broken:
+        calls = 0
+
+        def packet(self, *args: object) -> None:
+            Broken.calls += 1
+            raise RuntimeError("boom")
+
+    ring = Ring(tmp_path)
+    wire = Wire(Broken(), ring, "t")  # type: ignore[arg-type]
+    line = wire.line(("127.0.0.1", 40000), ("127.0.0.1", 9004))
+    wire.opened(line)
+    assert wire.data(line, True, b"abc") == 4
+    ring.close()
+    assert wire.judge_errors == Broken.calls == 4 and wire.judge_error == "frame 1: RuntimeError: boom"
+    reader = CaptureReader(ring.kept[0][0])
+    assert sum(1 for _ in reader.packets()) == 4  # recorded all the same
+    reader.close()

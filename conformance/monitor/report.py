@@ -97,6 +97,11 @@ def _iso(t: float) -> str:
 def snapshot(hub: Hub, command: str = "") -> tuple[SuiteInfo, list[CaseResult], list[RootCause]]:
     analysis = _analysis(hub)
     cases = build_cases(analysis) + _fault_cases(hub)
+    if hub.wire.judge_errors:
+        cases.append(CaseResult("MON-JUDGE", "the monitor's judgement of every packet", ("F1",), Level.MUST,
+                                Verdict.ERROR, message=f"the engine failed on {hub.wire.judge_errors:,} packet(s): "
+                                f"{hub.wire.judge_error} (the suite's own fault, not the robot's or the box's; the "
+                                "bytes were forwarded)"))
     suite = suite_info(analysis, cases, command)
     s = hub.settings
     suite.target = (f"live line: robots → monitor {s.listen[0]}:{s.listen[1]} → box {s.upstream[0]}:{s.upstream[1]}"
@@ -109,6 +114,9 @@ def snapshot(hub: Hub, command: str = "") -> tuple[SuiteInfo, list[CaseResult], 
 
 def describe(hub: Hub) -> str:
     parts = []
+    if hub.wire.judge_errors:
+        parts.append(f"ERROR: the judgement failed on {hub.wire.judge_errors:,} packet(s) (the suite's own fault; "
+                     f"the bytes were forwarded; first: {hub.wire.judge_error})")
     if hub.upstream_failures:
         parts.append(f"{hub.upstream_failures:,} connection(s) the box did not accept")
     if hub.reactions.total:
@@ -133,7 +141,8 @@ def monitor_doc(hub: Hub) -> dict[str, Any]:
         "root_causes": [c.to_dict() for c in hub.findings.roots.ordered()],
         "faults": [{"spec": f.spec, "matching": f.seen, "injected": f.injected} for f in hub.faults.faults],
         "injections": [i.to_dict(hub.reactions.time_out_ms) for i in hub.reactions.injections],
-        "excused_box_findings": hub.findings.excused_count,
+        "excused_findings": hub.findings.excused_count,
+        "judge_errors": hub.wire.judge_errors, "first_judge_error": hub.wire.judge_error,
         "ring": hub.ring.index() if hub.ring is not None else [],
         "ring_bytes": hub.ring.disk_bytes() if hub.ring is not None else 0,
         "events": list(hub.events),

@@ -54,6 +54,9 @@ class Wire:
         self.lines = 0
         self.bytes = {"robot": 0, "box": 0}
         self.last_t = clock()  # the time stamp of the latest packet
+        #: packets the engine failed on (the suite's own fault: forwarding goes on), and the first failure
+        self.judge_errors = 0
+        self.judge_error: str | None = None
 
     def line(self, robot: tuple[str, int], box: tuple[str, int], transport: str = "tcp") -> Line:
         self.lines += 1
@@ -72,7 +75,12 @@ class Wire:
             self.frames += 1
             if ring is not None:
                 ring.write(frame, t, self.frames, comments if self.frames == first else None)
-            feed.packet(LINKTYPE_ETHERNET, frame, self.frames, t)
+            try:
+                feed.packet(LINKTYPE_ETHERNET, frame, self.frames, t)
+            except Exception as exc:  # noqa: BLE001 - the line goes on; the suite's own fault is reported
+                self.judge_errors += 1
+                if self.judge_error is None:
+                    self.judge_error = f"frame {self.frames}: {type(exc).__name__}: {exc}"
         return first
 
     def opened(self, line: Line) -> int:
