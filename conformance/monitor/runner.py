@@ -78,8 +78,12 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
             view.tick()
             if next_checkpoint is not None and now >= next_checkpoint:
                 next_checkpoint = now + checkpoint_s
-                write_monitor_reports(hub, report_dir, command)
-                checkpoints += 1
+                try:
+                    write_monitor_reports(hub, report_dir, command)
+                    checkpoints += 1
+                except OSError as exc:  # a full disk at a checkpoint: the line goes on, the next one retries
+                    hub.note(f"checkpoint: cannot write the reports: {exc.strerror or exc}")
+                    view.line(f"isight-conformance monitor: checkpoint: cannot write the reports: {exc.strerror or exc}")
     finally:
         view.stop()
         await tcp.stop()
