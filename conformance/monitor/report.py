@@ -124,7 +124,8 @@ def describe(hub: Hub) -> str:
                      f"{hub.findings.excused_count:,} box finding(s) they caused set aside)")
     if hub.ring is not None:
         parts.append(f"pcapng ring in {hub.ring.directory} ({len(hub.ring.kept)} file(s), "
-                     f"{hub.ring.disk_bytes() / 1e6:.1f} MB, {hub.ring.deleted} older file(s) deleted)")
+                     f"{hub.ring.disk_bytes() / 1e6:.1f} MB, {hub.ring.deleted} older file(s) deleted)"
+                     + (f"; recording STOPPED: {hub.ring.error}" if hub.ring.error else ""))
     return "; ".join(parts) or "no pcap recorded"
 
 
@@ -145,6 +146,7 @@ def monitor_doc(hub: Hub) -> dict[str, Any]:
         "judge_errors": hub.wire.judge_errors, "first_judge_error": hub.wire.judge_error,
         "ring": hub.ring.index() if hub.ring is not None else [],
         "ring_bytes": hub.ring.disk_bytes() if hub.ring is not None else 0,
+        "ring_error": str(hub.ring.error) if hub.ring is not None and hub.ring.error else None,
         "events": list(hub.events),
     }
 
