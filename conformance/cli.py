@@ -20,6 +20,7 @@ from .certify import cli as certify_cli
 from .endpoints import robot_cli
 from .endpoints import serve as serve_cli
 from .i18n import _
+from .monitor import cli as monitor_cli
 from .report import diff_cli
 
 if TYPE_CHECKING:
@@ -38,9 +39,10 @@ COMMANDS: tuple[Callable[[Subparsers], argparse.ArgumentParser], ...] = (
     wireshark_cli.add_parser,
     diff_cli.add_parser,
     analyze_cli.add_parser,
+    monitor_cli.add_parser,
 )
 #: the commands whose output people read take --lang (i18n.add_lang_option; a new command: add its name here)
-LANG_COMMANDS = ("run", "certify-robot", "analyze", "fuzz", "diff", "clauses")
+LANG_COMMANDS = ("run", "certify-robot", "analyze", "fuzz", "diff", "clauses", "monitor")
 
 
 def build_parser() -> argparse.ArgumentParser:

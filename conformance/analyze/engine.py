@@ -18,10 +18,11 @@ from pathlib import Path
 from .capture import CaptureError, CaptureReader
 from .context import AnalyzeConfig, Context
 from .conversations import Conversations
+from .findings import Findings
 from .packets import TCP, PacketDecoder
 from .sessions import SessionTracker
 
-__all__ = ["Analysis", "CaptureError", "analyze"]
+__all__ = ["Analysis", "CaptureError", "Feed", "analyze"]
 
 PROGRESS_EVERY = 1 << 14
 _TCP_FIELDS = struct.Struct("!IIBB").unpack_from  # seq, ack, data offset, flags (at TCP offset 4)
@@ -49,6 +50,38 @@ def _refuse_a_cut_file(reader: CaptureReader, config: AnalyzeConfig) -> None:
                            "frames before the cut)")
 
 
+class Feed:
+    """The engine fed one packet at a time, for traffic that is not in a file (the live
+    ``monitor``): the same context, conversations and session judgement :func:`analyze` uses.
+    ``findings`` replaces the context's (a subclass that watches what is filed)."""
+
+    def __init__(self, config: AnalyzeConfig, source: Path | None = None, findings: Findings | None = None) -> None:
+        self.ctx = Context(config, source)
+        if findings is not None:
+            self.ctx.findings = findings
+        self.decoder = PacketDecoder()
+        self.sessions = SessionTracker(self.ctx)
+        self.conversations = Conversations(self.ctx, self.sessions)
+
+    def packet(self, linktype: int, data: bytes, no: int, ts: float) -> None:
+        """One captured frame, decoded as :func:`analyze` decodes a file's."""
+        segment = self.decoder.decode(linktype, data)
+        if segment is None:
+            return
+        proto, key, seq, ack, flags, payload, missing = segment
+        self.ctx.now, self.ctx.frame = ts, no
+        if proto == TCP:
+            self.conversations.tcp_packet(key, seq, ack, flags, payload, missing, no, ts)
+        else:
+            self.conversations.udp_packet(key, payload, missing, no, ts)
+
+    def finish(self, ts: float, no: int) -> None:
+        """The traffic ends: every connection still open is judged as open at the end."""
+        self.ctx.now, self.ctx.frame = ts, no
+        self.conversations.finish(ts, no)
+        self.ctx.stats.skipped = dict(self.decoder.skipped)
+
+
 def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
             progress: Callable[[int, int], None] | None = None) -> Analysis:
     """Judge the capture at ``path``; raises :class:`CaptureError` (one line) for a bad file,
@@ -56,15 +89,14 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
     config = config or AnalyzeConfig()
     started = time.perf_counter()
     reader = CaptureReader(path)
-    ctx = Context(config, Path(path))
+    feed = Feed(config, Path(path))
+    ctx = feed.ctx
     stats = ctx.stats
     try:
         _refuse_a_cut_file(reader, config)
-        decoder = PacketDecoder()
-        decode = decoder.decode
-        sessions = SessionTracker(ctx)
-        conversations = Conversations(ctx, sessions)
-        tcp_packet, udp_packet, settle = conversations.tcp_packet, conversations.udp_packet, conversations.settle
+        packet = feed.packet
+        conversations = feed.conversations
+        settle = conversations.settle
         known = conversations.tcp.get
         no, ts = 0, 0.0
         for no, ts, linktype, data in reader.packets():
@@ -85,23 +117,13 @@ def analyze(path: str | os.PathLike[str], config: AnalyzeConfig | None = None,
                         settle(entry[2], result, data[26:38], seq, ack, flags & 0x3F,
                                data[34 + ((off >> 4) << 2) : end], 0, no, ts)
                     continue
-            segment = decode(linktype, data)
-            if segment is None:
-                continue
-            ctx.now, ctx.frame = ts, no
-            proto, key, seq, ack, flags, payload, missing = segment
-            if proto == TCP:
-                tcp_packet(key, seq, ack, flags, payload, missing, no, ts)
-            else:
-                udp_packet(key, payload, missing, no, ts)
+            packet(linktype, data, no, ts)
         stats.first_ts = reader.first_ts
         _refuse_a_cut_file(reader, config)
         stats.truncated = reader.truncated
         stats.frames = reader.frames
         stats.last_ts = ts if reader.frames else None
-        ctx.now, ctx.frame = ts, no
-        conversations.finish(ts, no)
-        stats.skipped = dict(decoder.skipped)
+        feed.finish(ts, no)
         if progress is not None:
             progress(reader.size, reader.size)
     finally:
