@@ -9,7 +9,7 @@ import pytest
 
 from conformance.cli import COMMANDS, build_parser, main
 
-NAMES = ("decode", "serve", "robot", "certify-robot", "run", "fuzz", "replay", "clauses", "wireshark", "diff", "analyze")
+NAMES = ("decode", "serve", "robot", "certify-robot", "run", "fuzz", "replay", "clauses", "wireshark", "diff", "analyze", "monitor")
 
 
 def test_every_add_parser_registers_one_command_with_its_handler() -> None:
