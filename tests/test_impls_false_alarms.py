@@ -1,0 +1,43 @@
+"""Each false alarm the sampled legal combinations found (python -m tests.impls.matrix --sample), kept fixed.
+
+Every test starts an independent box with the knob values that exposed the false alarm (in this
+process, loopback) and runs the real suite (``isight-conformance run --cases ...``) against it: the
+cases that once FAILed or went NON-STRICT on a conforming box must now PASS (or be another clean
+verdict). A few seconds each.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from tests.impls.boxcore import ThreadBox
+from tests.impls.matrix import suite_command
+from tests.impls.policy import knob_choices
+
+CLEAN = {"PASS", "INFORMATIONAL", "INCONCLUSIVE", "SKIP"}
+
+
+def verdicts(knobs: dict[str, str], cases: str, tmp_path: Path) -> dict[str, str]:
+    choices = knob_choices(knobs)
+    with ThreadBox(choices).start() as box:
+        cmd = [*suite_command(), "run", "--target", f"127.0.0.1:{box.port}", "--quiet", "--cases", cases,
+               "--report-dir", str(tmp_path / "report"), "--pcap-dir", str(tmp_path / "pcaps"), *choices.suite_args()]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+    assert done.returncode in (0, 1), done.stderr[-2000:]
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    return {c["id"]: f"{c['verdict']}: {c['message']}" for c in summary["cases"]}
+
+
+def unclean(result: dict[str, str]) -> dict[str, str]:
+    return {k: v for k, v in result.items() if v.split(":", 1)[0] not in CLEAN}
+
+
+@pytest.mark.parametrize("tcp_check", ["ignore", "zero-or-crc"])
+def test_f6_02_sends_its_pose_from_the_profile_s_first_index(tcp_check: str, tmp_path: Path) -> None:
+    """first_index=1 (--first-index 1): F6-02's pose carried index 00, so a box taking the CRC got NON-STRICT."""
+    result = verdicts({"first_index": "1", "tcp_check": tcp_check}, "F6-02", tmp_path)
+    assert result["F6-02"].startswith("PASS"), result
