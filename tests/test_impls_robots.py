@@ -190,7 +190,7 @@ def test_broken_robots_send_their_defect(recorder: Recorder, name: str, check) -
 
 
 def test_slow_stream_sends_below_the_declared_rate(recorder: Recorder) -> None:
-    outcome, (cmd, stream) = play(recorder, "slow-stream", rate_hz=50.0)
+    outcome, (cmd, stream) = play(recorder, "slow-stream", rate="50")
     assert outcome.exit_code == 0, outcome.reason
     sent = len(stream.frames)
     span = stream.frames[-1][0] - stream.frames[0][0]

@@ -31,9 +31,9 @@ class Choice:
     clauses: tuple[str, ...]
     kind: str  # one of KINDS
     question: str
-    alternatives: tuple[str, ...]  # the first is the reference implementation's
+    alternatives: tuple[str, ...]  # the first is the default of tests/impls
     tester: str  # "set" or "flag"
-    knob: str  # the setting of tests/impls that takes these alternatives
+    knob: str  # the setting of tests/impls that takes these alternatives ("": none, see NO_KNOB)
     flags: dict[str, str] = field(default_factory=dict)  # alternative -> the profile flag a tester needs for it
     note: str = ""
 
@@ -45,7 +45,9 @@ def _c(id_: str, side: str, clauses: str, kind: str, question: str, alternatives
 
 
 _RESUME = "resume+1 | resume+5 | resume+12"
-#: Every legal choice, box side first. The alternatives' first entry is what the reference box does.
+#: the note of a flag-decided row no implementation in tests/impls takes (their codec is big-endian, MODBUS)
+NO_KNOB = "no knob: the independent implementations' codec has one reading; the suite's flag is tested elsewhere"
+#: Every legal choice, box side first. The alternatives' first entry is the default of tests/impls.
 CHOICES: tuple[Choice, ...] = (
     # -- R6: how bad bytes are framed, chosen per kind of bad field ---------------------------------------
     _c("framing-garbage", "box", "R6", "either-or",
@@ -113,6 +115,16 @@ CHOICES: tuple[Choice, ...] = (
     _c("non-finite", "box", "B4", "decision", "NaN or infinity in a pose or tolerance",
        "reject | accept", "nan", "reject is the SHOULD; accept is clean only under --checking lenient",
        flags={"accept": "--checking lenient"}),
+    _c("stream-port", "box", "S4", "decision", "where the stream connection goes", "same | separate",
+       "stream_port", "separate: a second port serves the stream (and anything else)",
+       flags={"separate": "--stream-target HOST:PORT"}),
+    _c("byte-order", "box", "F4", "decision", "the byte order of the header's multi-byte fields", "big | little",
+       "", NO_KNOB, flags={"little": "--byte-order little"}),
+    _c("float-byte-order", "box", "B4 E1", "decision", "the byte order of float32 and int32 values",
+       "big | little", "", NO_KNOB, flags={"little": "--float-byte-order little"}),
+    _c("crc", "box", "F7 R7", "decision", "the UDP CRC-16 algorithm and its byte order",
+       "modbus big | other crcmod algorithm or little", "", NO_KNOB,
+       flags={"other crcmod algorithm or little": "--crc NAME --crc-byte-order little"}),
     _c("udp", "box", "F7 R7", "either-or", "TCP (or UDP): whether the box also serves UDP", "off | on", "udp",
        flags={"on": "--udp-target HOST:PORT"}),
     # -- the wire ----------------------------------------------------------------------------------------
@@ -141,6 +153,10 @@ CHOICES: tuple[Choice, ...] = (
        "read_late", "late: in bursts every 0.5 s (pipelined)"),
     _c("robot-extension", "robot", "E4", "either-or", "the session: S1, or the revision's E4", "S1 | E4",
        "session", flags={"E4": "--extension on"}),
+    _c("robot-rate", "robot", "T2", "decision", "the declared stream rate", "50 | 20 | 100", "rate",
+       flags={"20": "--pose-rate 20", "100": "--pose-rate 100"}),
+    _c("robot-time-out", "robot", "T1 E5", "decision", "time_out and vision_time_out (the robot's settings)",
+       "5000 ms | other", "", NO_KNOB, flags={"other": "--time-out MS --vision-time-out MS"}),
 )
 
 
@@ -159,8 +175,8 @@ def render_markdown() -> str:
         "**[decision]**, each \"either … or\", and the freedoms on the wire it leaves open. The table is data",
         "(`conformance/protocol/legal.py`). *tester* says how a tester meets the point: **set** means it",
         "accepts every alternative and fails none; **flag** means a profile flag tells it which one the box",
-        "took (the flag is given for each alternative that needs one). The first alternative is the",
-        "reference implementation's. *knob* is the setting of the independent implementations in",
+        "took (the flag is given for each alternative that needs one). The first alternative is the default",
+        "of `tests/impls`. *knob* is the setting of the independent implementations in",
         "`tests/impls` (`python -m tests.impls.box random --seed N`, `python -m tests.impls.matrix --sample N`)",
         "that takes exactly these alternatives; a test fails when a row has an alternative that is no knob",
         "value.",
@@ -171,8 +187,9 @@ def render_markdown() -> str:
                 "|---|---|---|---|---|---|---|---|"]
         for c in by_side(side):
             alts = " · ".join(f"`{a}`" + (f" ({c.flags[a]})" if a in c.flags else "") for a in c.alternatives)
+            knob = f"`{c.knob}`" if c.knob else "-"
             out.append(f"| {c.id} | {', '.join(c.clauses)} | {c.kind} | {c.question} | {alts} | {c.tester} | "
-                       f"`{c.knob}` | {c.note} |")
+                       f"{knob} | {c.note} |")
         out.append("")
     out += _DIFFERENCES
     return "\n".join(out) + "\n"

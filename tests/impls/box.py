@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 
 from .boxcore import ThreadBox
 from .framers import PRESETS
-from .policy import DEFECTS, Choices, random_choices, with_framing
+from .policy import DEFECTS, Choices, knob_choices, random_choices, with_framing
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class Variant:
 
 
 def _preset(framing: str, **knobs: str) -> Choices:
-    return with_framing(Choices(**knobs), PRESETS[framing])
+    return with_framing(knob_choices(knobs), PRESETS[framing])
 
 
 _CONFORMING = [
@@ -114,7 +114,7 @@ def _broken(name: str, base_seed: int | None = None) -> Variant:
         choices = replace(_BASE[base_name].choices, udp="off").with_defect(name)
         return Variant(name, choices, f"{what} (built on {base_name}, TCP only)")
     fixed = _BROKEN_FIXED | _BASE_FIXED.get(name, {})
-    choices = random_choices(base_seed, **fixed).with_defect(name)
+    choices = random_choices(base_seed, fixed=fixed).with_defect(name)
     return Variant(name, choices, f"{what} (built on random base {base_seed}, TCP only)")
 
 

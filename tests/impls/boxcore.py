@@ -19,6 +19,7 @@ import socket
 import struct
 import threading
 import time
+from collections.abc import Callable
 
 from .framers import Framer
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
@@ -70,7 +71,8 @@ class ThreadBox:
         self.stop()
 
     def start(self) -> ThreadBox:
-        targets = [(self._accept_loop, (lst,)) for lst in self.listeners]
+        targets: list[tuple[Callable[..., None], tuple[object, ...]]] = [(self._accept_loop, (lst,))
+                                                                         for lst in self.listeners]
         targets += [(self._udp_loop, ())] if self.udp is not None else []
         for target, args in targets:
             thread = threading.Thread(target=target, args=args, name=f"box-{target.__name__}", daemon=True)

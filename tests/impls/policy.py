@@ -163,7 +163,7 @@ def with_framing(choices: Choices, framing: Framing) -> Choices:
     return replace(choices, **{f"framing_{f.name}": getattr(framing, f.name) for f in fields(framing)})
 
 
-def random_choices(seed: int, *, pending: bool = False, **fixed: str) -> Choices:
+def random_choices(seed: int, *, pending: bool = False, fixed: dict[str, str] | None = None) -> Choices:
     """A legal combination drawn from ``seed`` (the same seed, the same box); ``fixed`` knobs are kept.
     Knob values listed in :data:`PENDING` are drawn only with ``pending=True``."""
     rng = random.Random(seed)
@@ -171,7 +171,12 @@ def random_choices(seed: int, *, pending: bool = False, **fixed: str) -> Choices
     for name, legal in KNOBS.items():
         options = [v for v in legal if pending or (name, v) not in PENDING]
         values[name] = rng.choice(options)  # drawn for every knob, so a fixed one leaves the others unchanged
-    return Choices(**(values | fixed))
+    return knob_choices(values | (fixed or {}))
+
+
+def knob_choices(knobs: dict[str, str]) -> Choices:
+    """A box from knob values (the defaults for the knobs not given)."""
+    return replace(Choices(), **knobs)  # type: ignore[arg-type]  # every value is a knob string
 
 
 class Cycle:
