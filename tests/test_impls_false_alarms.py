@@ -22,9 +22,11 @@ CLEAN = {"PASS", "INFORMATIONAL", "INCONCLUSIVE", "SKIP"}
 
 
 def verdicts(knobs: dict[str, str], cases: str, tmp_path: Path) -> dict[str, str]:
+    """The verdicts of the cases matching ``cases`` (globs, comma-separated) against a box with ``knobs``."""
     choices = knob_choices(knobs)
+    selected = [arg for glob in cases.split(",") for arg in ("--cases", glob)]
     with ThreadBox(choices).start() as box:
-        cmd = [*suite_command(), "run", "--target", f"127.0.0.1:{box.port}", "--quiet", "--cases", cases,
+        cmd = [*suite_command(), "run", "--target", f"127.0.0.1:{box.port}", "--quiet", *selected,
                "--report-dir", str(tmp_path / "report"), "--pcap-dir", str(tmp_path / "pcaps"), *choices.suite_args()]
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
     assert done.returncode in (0, 1), done.stderr[-2000:]
@@ -41,3 +43,11 @@ def test_f6_02_sends_its_pose_from_the_profile_s_first_index(tcp_check: str, tmp
     """first_index=1 (--first-index 1): F6-02's pose carried index 00, so a box taking the CRC got NON-STRICT."""
     result = verdicts({"first_index": "1", "tcp_check": tcp_check}, "F6-02", tmp_path)
     assert result["F6-02"].startswith("PASS"), result
+
+
+def test_a1_10_takes_a_progidx_409_in_the_error_field_under_error_code(tmp_path: Path) -> None:
+    """prog_idx=409 progidx_conflict=error-code (--progidx-conflict error-code): A1-10 replayed the ProgIdx
+    vectors expecting 409 in the block, and FAILed the answer E2-01 accepts."""
+    result = verdicts({"prog_idx": "409", "progidx_conflict": "error-code"}, "A1-10*,E2-01", tmp_path)
+    assert not unclean(result), unclean(result)
+    assert result["E2-01"].startswith(("PASS", "INFORMATIONAL")) and len([k for k in result if k.startswith("A1-10")]) >= 3, result
