@@ -133,3 +133,21 @@ def test_a_box_answering_the_embedded_frame_leaves_nothing_for_the_next_case() -
     assert [o.frame.action for o in first.outcomes] == [Action.NONE]  # the embedded frame's answer
     assert second.verdict is Verdict.PASS and second.conn == first.conn  # reused, nothing left over
     assert [o.frame.error_code for o in second.outcomes] == [0x1001]
+
+
+def test_a_refusal_with_the_probe_s_action_then_a_close_is_a_legal_close() -> None:
+    """Issue 17, knobs not_request=error refusal_action=00 framing_version=resume+12 framing_garbage=close: the
+    box refuses a bad-version header with action 00 and an error, then closes on the bytes after it. With a NONE
+    probe the refusal looked like the probe's (wrong) answer and the close went unseen: a false R6 NON-STRICT."""
+    from tests.impls.boxcore import ThreadBox
+    from tests.impls.policy import knob_choices
+
+    knobs = {"not_request": "error", "refusal_action": "00", "framing_version": "resume+12", "framing_garbage": "close"}
+    bad_version = bytes.fromhex("fefe0101260301000500841012c6300c0000")
+    with ThreadBox(knob_choices(knobs)).start() as box:
+        ex = executor(box.port)
+        result = ex.run(S.case("t", "F2", bad_version, "t"))
+        ex.close()
+    assert result.probe is Action.NONE and isinstance(result.end, Closed)
+    assert len(result.outcomes) == 1 and result.outcomes[0].raw[5] == Action.NONE  # the refusal, action 00
+    assert result.verdict is Verdict.PASS, result.judgement.describe()

@@ -265,12 +265,14 @@ class Executor:
                 # the probe's action with an error: the probe's (wrong) answer, or an error answer to the case's
                 # bytes with the probe's action (A5 allows that); a 0000 answer to the probe soon after tells
                 extra = conn.drain(self.settle_s)
-                closed = any(isinstance(o, Closed) for o in extra)
+                close = next((o for o in extra if isinstance(o, Closed)), None)
                 extra = [o for o in extra if not isinstance(o, Closed)]
                 if extra and _answers(extra[0], probe):
                     outcomes.append(outcome)
                     outcome = extra.pop(0)
-                return outcomes + extra, outcome, closed
+                elif close is not None and not extra:  # then a close: the exchange ended with it, and the
+                    return [*outcomes, outcome], close, True  # answer may be a refusal of the bytes (A5, R6 c)
+                return outcomes + extra, outcome, close is not None
             if _answers(outcome, probe):
                 extra = conn.drain(self.settle_s) if self.settle else conn.poll()
                 closed = any(isinstance(o, Closed) for o in extra)
