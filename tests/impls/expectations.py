@@ -85,7 +85,10 @@ RANDOM = "random"
 
 def expectation(name: str, role: str = "box") -> Expectation:
     """The expectation for ``name``; every random legal combination must come out clean."""
-    return _ok(RANDOM, role) if name == RANDOM else EXPECTATIONS[name]
+    if name != RANDOM:
+        return EXPECTATIONS[name]
+    # T2's jitter on a loaded machine is the scheduling of a Python robot, no legal choice: judged loosely
+    return _ok(RANDOM, role, *(("--jitter-tolerance", "600", "--rate-tolerance", "25") if role == "robot" else ()))
 
 
 def judge(expectation: Expectation, exit_code: int | None, totals: dict[str, int],

@@ -261,25 +261,32 @@ def run_box(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, se
 
 
 def run_robot(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, seeded: bool) -> Row:
+    from .robot import variant  # the robot's own knobs, for the flags certify-robot needs (same code as the process)
+
     row = _new_row(exp, seed)
+    row.box_seed = seed if exp.name == RANDOM else None
+    robot = variant(exp.name, row.box_seed)
+    row.knobs = robot.description.removeprefix("a random legal combination: ") if exp.name == RANDOM else ""
     work = out / f"{exp.name}-{seed}"
     work.mkdir(parents=True, exist_ok=True)
+    flags = robot.choices.suite_args() if exp.name == RANDOM else ()
     suite = Proc(suite_command() + ["certify-robot", "--listen", "127.0.0.1:0", "--no-udp", "--quiet",
                                     "--wait", "60", "--max-session", str(min(args.limit, 300)),
                                     "--report-dir", str(work / "report"), "--pcap-dir", str(work / "pcaps"),
-                                    *exp.suite_args, *_suite_flags(args, seed, False)], work, "suite")
+                                    *exp.suite_args, *flags, *_suite_flags(args, seed, False)], work, "suite")
     line = suite.first_line(30)  # certify-robot has no fuzz cases and so no --seed: a seed is a plain repeat
     if line is None or not line.startswith("listening tcp "):
         row.notes.append(f"certify-robot did not start: {suite.last_line() or line!r}")
         suite.kill("did not start")
         return _finish(row, suite)
     robot_cmd = [sys.executable, "-m", "tests.impls.robot", exp.name, "--target", line.split()[2]]
+    robot_cmd += ["--seed", str(seed)] if exp.name == RANDOM else []
     if args.time_out:
         robot_cmd += ["--time-out", str(args.time_out)]
-    robot = Proc(robot_cmd, work, "robot")
-    robot_rc = robot.wait(120)
-    row.notes.append(f"robot exit {robot_rc if robot_rc is not None else robot.killed}"
-                     + (f": {robot.last_line()}" if robot_rc else ""))
+    player = Proc(robot_cmd, work, "robot")
+    robot_rc = player.wait(120)
+    row.notes.append(f"robot exit {robot_rc if robot_rc is not None else player.killed}"
+                     + (f": {player.last_line()}" if robot_rc else ""))
     row.exit = suite.wait(args.limit, args.mem_limit)
     return _finish(row, suite, work / "report")
 

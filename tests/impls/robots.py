@@ -75,7 +75,7 @@ class RobotChoices:
 
     def suite_args(self) -> tuple[str, ...]:
         """The certify-robot flags this robot's flag-decided choices need."""
-        return (("--extension", "on") if self.session == "E4" else ()) + \
+        return (("--extension",) if self.session == "E4" else ()) + \
             (("--pose-rate", self.rate) if self.rate != "50" else ())
 
 
