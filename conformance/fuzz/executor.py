@@ -267,9 +267,10 @@ class Executor:
                 extra = conn.drain(self.settle_s)
                 close = next((o for o in extra if isinstance(o, Closed)), None)
                 extra = [o for o in extra if not isinstance(o, Closed)]
-                if extra and _answers(extra[0], probe):
-                    outcomes.append(outcome)
-                    outcome = extra.pop(0)
+                at = next((i for i, o in enumerate(extra) if _answers(o, probe)), None)
+                if at is not None:  # the probe's 0000 came later: everything before it answered the case
+                    outcomes += [outcome, *extra[:at]]
+                    outcome, extra = extra[at], extra[at + 1 :]
                 elif close is not None and not extra:  # then a close: the exchange ended with it, and the
                     return [*outcomes, outcome], close, True  # answer may be a refusal of the bytes (A5, R6 c)
                 return outcomes + extra, outcome, close is not None
