@@ -447,3 +447,16 @@ def test_a_separate_stream_port_serves_too() -> None:
         with socket.create_connection(("127.0.0.1", b.stream_port), timeout=5) as s:
             s.sendall(pose())
             assert read(s, 14) == answer(0x23)
+
+
+def test_a_closing_box_answers_then_ends_the_stream_cleanly() -> None:
+    """A close with unread input is a reset, and a reset may drop answers not yet delivered (knobs
+    framing_shape=resume+5 framing_garbage=close writer=bytes once lost the last bytes of a 1002 under load): the
+    box shuts its side after the answers and reads what still comes until the peer closes (a race, so this checks
+    the behaviour, not the loss)."""
+    with knob_box(framing_shape="resume+5", framing_garbage="close", writer="bytes") as b, connect(b) as s:
+        s.sendall(bytes.fromhex("fefe 0001 01 25 02 00 0005 0000 0000"))  # N=0: rejected, then garbage: close
+        assert read(s, 14) == answer(0x25, 0x1002)
+        assert closed(s)
+        s.sendall(NONE)  # after the box's FIN it still reads (and drops) what comes
+        assert s.recv(1) == b""

@@ -31,6 +31,7 @@ LEAKY_LIMIT = 64
 FLOOD_HEADER = bytes.fromhex("fefe00011023 01ffffff0000".replace(" ", ""))
 LATENCY = {"0": 0.0, "2ms": 0.002, "20ms": 0.020, "100ms": 0.100}
 PIECE_PAUSE = 0.005  # writer "pieces": the header, then the rest this long after
+LINGER = 1.0  # seconds a closing box reads (and drops) what still comes before it closes
 
 
 class ThreadBox:
@@ -158,6 +159,20 @@ class ThreadBox:
             answers.put(None)
             while writer.is_alive() and not self.stop_event.is_set():
                 writer.join(POLL)
+        self._linger(conn)
+
+    def _linger(self, conn: socket.socket) -> None:
+        """Before the close: read and drop what the peer still sends, until it closes (at most LINGER s). A close
+        with unread bytes would be a reset, and a reset makes the peer's stack drop the answers not yet read."""
+        deadline = time.monotonic() + LINGER
+        while time.monotonic() < deadline and not self.stop_event.is_set():
+            try:
+                if not conn.recv(65536):
+                    return
+            except TimeoutError:
+                continue
+            except OSError:
+                return
 
     def _frame_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         choices = self.choices
@@ -206,7 +221,7 @@ class ThreadBox:
                 return
             if reply.close or not self._write(conn, reply.data):
                 with contextlib.suppress(OSError):
-                    conn.shutdown(socket.SHUT_RDWR)
+                    conn.shutdown(socket.SHUT_WR)  # the FIN follows the answers; the reader lingers, then closes
                 return
 
     def _write(self, conn: socket.socket, data: bytes) -> bool:
