@@ -460,3 +460,9 @@ def test_a_closing_box_answers_then_ends_the_stream_cleanly() -> None:
         assert closed(s)
         s.sendall(NONE)  # after the box's FIN it still reads (and drops) what comes
         assert s.recv(1) == b""
+
+
+def test_an_echoed_27_refusal_echoes_whatever_the_refusal_action_of_other_frames() -> None:
+    with knob_box(extension="absent", ext_refusal="error-echo", refusal_action="00") as b, connect(b) as s:
+        s.sendall(RESULT_REQ)
+        assert read(s, 14) == answer(0x27, 0xFFFF)

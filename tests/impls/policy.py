@@ -239,14 +239,13 @@ def decide(choices: Choices, event: Event, cycle: Cycle) -> Reply:
 def _not_request(choices: Choices, header: Header) -> Reply:
     if choices.defect == "no-resync":
         return HANG
-    how = choices.not_request
+    how, echo = choices.not_request, choices.refusal_action == "echo"
     if header.action in wire.EXT_ACTIONS and header.is_request_start() and header.transfer == wire.ROBOT_TO_BOX:
-        how = {"error-echo": "error", "error-00": "error-00"}.get(choices.ext_refusal, choices.ext_refusal)
+        how, echo = choices.ext_refusal, choices.ext_refusal == "error-echo"  # 26/27 without the extension
     if how == "close":
         return CLOSE
     if how.startswith("error") and header.start == 0xFEFE:
-        action = 0 if how == "error-00" or choices.refusal_action == "00" else header.action
-        return Reply(answer(choices, action, _ERRORS[choices.refusal_code]))
+        return Reply(answer(choices, header.action if echo else 0, _ERRORS[choices.refusal_code]))
     return SILENT
 
 
