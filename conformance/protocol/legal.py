@@ -179,7 +179,10 @@ def render_markdown() -> str:
         "of `tests/impls`. *knob* is the setting of the independent implementations in",
         "`tests/impls` (`python -m tests.impls.box random --seed N`, `python -m tests.impls.matrix --sample N`)",
         "that takes exactly these alternatives; a test fails when a row has an alternative that is no knob",
-        "value.",
+        "value. A row without a knob is a decision a flag tells the tester (the independent implementations",
+        "read it one way). Decisions with a single reading are no choice and not listed: the CRC's coverage and",
+        "one frame per datagram (F7), poses answered 0000 with or without a cycle (S3), the readings D1–D6;",
+        "nor are SHOULDs (a box that breaks one is NON-STRICT, not another legal choice).",
         "",
     ]
     for side, title in (("box", "The box (server)"), ("robot", "The robot (client)")):
