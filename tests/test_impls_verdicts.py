@@ -38,7 +38,7 @@ BASE_SEED = 17  # the broken boxes' random legal bases (the matrix's --base-seed
 SAMPLE_SEED, BOX_SAMPLES, ROBOT_SAMPLES = 1, 3, 3
 #: about how long each run takes on a 2-core machine (s): tests/conftest.py starts the longest first. A box that
 #: stays silent after garbage, or drops coalesced requests, costs a time_out in each of ~60 malformed-input cases
-SECONDS = {"no-resync": 125, "drops-coalesced": 120, "one-at-a-time": 55, "byte-by-byte": 37}
+SECONDS = {"no-resync": 200, "drops-coalesced": 160, "one-at-a-time": 55, "byte-by-byte": 37}
 
 
 def params(exps: list[Expectation], default: float, known: dict[str, float] | None = None) -> list[object]:
@@ -76,7 +76,7 @@ def test_a_conforming_box_survives_the_fuzz_cases_under_another_seed(exp: Expect
 
 @pytest.mark.parametrize("exp", params([e for e in BOXES if not e.conforming], 20))
 def test_a_broken_box_is_blamed_on_its_defect(exp: Expectation, tmp_path: Path) -> None:
-    row = run(exp, tmp_path, time_out=2000, base_seed=BASE_SEED)
+    row = run(exp, tmp_path, time_out=2000, base_seed=BASE_SEED, limit=420)  # no-resync: 249 s under load
     assert row.judgement == "ok", explain(row)
     assert row.root_causes, explain(row)  # the first root cause named the defect (not a weaker first-case check)
 
