@@ -168,6 +168,10 @@ EXPECTATIONS = [
     ("inf-tolerance-strict", INF_TOL, {}, Rule.REJECT_SHOULD, "B4", 0x25, None, 0x1002),
     ("nan-pose-lenient", NAN_POSE, {"profile": LENIENT}, Rule.ANY, "B4", 0x23, None, None),
     ("inf-tolerance-lenient", INF_TOL, {"profile": LENIENT}, Rule.ANY, "B4", 0x25, None, None),
+    # B3: lenient takes either first index; a box that takes only its own may refuse the other (issue 17)
+    ("index-1-lenient", encode(request(A.POSE, pose_blocks([(1, 2, 3, 4, 5, 6)], 1))), {"profile": LENIENT}, Rule.ANY,
+     "B3", 0x23, None, None),
+    ("index-0-lenient", POSE, {"profile": LENIENT}, Rule.ANSWER, "", 0x23, {0}, None),
     # A3: a parse error under B1-B5 MUST NOT be answered 0000, SHOULD get its action's error
     ("b3-pose", BAD_INDEX, {}, Rule.REJECT, "B3", 0x23, None, 0x1001),
     ("b1-register-pose", raw(bytes(24), action=A.REGISTER_POSE, block_type=1, block_count=1, block_length=24), {},

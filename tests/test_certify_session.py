@@ -342,3 +342,36 @@ def test_the_stream_may_pipeline():
     fake.close(stream, 0.6)
     fake.close(cmd, 0.7)
     assert awaited(build_view(fake.session, DEFAULT_PROFILE), DEFAULT_PROFILE)[1] == []
+
+
+# -- several cycles in one session (several parts primed) ---------------------------------------------
+def test_several_cycles_in_one_session_are_canonical():
+    """CycleOn -> CycleOff -> CycleOn -> CycleOff between stream on and stream off (issue 17's false alarm)."""
+    fake, cmd, _ = canonical(cycle_on=0.2, cycle_off=0.4)
+    fake.send(cmd, 0.5, frame(Action.CYCLE_ON))
+    fake.send(cmd, 0.7, frame(Action.CYCLE_OFF))
+    result = order(fake)
+    assert not result.failed, (result.violations, result.missing)
+    assert result.steps["CycleOn"] == pytest.approx(0.2) and result.steps["CycleOff"] == pytest.approx(0.7)
+
+
+def test_cycle_on_twice_without_cycle_off_is_out_of_order():
+    fake, cmd, _ = canonical(cycle_on=0.2, cycle_off=0.6)
+    fake.send(cmd, 0.3, frame(Action.CYCLE_ON))
+    result = order(fake)
+    assert any(v.startswith("CYCLE_ON sent again at +300.0 ms while the cycle") for v in result.violations)
+
+
+def test_a_second_cycle_after_the_stream_closed_is_out_of_order():
+    fake, cmd, _ = canonical(cycle_on=0.2, cycle_off=0.4, stream_close=0.9, cmd_close=2.0)
+    fake.send(cmd, 1.0, frame(Action.CYCLE_ON))
+    fake.send(cmd, 1.1, frame(Action.CYCLE_OFF))
+    result = order(fake)
+    assert any("came" in v and "before CycleOff" in v for v in result.violations), result.violations
+
+
+def test_a_second_cycle_left_on_is_a_violation():
+    fake, cmd, _ = canonical(cycle_on=0.2, cycle_off=0.4)
+    fake.send(cmd, 0.5, frame(Action.CYCLE_ON))
+    result = order(fake)
+    assert any("CycleOn at +500.0 ms is never closed" in v for v in result.violations), result.violations

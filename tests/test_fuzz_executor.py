@@ -148,3 +148,39 @@ def test_bytes_holding_every_probe_action_go_without_a_probe_and_are_judged_afte
     assert result.probe is None and result.verdict is Verdict.PASS, result.judgement.describe()
     assert [o.frame.action for o in result.outcomes if isinstance(o, Answer)] == list(PROBE_ACTIONS)
     assert isinstance(result.end, Silence)  # the wait ended at time_out, nothing left for a next case
+
+
+def test_a_refusal_with_the_probe_s_action_then_a_close_is_a_legal_close() -> None:
+    """Issue 17, knobs not_request=error refusal_action=00 framing_version=resume+12 framing_garbage=close: the
+    box refuses a bad-version header with action 00 and an error, then closes on the bytes after it. With a NONE
+    probe the refusal looked like the probe's (wrong) answer and the close went unseen: a false R6 NON-STRICT."""
+    from tests.impls.boxcore import ThreadBox
+    from tests.impls.policy import knob_choices
+
+    knobs = {"not_request": "error", "refusal_action": "00", "framing_version": "resume+12", "framing_garbage": "close"}
+    bad_version = bytes.fromhex("fefe0101260301000500841012c6300c0000")
+    with ThreadBox(knob_choices(knobs)).start() as box:
+        ex = executor(box.port)
+        result = ex.run(S.case("t", "F2", bad_version, "t"))
+        ex.close()
+    assert result.probe is Action.NONE and isinstance(result.end, Closed)
+    assert len(result.outcomes) == 1 and result.outcomes[0].raw[5] == Action.NONE  # the refusal, action 00
+    assert result.verdict is Verdict.PASS, result.judgement.describe()
+
+
+def test_a_refusal_with_the_probe_s_action_before_other_answers_stays_the_case_s() -> None:
+    """Issue 17, knobs not_request=error refusal_action=00 (version resync one byte on) cycle_on_ready=first-not-ready:
+    FE FE FE 00 01 01 ... is refused with NONE 0001, then the CycleOn one byte in is answered 0001, then the NONE probe
+    0000. The refusal was taken for the probe's answer and the probe's 0000 for an extra one: a false A1/A4 FAIL."""
+    from tests.impls.boxcore import ThreadBox
+    from tests.impls.policy import knob_choices
+
+    knobs = {"not_request": "error", "refusal_action": "00", "refusal_code": "0001", "cycle_on_ready": "first-not-ready"}
+    spliced_cycle_on = b"\xfe" + encode(request(Action.CYCLE_ON))
+    with ThreadBox(knob_choices(knobs)).start() as box:
+        ex = executor(box.port)
+        result = ex.run(S.case("t", "F2", spliced_cycle_on, "t"))
+        ex.close()
+    assert result.probe is Action.NONE and isinstance(result.end, Answer) and result.end.frame.error_code == 0
+    assert [o.raw[5] for o in result.outcomes] == [Action.NONE, Action.CYCLE_ON]
+    assert result.verdict is Verdict.PASS, result.judgement.describe()

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
-from tests.impls.expectations import EXPECTATIONS, judge
-from tests.impls.matrix import Row, _read_summary, format_table, main
+from tests.impls.expectations import EXPECTATIONS, RANDOM, expectation, judge
+from tests.impls.matrix import Row, _read_summary, box_seed, format_table, main, sample_seeds, target_args
 
 
 def _summary(tmp: Path, cases: list[dict[str, object]], root_causes: list[dict[str, object]] | None) -> Path:
@@ -70,3 +71,28 @@ def test_rejudge_rewrites_the_table(tmp_path: Path) -> None:
     rows = json.loads((tmp_path / "matrix.json").read_text())
     assert rows[0]["judgement"] == "ok?" and "nan-zero" in (tmp_path / "matrix.md").read_text()
     assert main(["--rejudge", str(tmp_path / "missing")]) == 2
+
+
+def test_target_args_read_every_address_and_flag_of_the_box_s_first_line() -> None:
+    line = "listening tcp 127.0.0.1:4000 udp 127.0.0.1:4000 stream 127.0.0.1:4001 args --first-index 1 --checking lenient"
+    assert target_args(line) == ["--target", "127.0.0.1:4000", "--udp-target", "127.0.0.1:4000", "--stream-target",
+                                 "127.0.0.1:4001", "--first-index", "1", "--checking", "lenient"]
+    assert target_args("listening tcp 127.0.0.1:4000") == ["--target", "127.0.0.1:4000"]
+
+
+def test_samples_are_reproducible_and_each_names_its_box() -> None:
+    assert sample_seeds(3, 5) == sample_seeds(3, 5) != sample_seeds(4, 5)
+    assert sample_seeds(3, 8)[:5] == sample_seeds(3, 5)  # a longer sample starts with the shorter one
+    random_box = expectation(RANDOM)
+    assert random_box.conforming and box_seed(random_box, argparse.Namespace(base_seed=1), 42) == 42
+    broken = EXPECTATIONS["swapped-version"]
+    assert box_seed(broken, argparse.Namespace(base_seed=0), 1) is None  # the documented base
+    assert box_seed(broken, argparse.Namespace(base_seed=5), 1) == box_seed(broken, argparse.Namespace(base_seed=5), 9)
+
+
+def test_a_random_row_is_judged_clean_or_a_false_alarm(tmp_path: Path) -> None:
+    report = _summary(tmp_path / "a", [_case("F6-02", "NON-STRICT", ["F6"])], [])
+    row = Row(RANDOM, "box", "conforming", "clean", seed=7, exit=0)
+    _read_summary(row, report)
+    assert row.judgement.startswith("FALSE ALARM")
+    assert main(["--sample", "1001"]) == 2 and main(["--base-seed", "-1"]) == 2

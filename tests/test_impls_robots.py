@@ -190,7 +190,7 @@ def test_broken_robots_send_their_defect(recorder: Recorder, name: str, check) -
 
 
 def test_slow_stream_sends_below_the_declared_rate(recorder: Recorder) -> None:
-    outcome, (cmd, stream) = play(recorder, "slow-stream", rate_hz=50.0)
+    outcome, (cmd, stream) = play(recorder, "slow-stream", rate="50")
     assert outcome.exit_code == 0, outcome.reason
     sent = len(stream.frames)
     span = stream.frames[-1][0] - stream.frames[0][0]
@@ -243,3 +243,32 @@ def test_robot_command_line(recorder: Recorder) -> None:
     bad = subprocess.run([sys.executable, "-m", "tests.impls.robot", "canonical", "--target", "nonsense"],
                          cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and bad.stderr.startswith("error:")
+
+
+# -- the robot's knobs (its legal choices) -------------------------------------------------------------------
+def test_knobs_several_cycles_pings_poses_and_tolerances_on_the_command_connection(recorder: Recorder) -> None:
+    outcome, (cmd, stream) = play(recorder, "canonical", cycles="2", pings="3", cmd_poses="register",
+                                  tolerance_at="in-cycle", tolerance_blocks="17")
+    assert outcome.exit_code == 0, outcome.reason
+    assert cmd.actions() == [0x00, 0x00, 0x24, 0x01, 0x00, 0x25, 0x02, 0x01, 0x02]
+    tol = next(f for _, f in cmd.frames if f[5] == 0x25)
+    assert tol[7] == 17 and [tol[12 + 5 * i] for i in range(17)] == list(range(17))
+    assert stream.opened < first_time(cmd, 0x01) and stream.eof is not None
+
+
+@pytest.mark.parametrize("writer", ["pieces", "bytes"])
+def test_knob_writer_sends_frames_in_pieces_that_a_box_puts_together(recorder: Recorder, writer: str) -> None:
+    outcome, (cmd, stream) = play(recorder, "canonical", writer=writer)
+    assert outcome.exit_code == 0, outcome.reason
+    assert cmd.actions() == [0x01, 0x02] and set(stream.actions()) == {0x23}
+
+
+def test_random_robots_are_reproducible_and_ask_for_their_flags() -> None:
+    from tests.impls.robot import variant
+    from tests.impls.robots import KNOBS
+
+    assert variant("random", 3).choices == variant("random", 3).choices
+    seen = {k: {variant("random", s).choices.knobs()[k] for s in range(200)} for k in KNOBS}
+    assert seen == {k: set(v) for k, v in KNOBS.items()}
+    e4 = next(variant("random", s).choices for s in range(200) if variant("random", s).choices.session == "E4")
+    assert "--extension" in e4.suite_args()

@@ -163,15 +163,15 @@ def _stream_poses(isight: CaseContext, stream: TcpConnection, poses: Sequence[Se
 
 
 def _request_result(isight: CaseContext, conn: TcpConnection) -> int:
-    """27 within vision_time_out; 202 (busy) is retried until vision_time_out has passed."""
+    """27 within vision_time_out; 202 (busy) is retried until vision_time_out has passed. Each try waits its
+    own vision_time_out (E5 bounds every 27), not what is left of the first one's."""
     vision_s = isight.profile.vision_time_out_ms / 1000
     deadline = time.monotonic() + vision_s
     retry_gap = min(0.2, vision_s / 10)
     tries = 0
     while True:
         tries += 1
-        outcome = conn.request(request(Action.VISION_RESULT), f"result request (27), try {tries}",
-                               timeout_s=max(0.001, deadline - time.monotonic()))
+        outcome = conn.request(request(Action.VISION_RESULT), f"result request (27), try {tries}", timeout_s=vision_s)
         isight.judge(outcome, "result", sent=isight.transcript.sent(conn.conn_id)[-14:])
         assert isinstance(outcome, Answer)
         value = outcome.frame.blocks[0].value  # type: ignore[union-attr]

@@ -172,6 +172,16 @@ def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_
     return collect(conn, probe, start, settle, timeout_s)
 
 
+def _probe_zero_at(first: Outcome, extra: list[Outcome], probe: int) -> int | None:
+    """Where the probe's own 0000 answer is among the ``extra`` answers after ``first`` (an
+    answer with the probe's action), when ``first`` was not the probe's: right after a first
+    0000, or anywhere after a first with an error (A5 lets a refusal of the bytes carry any
+    action, and the box may answer more of the bytes before it reads the probe)."""
+    if answers_zero(first, probe):
+        return 0 if extra and answers_zero(extra[0], probe) else None
+    return next((i for i, o in enumerate(extra) if answers_zero(o, probe)), None)
+
+
 def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle,
             timeout_s: float | None = None) -> Collected:
     """Everything the box sends until an answer with the probe's action (then the settle
@@ -191,9 +201,10 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
         extra = _settle(conn, settle.window(outcome.latency_s, not answers_zero(outcome, probe)))
         out.close = next((o for o in extra if isinstance(o, Closed)), None)
         extra = [o for o in extra if not isinstance(o, Closed)]
-        if extra and answers_zero(extra[0], probe):
-            out.outcomes.append(outcome)
-            outcome = extra.pop(0)
+        at = _probe_zero_at(outcome, extra, probe)
+        if at is not None:  # the probe's 0000 came later: everything before it answered the bytes
+            out.outcomes += [outcome, *extra[:at]]
+            outcome, extra = extra[at], extra[at + 1 :]
         out.outcomes += extra  # late extras: attribution sees them as answers nobody asked for
         out.end = outcome
         return out

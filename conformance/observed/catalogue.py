@@ -73,12 +73,13 @@ ANY_FRAME: tuple[Callable[[FrameRecord], bool], str] = (lambda r: True, "frame")
 S1_SPEC = spec("RB-S1-01", ("S1",), MUST, "Canonical session order (S1), both connections",
                "S1: the milestones command connect → Send_Pos_On (stream connect) → CycleOn → CycleOff → "
                "Send_Pos_Off (stream closes) → command disconnect, in that order",
-               "every milestone, in that order, each command once; NONE, poses (ISIGHT(3,35)), register poses "
+               "every milestone, in that order, each command once except CycleOn → CycleOff pairs, which may repeat "
+               "(several parts primed in one session), each CycleOn closed by its CycleOff; NONE, poses (ISIGHT(3,35)), register poses "
                "(ISIGHT(3,36)) and tolerances may come in between on the command connection")
 E4_SPEC = spec("RB-E4-01", ("E4", "S1"), MUST, "Canonical session order of the revision (E4), both connections",
                "E4: connect → ProgIdx → Send_Pos_On → CycleOn → trajectory → CycleOff → Send_Pos_Off → wait 1 s → "
                "result request → disconnect", "every milestone, in that order, each command once (27 may repeat after "
-               "202); NONE, poses, register poses and tolerances may come in between on the command connection")
+               "202; CycleOn → CycleOff pairs may repeat); NONE, poses, register poses and tolerances may come in between on the command connection")
 AWAIT_SPEC = spec("RB-A1-01", ("A1", "T1"), MUST, "Each answer awaited on the command connection",
                   "A1/T1: the robot waits for each answer (up to time_out; vision_time_out for 27) before its next "
                   "request; the stream may pipeline (S6)",

@@ -10,7 +10,10 @@ do after the cut is INCONCLUSIVE, not FAIL (S2); what it did before is judged.
 The canonical sessions are data (:data:`S1_STEPS`, :data:`E4_STEPS`), like the robot
 simulator's: each *milestone* gets the time it was first observed, and
 :func:`judge_order` checks that every milestone happened, in that order, with each
-command sent once. S1's milestones are connect → stream on → CycleOn → CycleOff →
+command sent once, except CycleOn and CycleOff: a robot may prime several parts in one
+session, so CycleOn → CycleOff pairs may repeat between stream on and stream off, each
+CycleOn closed by its CycleOff before the next (the milestone "CycleOn" is the first,
+"CycleOff" the last). S1's milestones are connect → stream on → CycleOn → CycleOff →
 stream off → disconnect; what the source's own calls send in between is legal (a NONE
 "ping" before anything, a pose or a register pose on the command connection as
 ``ISIGHT(3,35)`` / ``ISIGHT(3,36)`` send them, tolerances with any number of blocks,
@@ -32,7 +35,7 @@ E4_STEPS: tuple[str, ...] = (
     "command connect", "ProgIdx", "stream connect", "CycleOn", "CycleOff", "stream close", "result request",
     "command disconnect",
 )
-#: Commands of each canonical session, in order (each once; a 27 may repeat after a 202).
+#: Commands of each canonical session, in order (each once, except the cycle pairs; a 27 may repeat after a 202).
 S1_COMMANDS = (Action.CYCLE_ON, Action.CYCLE_OFF)
 E4_COMMANDS = (Action.PROG_IDX, Action.CYCLE_ON, Action.CYCLE_OFF, Action.VISION_RESULT)
 #: Requests allowed anywhere on the command connection: the optional ping (NONE), tolerances, and the
@@ -134,13 +137,16 @@ class OrderResult:
 def observe_steps(view: SessionView) -> dict[str, float | None]:
     cmd, stream = view.cmd, (view.streams[0] if view.streams else None)
     first: dict[int, float] = {}
+    last_off: float | None = None
     for conn in view.commands:
         for rec in view.requests(conn):
             action = rec.action
             assert action is not None
             first[action] = min(first.get(action, rec.t), rec.t)
+            if action == Action.CYCLE_OFF and view.before_cut(rec.t):
+                last_off = rec.t if last_off is None else max(last_off, rec.t)
     poses = view.pose_times(stream) if stream else []
-    on, off = first.get(Action.CYCLE_ON), first.get(Action.CYCLE_OFF)
+    on, off = first.get(Action.CYCLE_ON), last_off if last_off is not None else first.get(Action.CYCLE_OFF)
     in_cycle = [t for t in poses if on is not None and t > on and (off is None or t < off)]
     closed = (BY_ROBOT, BY_ROBOT_RESET)
     return {
@@ -182,10 +188,11 @@ def judge_order(view: SessionView, extension: bool) -> OrderResult:
                                      f"{latest[1]} at {view.ms(latest[0])}; the canonical order puts it after")
         if latest is None or t >= latest[0]:
             latest = (t, name)
-    # 2. each command once, nothing foreign on the command connection
+    # 2. each command once (the cycle pairs in turn), nothing foreign on the command connection
     expected = E4_COMMANDS if extension else S1_COMMANDS
     counts: dict[int, int] = {}
     previous: FrameRecord | None = None
+    cycles = _CyclePairs(view)
     for conn in view.commands:
         for rec in view.requests(conn):
             if not judged(rec.t):
@@ -197,6 +204,9 @@ def judge_order(view: SessionView, extension: bool) -> OrderResult:
             previous = rec
             if action in FREE_ACTIONS or polled:
                 continue
+            if action in (Action.CYCLE_ON, Action.CYCLE_OFF):
+                result.violations.extend(cycles.add(rec))
+                continue
             counts[action] = counts.get(action, 0) + 1
             if action not in expected and counts[action] == 1:
                 hint = " (the revision's session: rerun with --extension if the robot implements E4)" \
@@ -206,6 +216,8 @@ def judge_order(view: SessionView, extension: bool) -> OrderResult:
             elif action in expected and counts[action] == 2:
                 result.violations.append(f"{action_name(action)} sent again at {view.ms(rec.t)}; the canonical "
                                          "session sends it once")
+    if view.cut is None:
+        result.violations.extend(cycles.unclosed())
     # 3. one command and one stream connection
     for extra, what in ((view.commands[1:], "command"), (view.streams[1:], "stream")):
         extra = [c for c in extra if judged(c.t_open)]
@@ -222,6 +234,35 @@ def judge_order(view: SessionView, extension: bool) -> OrderResult:
             result.notes.append(f"the result request came {waited * 1000:.0f} ms after Send_Pos_Off; the revision "
                                 f"waits {E4_RESULT_WAIT_S:g} s (noted, not judged)")
     return result
+
+
+class _CyclePairs:
+    """CycleOn and CycleOff in turn: each CycleOn closed by its CycleOff before the next one."""
+
+    def __init__(self, view: SessionView) -> None:
+        self.view = view
+        self.open_at: float | None = None  # the CycleOn of the cycle that is on
+        self.closed_at: float | None = None  # the CycleOff that closed the last cycle
+
+    def add(self, rec: FrameRecord) -> list[str]:
+        ms = self.view.ms
+        if rec.action == Action.CYCLE_ON:
+            if self.open_at is not None:
+                return [f"CYCLE_ON sent again at {ms(rec.t)} while the cycle its CycleOn at {ms(self.open_at)} opened "
+                        "is still on; each CycleOn is closed by its CycleOff before the next"]
+            self.open_at = rec.t
+            return []
+        if self.open_at is None:
+            after = f"the CycleOff at {ms(self.closed_at)} already closed the last cycle" \
+                if self.closed_at is not None else "no CycleOn came before it"
+            return [f"CYCLE_OFF sent again at {ms(rec.t)}: {after}"]
+        self.open_at, self.closed_at = None, rec.t
+        return []
+
+    def unclosed(self) -> list[str]:
+        if self.open_at is None or self.closed_at is None:
+            return []  # no cycle closed at all: S1's "CycleOff missing" says it
+        return [f"the CycleOn at {self.view.ms(self.open_at)} is never closed by a CycleOff"]
 
 
 #: how a close the robot never made reads in S1's missing steps (the suite closed it after --linger)

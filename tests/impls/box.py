@@ -2,7 +2,12 @@
 
 ``python -m tests.impls.box --list`` lists them; ``python -m tests.impls.box VARIANT
 --port 0`` serves one on 127.0.0.1 (first stdout line: ``listening tcp 127.0.0.1:PORT``,
-plus `` udp 127.0.0.1:PORT`` when it serves UDP) until SIGTERM/SIGINT. In-process::
+plus `` udp 127.0.0.1:PORT`` when it serves UDP, `` stream 127.0.0.1:PORT`` when the
+stream has its own port, and `` args FLAG ...`` with the profile flags a tester needs)
+until SIGTERM/SIGINT. ``python -m tests.impls.box random --seed N`` serves a random legal
+combination of the knobs (:data:`tests.impls.policy.KNOBS`, one per row of the legal
+table); ``python -m tests.impls.box BROKEN --seed N`` a broken box on a random legal
+base. In-process::
 
     with start_box("resync-fine") as box:
         socket.create_connection(("127.0.0.1", box.port))
@@ -20,8 +25,8 @@ import threading
 from dataclasses import dataclass, replace
 
 from .boxcore import ThreadBox
-from .policy import DEFECTS, Choices
-from .wire import Check
+from .framers import PRESETS
+from .policy import DEFECTS, Choices, knob_choices, random_choices, with_framing
 
 
 @dataclass(frozen=True)
@@ -40,33 +45,35 @@ class Variant:
         return DEFECTS[self.choices.defect] if self.choices.defect else None
 
 
-_STRICT_REQUESTS = Check(reject_request_error=True)
+def _preset(framing: str, **knobs: str) -> Choices:
+    return with_framing(knob_choices(knobs), PRESETS[framing])
+
+
 _CONFORMING = [
-    Variant("resync-fine", Choices(framing="fine", malformed_cycle="silent"),
+    Variant("resync-fine", _preset("fine", malformed_blockless="silent"),
             "R6(b): only well-shaped request headers are trusted; a rejected header resumes the scan at its "
-            "second byte. Malformed CycleOn/CycleOff and 26/27 are left unanswered; cycle state per box"),
-    Variant("skip-header", Choices(framing="skip", malformed_ext="400", cycle_scope="connection",
-                                   check=Check(ignore_check=False)),
+            "second byte. Malformed 00/01/02 and 26/27 are left unanswered; cycle state per box"),
+    Variant("skip-header", _preset("skip", malformed_ext="400", cycle_scope="connection", tcp_check="zero-or-crc"),
             "R6(b'): a rejected header is skipped whole (12 bytes). TCP check must be 00 00 or the CRC (F6); "
             "malformed 26/27 get ResultCode 400; cycle state per connection"),
-    Variant("trust-header", Choices(framing="trust", malformed_ext="400", udp=True),
+    Variant("trust-header", _preset("trust", malformed_ext="400", udp="on"),
             "R6(a): trusts a header with the right start word and version and a plausible length (like the "
             "reference, written independently); serves UDP too (R7: bad datagrams dropped)"),
-    Variant("close-on-garbage", Choices(framing="close", on_not_request="close", malformed_cycle="silent"),
+    Variant("close-on-garbage", _preset("close", not_request="close", malformed_blockless="silent"),
             "R6(c)/A5: closes the connection on any bytes that are not a request; malformed requests get "
             "their error codes"),
-    Variant("byte-by-byte", Choices(framing="trust", writer="bytes"),
+    Variant("byte-by-byte", _preset("trust", writer="bytes"),
             "every answer written one byte per send(), with a 10 ms pause after the first byte"),
-    Variant("strict-cycle", Choices(framing="fine", strict_cycle=True, cycle_scope="connection",
-                                    check=_STRICT_REQUESTS),
+    Variant("strict-cycle", _preset("fine", cycle_on_twice="0001", cycle_off_idle="0002", cycle_scope="connection",
+                                    request_error_field="reject"),
             "S3: CycleOff without CycleOn -> 0002, CycleOn twice -> 0001, cycle state per connection; rejects "
             "requests whose error field is not 0000"),
-    Variant("strict-cycle-box", Choices(framing="trust", strict_cycle=True, cycle_scope="box"),
+    Variant("strict-cycle-box", _preset("trust", cycle_on_twice="0001", cycle_off_idle="0002", cycle_scope="box"),
             "S3: strict like strict-cycle, but one cycle state for the whole box (shared by all connections)"),
-    Variant("unknown-error", Choices(framing="fine", on_not_request="error", malformed_ext="400"),
+    Variant("unknown-error", _preset("fine", not_request="error", malformed_ext="400"),
             "A5: a frame with the right start word that is not a request is answered with its action byte "
             "and error FFFF instead of silence"),
-    Variant("nan-1001", Choices(framing="trust", check=Check(extension=False)),
+    Variant("nan-1001", _preset("trust", extension="absent"),
             "B4: NaN/inf answered 1001/1002; no extension E (26/27 are unknown actions: silence)"),
 ]
 
@@ -88,21 +95,56 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "nan-zero": ("trust-header", "NaN/inf in a pose or tolerance answered 0000"),
     "drops-coalesced": ("trust-header", "answers only the first of several frames that arrive in one read"),
 }
+#: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
+_BASE_FIXED: dict[str, dict[str, str]] = {
+    "one-at-a-time": {"stream_port": "same"},  # a second listener would serve a second connection at once
+    "no-resync": {"framing_garbage": "scan", "not_request": "silent", "ext_refusal": "silent",
+                  "framing_version": "resume+1"},  # it hangs where a conforming box resynchronises, not closes
+    "late-cycle-on": {"cycle_on_ready": "ready"},  # the late answer is a 0000 the suite waits for
+    "nan-zero": {"nan": "accept"},
+}
+#: knobs every run of the suite (the matrix) can serve: TCP only, one port
+_BROKEN_FIXED = {"udp": "off", "stream_port": "same"}
 
 
-def _broken(name: str) -> Variant:
+def _broken(name: str, base_seed: int | None = None) -> Variant:
+    """A broken box: the defect on its documented base, or (``base_seed``) on a random legal one."""
     base_name, what = _BROKEN[name]
-    base = _BASE[base_name]
-    choices = replace(base.choices, udp=False).with_defect(name)
-    return Variant(name, choices, f"{what} (built on {base_name}, TCP only)")
+    if base_seed is None:
+        choices = replace(_BASE[base_name].choices, udp="off").with_defect(name)
+        return Variant(name, choices, f"{what} (built on {base_name}, TCP only)")
+    fixed = _BROKEN_FIXED | _BASE_FIXED.get(name, {})
+    choices = random_choices(base_seed, fixed=fixed).with_defect(name)
+    return Variant(name, choices, f"{what} (built on random base {base_seed}, TCP only)")
 
 
 VARIANTS: dict[str, Variant] = {v.name: v for v in _CONFORMING} | {name: _broken(name) for name in _BROKEN}
+RANDOM = "random"
 
 
-def start_box(name: str, port: int = 0) -> ThreadBox:
+def variant(name: str, seed: int | None = None, *, pending: bool = False) -> Variant:
+    """A box by name; ``random`` (with ``seed``) is a random legal combination, a broken box with ``seed``
+    sits on a random legal base."""
+    if name == RANDOM:
+        if seed is None:
+            raise ValueError("the random box needs --seed")
+        choices = random_choices(seed, pending=pending)
+        return Variant(f"random#{seed}", choices, "a random legal combination: " + describe(choices))
+    if name in _BROKEN and seed is not None:
+        return _broken(name, seed)
+    return VARIANTS[name]
+
+
+def describe(choices: Choices) -> str:
+    """The knobs that differ from the defaults, ``knob=value`` (the defaults otherwise)."""
+    default = Choices()
+    diff = [f"{k}={v}" for k, v in choices.knobs().items() if getattr(default, k) != v]
+    return " ".join(diff) or "the defaults"
+
+
+def start_box(name: str, port: int = 0, seed: int | None = None) -> ThreadBox:
     """A started box (use it as a context manager, or call ``stop()``)."""
-    return ThreadBox(VARIANTS[name].choices, port=port).start()
+    return ThreadBox(variant(name, seed).choices, port=port).start()
 
 
 def _list() -> str:
@@ -115,35 +157,49 @@ def _list() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.impls.box", description=__doc__.split("\n\n")[0])
-    parser.add_argument("variant", nargs="?", help="which box (see --list)")
+    parser.add_argument("variant", nargs="?", help="which box (see --list), or 'random'")
     parser.add_argument("--port", type=int, default=0, help="TCP port on 127.0.0.1 (0: a free one)")
+    parser.add_argument("--seed", type=int, help="random: the combination; a broken box: its random legal base")
+    parser.add_argument("--all-knobs", action="store_true",
+                        help="random: also draw the knob values the suite judges wrongly until a pending fix lands")
+    parser.add_argument("--time-out", type=int, default=5000, metavar="MS", help="the time_out the box assumes")
     parser.add_argument("--list", action="store_true", help="list the variants and exit")
     args = parser.parse_args(argv)
     if args.list:
         print(_list())
         return 0
-    if args.variant not in VARIANTS:
-        print(f"error: unknown box {args.variant!r}; try --list", file=sys.stderr)
-        return 2
-    if not 0 <= args.port <= 65535:
-        print("error: --port must be 0..65535", file=sys.stderr)
+    try:
+        if args.variant not in VARIANTS and args.variant != RANDOM:
+            raise ValueError(f"unknown box {args.variant!r}; try --list")
+        if not 0 <= args.port <= 65535 or not 0 < args.time_out <= 600_000:
+            raise ValueError("--port must be 0..65535 and --time-out 1..600000")
+        chosen = variant(args.variant, args.seed, pending=args.all_knobs)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     try:
-        box = start_box(args.variant, args.port)
+        box = ThreadBox(replace(chosen.choices, time_out=args.time_out / 1000), port=args.port).start()
     except OSError as exc:
         print(f"error: cannot listen on 127.0.0.1:{args.port}: {exc.strerror or exc}", file=sys.stderr)
         return 2
     stopping = threading.Event()
     for sig in (signal.SIGTERM, signal.SIGINT):
         signal.signal(sig, lambda *_: stopping.set())
-    line = f"listening tcp 127.0.0.1:{box.port}"
-    if box.udp_port is not None:
-        line += f" udp 127.0.0.1:{box.udp_port}"
-    print(line, flush=True)
+    print(listening_line(box), flush=True)
     while not stopping.wait(0.5):
         pass
     box.stop()
     return 0
+
+
+def listening_line(box: ThreadBox) -> str:
+    line = f"listening tcp 127.0.0.1:{box.port}"
+    if box.udp_port is not None:
+        line += f" udp 127.0.0.1:{box.udp_port}"
+    if box.stream_port is not None:
+        line += f" stream 127.0.0.1:{box.stream_port}"
+    flags = box.choices.suite_args()
+    return line + (" args " + " ".join(flags) if flags else "")
 
 
 if __name__ == "__main__":

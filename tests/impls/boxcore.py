@@ -1,28 +1,37 @@
-"""A threaded AI Box (server role) built on plain sockets: one thread per connection.
+"""A threaded AI Box (server role) built on plain sockets: two threads per connection.
 
-``ThreadBox(choices)`` listens on 127.0.0.1 port 0 (TCP, and UDP when the choices
-say so); use it as a context manager or call ``start()``/``stop()``. Every thread
-polls a stop event at least every 0.2 s and every write is bounded, so ``stop()``
-returns within about a second whatever the peers do.
+``ThreadBox(choices)`` listens on 127.0.0.1 port 0 (TCP, a second TCP port for the
+stream when ``stream_port`` is "separate", and UDP when ``udp`` is "on"); use it as a
+context manager or call ``start()``/``stop()``. On each connection a reader thread
+frames what arrives (stamping when it arrived) and a writer thread sends each answer
+once its latency has passed, in request order, so a constant latency never grows
+on a pipelined stream. Every thread polls a stop event at least every 0.2 s and
+every write is bounded, so ``stop()`` returns within about a second whatever the
+peers do.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import queue
 import socket
 import struct
 import threading
 import time
+from collections.abc import Callable
 
-from .framers import FRAMERS, Framer
-from .policy import Choices, Cycle, decide, decide_datagram
+from .framers import Framer
+from .policy import Choices, Cycle, Reply, decide, decide_datagram
 
 POLL = 0.2
 WRITE_BOUND = 10.0  # seconds a peer may leave an answer unread before the box gives up on it
 MAX_CONNECTIONS = 1024  # R5: beyond this the box closes new connections at once
 LEAKY_LIMIT = 64
 FLOOD_HEADER = bytes.fromhex("fefe00011023 01ffffff0000".replace(" ", ""))
+LATENCY = {"0": 0.0, "2ms": 0.002, "20ms": 0.020, "100ms": 0.100}
+PIECE_PAUSE = 0.005  # writer "pieces": the header, then the rest this long after
+LINGER = 1.0  # seconds a closing box reads (and drops) what still comes before it closes
 
 
 class ThreadBox:
@@ -35,15 +44,16 @@ class ThreadBox:
         self.threads: set[threading.Thread] = set()
         self.leaked: list[socket.socket] = []
         self.opened = 0
-        self.listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self.listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.listener.bind((host, port))
-        self.listener.listen(512)
-        self.listener.settimeout(POLL)
+        self.listener = _listen(host, port)
         self.port: int = self.listener.getsockname()[1]
+        self.listeners = [self.listener]
+        self.stream_port: int | None = None
+        if choices.stream_port == "separate":
+            self.listeners.append(_listen(host, 0))
+            self.stream_port = self.listeners[1].getsockname()[1]
         self.udp: socket.socket | None = None
         self.udp_port: int | None = None
-        if choices.udp:
+        if choices.udp == "on":
             self.udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             try:  # the same port number as TCP when it is free
                 self.udp.bind((host, self.port))
@@ -62,9 +72,11 @@ class ThreadBox:
         self.stop()
 
     def start(self) -> ThreadBox:
-        targets = [self._accept_loop] + ([self._udp_loop] if self.udp is not None else [])
-        for target in targets:
-            thread = threading.Thread(target=target, name=f"box-{target.__name__}", daemon=True)
+        targets: list[tuple[Callable[..., None], tuple[object, ...]]] = [(self._accept_loop, (lst,))
+                                                                         for lst in self.listeners]
+        targets += [(self._udp_loop, ())] if self.udp is not None else []
+        for target, args in targets:
+            thread = threading.Thread(target=target, args=args, name=f"box-{target.__name__}", daemon=True)
             thread.start()
             self._main.append(thread)
         return self
@@ -73,8 +85,9 @@ class ThreadBox:
         self.stop_event.set()
         for thread in self._main:
             thread.join(5)
-        with contextlib.suppress(OSError):
-            self.listener.close()
+        for lst in self.listeners:
+            with contextlib.suppress(OSError):
+                lst.close()
         if self.udp is not None:
             with contextlib.suppress(OSError):
                 self.udp.close()
@@ -91,10 +104,10 @@ class ThreadBox:
         return self.stop_event.wait(seconds)
 
     # -- accepting ------------------------------------------------------------------------------
-    def _accept_loop(self) -> None:
+    def _accept_loop(self, listener: socket.socket) -> None:
         while not self.stop_event.is_set():
             try:
-                conn, _ = self.listener.accept()
+                conn, _ = listener.accept()
             except TimeoutError:
                 continue
             except OSError:
@@ -117,7 +130,7 @@ class ThreadBox:
             self.conns.add(conn)
         try:
             conn.settimeout(POLL)
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, int(self.choices.writer != "pieces"))
             defect = self.choices.defect
             if defect in ("flood-random", "flood-headers"):
                 self._flood_loop(conn)
@@ -135,11 +148,37 @@ class ThreadBox:
                 with contextlib.suppress(OSError):
                     conn.close()
 
-    # -- one connection ------------------------------------------------------------------------
+    # -- one connection: a reader frames and decides, a writer answers when due ----------------------------
     def _read_loop(self, conn: socket.socket) -> None:
+        answers: queue.Queue[tuple[float, Reply] | None] = queue.Queue()
+        writer = threading.Thread(target=self._write_loop, args=(conn, answers), name="box-writer", daemon=True)
+        writer.start()
+        try:
+            self._frame_loop(conn, answers)
+        finally:
+            answers.put(None)
+            while writer.is_alive() and not self.stop_event.is_set():
+                writer.join(POLL)
+        self._linger(conn)
+
+    def _linger(self, conn: socket.socket) -> None:
+        """Before the close: read and drop what the peer still sends, until it closes (at most LINGER s). A close
+        with unread bytes would be a reset, and a reset makes the peer's stack drop the answers not yet read."""
+        deadline = time.monotonic() + LINGER
+        while time.monotonic() < deadline and not self.stop_event.is_set():
+            try:
+                if not conn.recv(65536):
+                    return
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+
+    def _frame_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         choices = self.choices
-        framer: Framer = FRAMERS[choices.framing](choices.extension)
+        framer = Framer(choices.has_extension, choices.framing)
         cycle = self.cycle if choices.cycle_scope == "box" else Cycle()
+        latency = LATENCY[choices.latency]
         hung = choices.defect == "dead"
         while not self.stop_event.is_set():
             try:
@@ -148,6 +187,7 @@ class ThreadBox:
                 continue
             if not data:
                 return
+            arrived = time.monotonic()
             if hung:
                 continue  # read and discard: the connection stays open, silent
             framer.feed(data)
@@ -158,16 +198,31 @@ class ThreadBox:
                     hung = True
                     break
                 if reply.close:
+                    answers.put((arrived + latency, reply))
                     return
                 if not reply.data:
                     continue
                 answered += 1
                 if choices.defect == "drops-coalesced" and answered > 1:
                     continue  # only the first frame of each read is answered
-                if reply.delay and self.wait(reply.delay):
-                    return
-                if not self._write(conn, reply.data):
-                    return
+                answers.put((arrived + latency + reply.delay, reply))
+
+    def _write_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
+        """Answers in order, each at its due time; a close reply shuts the connection (the reader ends)."""
+        while not self.stop_event.is_set():
+            try:
+                item = answers.get(timeout=POLL)
+            except queue.Empty:
+                continue
+            if item is None:
+                return
+            due, reply = item
+            if self.wait(max(0.0, due - time.monotonic())):
+                return
+            if reply.close or not self._write(conn, reply.data):
+                with contextlib.suppress(OSError):
+                    conn.shutdown(socket.SHUT_WR)  # the FIN follows the answers; the reader lingers, then closes
+                return
 
     def _write(self, conn: socket.socket, data: bytes) -> bool:
         """Write one answer the box's way; False when the peer is gone or the box stops."""
@@ -178,6 +233,8 @@ class ThreadBox:
             if not self._send(conn, data[:1]) or self.wait(0.010):
                 return False
             return all(self._send(conn, data[i : i + 1]) for i in range(1, len(data)))
+        if writer == "pieces":  # Nagle on: the header now, the blocks and the check once it is acknowledged
+            return self._send(conn, data[:12]) and not self.wait(PIECE_PAUSE) and self._send(conn, data[12:])
         return self._send(conn, data)
 
     def _send(self, conn: socket.socket, data: bytes) -> bool:
@@ -217,6 +274,15 @@ class ThreadBox:
             if out is not None:
                 with contextlib.suppress(OSError):
                     udp.sendto(out, peer)
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    listener.bind((host, port))
+    listener.listen(512)
+    listener.settimeout(POLL)
+    return listener
 
 
 def _reset(conn: socket.socket) -> None:

@@ -1,4 +1,4 @@
-"""How a box cuts a TCP byte stream into frames: four legal choices (R6), sans-I/O.
+"""How a box cuts a TCP byte stream into frames, chosen per kind of bad field (R6), sans-I/O.
 
 ``feed(data)`` adds bytes; ``events()`` yields what was found, in order:
 
@@ -7,7 +7,14 @@
 * ``Rejected(header)``: a header the framer would not trust (the policy may
   answer it with its action's error when it is a request for a known action);
 * ``Garbage(n)``: ``n`` bytes skipped that were no frame;
-* ``Close()``: the framer gave up on the connection (close-on-garbage).
+* ``Close()``: the framer gave up on the connection.
+
+:class:`Framing` says what the framer does with each kind of bad header (the legal
+choices of ``conformance/protocol/legal.py``): ``trust`` (take its announced length as
+one frame: R6 a, only once start word and version are right and the length is
+plausible), ``resume+k`` (reject it and search the next FE FE from its k-th byte: R6 b)
+or ``close`` (R6 c: the header is rejected, then the connection closed). Bytes that are
+not FE FE where a frame should start are scanned past or close the connection.
 
 Every framer keeps at most one legal frame (``MAX_BODY`` + 14 bytes) plus one read.
 """
@@ -44,17 +51,86 @@ class Close:
 Event = Frame | Rejected | Garbage | Close
 
 
-class Framer:
-    """Base: a buffer and the scan for the next start word."""
+@dataclass(frozen=True)
+class Framing:
+    """One framer's choice per kind of bad field (the knobs framing_*)."""
 
-    def __init__(self, extension: bool = True) -> None:
+    garbage: str = "scan"  # scan | close
+    version: str = "resume+1"  # resume+k | close
+    length: str = "resume+1"  # resume+k | close (more than 255 pose blocks announced)
+    transfer: str = "trust"  # trust | resume+k | close
+    action: str = "trust"  # trust | resume+k | close (an unknown action)
+    shape: str = "trust"  # trust | resume+k (a known action whose block type, N or L does not fit)
+
+
+#: The four framers of earlier rounds, as presets (R6 a, b, b' and c).
+PRESETS: dict[str, Framing] = {
+    "trust": Framing(),
+    "fine": Framing(transfer="resume+1", action="resume+1", shape="resume+1"),
+    "skip": Framing(version="resume+12", length="resume+12", transfer="resume+12", action="resume+12",
+                    shape="resume+12"),
+    "close": Framing(garbage="close", version="close", length="close", transfer="close", action="close"),
+}
+
+
+class Framer:
+    """A buffer, the scan for the next start word, and the per-kind choice for each header."""
+
+    def __init__(self, extension: bool = True, framing: Framing | None = None) -> None:
         self.buf = bytearray()
         self.extension = extension
+        self.framing = framing or self.preset()
         self.closed = False
+
+    @classmethod
+    def preset(cls) -> Framing:
+        return PRESETS["trust"]
 
     def feed(self, data: bytes) -> None:
         if not self.closed:
             self.buf += data
+
+    def choice(self, h: Header) -> str:
+        """What this framer does with the header ``h`` (its start word is right)."""
+        f = self.framing
+        if h.version != 0x0001:
+            return f.version
+        if h.body > MAX_BODY:
+            return f.length
+        if h.transfer != ROBOT_TO_BOX:
+            return f.transfer
+        if not known(h.action, self.extension):
+            return f.action
+        if not h.shape_ok():
+            return f.shape
+        return "trust"
+
+    def events(self) -> Iterator[Event]:
+        while not self.closed:
+            if self.framing.garbage == "close":
+                if self.buf[: len(START)] != START[: len(self.buf)]:
+                    yield from self._close()
+                    return
+            else:
+                yield from self._to_start()
+            if len(self.buf) < HEADER_LEN:
+                return
+            h = Header.parse(self.buf)
+            choice = self.choice(h)
+            if choice == "close":
+                yield Rejected(h)
+                yield from self._close()
+                return
+            if choice != "trust":
+                skip = int(choice.removeprefix("resume+"))
+                yield Rejected(h)
+                del self.buf[:skip]
+                yield Garbage(skip)
+                continue
+            frame = self._take(h)
+            if frame is None:
+                return
+            yield frame
 
     def _to_start(self) -> Iterator[Event]:
         """Drop bytes before the next FE FE (keep a trailing FE: it may start one)."""
@@ -77,97 +153,43 @@ class Framer:
         del self.buf[:size]
         return Frame(data, header)
 
-    def events(self) -> Iterator[Event]:
-        raise NotImplementedError
+    def _close(self) -> Iterator[Event]:
+        self.closed = True
+        if self.buf:
+            yield Garbage(len(self.buf))
+        self.buf.clear()
+        yield Close()
 
 
-class Scanner(Framer):
-    """A framer that takes an acceptable header's frame whole and, on any other header,
-    drops ``skip_on_reject`` bytes and scans for the next start word."""
-
-    skip_on_reject = 1
-
-    def acceptable(self, h: Header) -> bool:
-        raise NotImplementedError
-
-    def events(self) -> Iterator[Event]:
-        while not self.closed:
-            yield from self._to_start()
-            if len(self.buf) < HEADER_LEN:
-                return
-            h = Header.parse(self.buf)
-            if not self.acceptable(h):
-                yield Rejected(h)
-                del self.buf[: self.skip_on_reject]
-                yield Garbage(self.skip_on_reject)
-                continue
-            frame = self._take(h)
-            if frame is None:
-                return
-            yield frame
+class TrustHeader(Framer):
+    """(a) Trust a header whose start word and version are right and whose announced
+    length is plausible (at most 255 pose blocks); skip it as one frame."""
 
 
-class ResyncFine(Scanner):
-    """(b) Trust only a header that is a well-shaped request; else resume one byte on.
+class ResyncFine(Framer):
+    """(b) Trust only a header that is a well-shaped request; else resume one byte on, so a
+    valid frame that begins inside a rejected header is still found."""
 
-    A header is taken when start word, version, transfer type, a known action and its
-    block shape (B5) are all right: its length is then bounded by 255 pose blocks.
-    Anything else is rejected and the scan for FE FE resumes at the header's second
-    byte, so a valid frame that begins inside a rejected header is still found.
-    """
-
-    def acceptable(self, h: Header) -> bool:
-        return h.is_request_start() and h.transfer == ROBOT_TO_BOX and known(h.action, self.extension) and h.shape_ok()
+    @classmethod
+    def preset(cls) -> Framing:
+        return PRESETS["fine"]
 
 
-class SkipHeader(ResyncFine):
+class SkipHeader(Framer):
     """Like :class:`ResyncFine`, but a rejected header's 12 bytes are skipped whole."""
 
-    skip_on_reject = HEADER_LEN
-
-
-class TrustHeader(Scanner):
-    """(a) Trust a header whose start word and version are right and whose announced
-    length is plausible (at most 255 pose blocks); skip it as one frame. Implausible
-    headers are rejected and the scan resumes one byte on."""
-
-    def acceptable(self, h: Header) -> bool:
-        return h.is_request_start() and h.body <= MAX_BODY
+    @classmethod
+    def preset(cls) -> Framing:
+        return PRESETS["skip"]
 
 
 class CloseOnGarbage(Framer):
-    """(c) Every byte must belong to a request: the stream must start with a header of
-    a request for a known action (right start word, version and transfer type), which
-    is taken whole. Anything else closes the connection; a request header announcing
-    more than 255 pose blocks is rejected (its action's error, A3) and then closed."""
+    """(c) Every byte must belong to a request; anything else closes the connection (a request
+    header announcing more than 255 pose blocks is first answered with its error, A3)."""
 
-    def events(self) -> Iterator[Event]:
-        while not self.closed:
-            if not self.buf:
-                return
-            if self.buf[: len(START)] != START[: len(self.buf)]:
-                yield from self._close()
-                return
-            if len(self.buf) < HEADER_LEN:
-                return
-            h = Header.parse(self.buf)
-            if not h.is_request_start() or h.transfer != ROBOT_TO_BOX or not known(h.action, self.extension):
-                yield from self._close()
-                return
-            if h.body > MAX_BODY:  # a request whose length cannot be right: its error (A3), then close
-                yield Rejected(h)
-                yield from self._close()
-                return
-            frame = self._take(h)
-            if frame is None:
-                return
-            yield frame
-
-    def _close(self) -> Iterator[Event]:
-        self.closed = True
-        yield Garbage(len(self.buf))
-        self.buf.clear()
-        yield Close()
+    @classmethod
+    def preset(cls) -> Framing:
+        return PRESETS["close"]
 
 
 FRAMERS: dict[str, type[Framer]] = {

@@ -1,9 +1,17 @@
 """Run the conformance suite against every independent implementation and tabulate the verdicts.
 
-``python -m tests.impls.matrix [--only NAME ...] [--seeds N] [--time-out MS] [--jobs 1]``
+``python -m tests.impls.matrix [--only NAME ...] [--seeds N] [--time-out MS] [--jobs 1] [--base-seed B]``
+``python -m tests.impls.matrix --sample N --seed S [--jobs J] [--all-knobs]``
+
+``--sample`` runs N random legal combinations of the box's knobs instead (drawn from
+``--seed``, reproducible: combination i is ``python -m tests.impls.box random --seed``
+its own seed, shown in the table), each against the full suite with the fuzz cases
+under that seed; every one must come out clean. Broken boxes sit on a random legal base
+drawn from ``--base-seed`` and their name (0: the documented base).
 
 For each box: start ``python -m tests.impls.box NAME --port 0`` (its own process), then
-``isight-conformance run --target 127.0.0.1:PORT --quiet --report-dir DIR --pcap-dir DIR``.
+``isight-conformance run --target 127.0.0.1:PORT --quiet --report-dir DIR --pcap-dir DIR``
+(plus ``--udp-target``, ``--stream-target`` and the profile flags the box's first line asks for).
 For each robot: start ``isight-conformance certify-robot --listen 127.0.0.1:0``, then
 ``python -m tests.impls.robot NAME --target`` the printed port. Every process has a hard
 wall-clock bound and the suite a resident-memory cap (both killed and reported beyond
@@ -18,16 +26,18 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import random
 import shutil
 import signal
 import subprocess
 import sys
 import time
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from .expectations import EXPECTATIONS, Expectation, judge
+from .expectations import EXPECTATIONS, RANDOM, Expectation, expectation, judge
 
 ROOT = Path(__file__).resolve().parents[2]
 SHORT = {"FAIL": "FAIL", "ERROR": "ERR", "NON-STRICT": "NS", "INCONCLUSIVE": "INC", "INFORMATIONAL": "INFO",
@@ -49,6 +59,8 @@ class Row:
     peak_rss_mb: float = 0.0
     judgement: str = ""
     notes: list[str] = field(default_factory=list)
+    box_seed: int | None = None  # random: the combination; broken: its random base (None: the documented one)
+    knobs: str = ""  # the box's knobs that differ from the defaults
 
 
 def suite_command() -> list[str]:
@@ -186,7 +198,7 @@ def _read_summary(row: Row, report: Path) -> tuple[str, ...]:
 
 
 def _judge(row: Row, root_causes: list[dict[str, object]] | None, first_clauses: tuple[str, ...]) -> None:
-    row.judgement = judge(EXPECTATIONS[row.name], row.exit, row.totals, root_causes, first_clauses)
+    row.judgement = judge(expectation(row.name, row.role), row.exit, row.totals, root_causes, first_clauses)
 
 
 def _new_row(exp: Expectation, seed: int) -> Row:
@@ -199,18 +211,45 @@ def _suite_flags(args: argparse.Namespace, seed: int, seeded: bool) -> list[str]
     return flags + (["--seed", str(seed)] if seeded else [])
 
 
+def box_seed(exp: Expectation, args: argparse.Namespace, seed: int) -> int | None:
+    """The box's own seed: a random combination's is the run's; a broken box's base comes from --base-seed."""
+    if exp.name == RANDOM:
+        return seed
+    base = getattr(args, "base_seed", 0)
+    if exp.role != "box" or exp.conforming or not base:
+        return None
+    return (zlib.crc32(exp.name.encode()) + base) % 1_000_000
+
+
+def target_args(line: str) -> list[str]:
+    """The suite's flags from the box's first line: tcp, udp, stream ADDRESS pairs, then ``args`` FLAGS."""
+    words = line.split()
+    head, _, flags = " ".join(words[1:]).partition(" args ")
+    pairs = head.split()
+    where = {"tcp": "--target", "udp": "--udp-target", "stream": "--stream-target"}
+    out = []
+    for kind, address in zip(pairs[::2], pairs[1::2]):
+        out += [where[kind], address] if kind in where else []
+    return out + flags.split()
+
+
 def run_box(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, seeded: bool) -> Row:
     row = _new_row(exp, seed)
+    row.box_seed = box_seed(exp, args, seed)
     work = out / f"{exp.name}-{seed}"
     work.mkdir(parents=True, exist_ok=True)
-    box = Proc([sys.executable, "-m", "tests.impls.box", exp.name, "--port", "0"], work, "box")
+    box_cmd = [sys.executable, "-m", "tests.impls.box", exp.name, "--port", "0"]
+    box_cmd += ["--seed", str(row.box_seed)] if row.box_seed is not None else []
+    box_cmd += ["--time-out", str(args.time_out)] if args.time_out else []
+    box_cmd += ["--all-knobs"] if getattr(args, "all_knobs", False) else []
+    box = Proc(box_cmd, work, "box")
     line = box.first_line(20)
     if line is None or not line.startswith("listening tcp "):
         row.notes.append(f"box did not start: {box.last_line() or line!r}")
         box.stop()
         return _finish(row, box)
-    words = line.split()
-    target = ["--target", words[2]] + (["--udp-target", words[4]] if len(words) >= 5 and words[3] == "udp" else [])
+    row.knobs = _knobs(exp, row.box_seed, getattr(args, "all_knobs", False))
+    target = target_args(line)
     suite = Proc(suite_command() + ["run", *target, "--quiet", "--report-dir", str(work / "report"),
                                     "--pcap-dir", str(work / "pcaps"), *exp.suite_args,
                                     *_suite_flags(args, seed, seeded)], work, "suite")
@@ -222,27 +261,40 @@ def run_box(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, se
 
 
 def run_robot(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, seeded: bool) -> Row:
+    from .robot import variant  # the robot's own knobs, for the flags certify-robot needs (same code as the process)
+
     row = _new_row(exp, seed)
+    row.box_seed = seed if exp.name == RANDOM else None
+    robot = variant(exp.name, row.box_seed)
+    row.knobs = robot.description.removeprefix("a random legal combination: ") if exp.name == RANDOM else ""
     work = out / f"{exp.name}-{seed}"
     work.mkdir(parents=True, exist_ok=True)
+    flags = robot.choices.suite_args() if exp.name == RANDOM else ()
     suite = Proc(suite_command() + ["certify-robot", "--listen", "127.0.0.1:0", "--no-udp", "--quiet",
                                     "--wait", "60", "--max-session", str(min(args.limit, 300)),
                                     "--report-dir", str(work / "report"), "--pcap-dir", str(work / "pcaps"),
-                                    *exp.suite_args, *_suite_flags(args, seed, False)], work, "suite")
+                                    *exp.suite_args, *flags, *_suite_flags(args, seed, False)], work, "suite")
     line = suite.first_line(30)  # certify-robot has no fuzz cases and so no --seed: a seed is a plain repeat
     if line is None or not line.startswith("listening tcp "):
         row.notes.append(f"certify-robot did not start: {suite.last_line() or line!r}")
         suite.kill("did not start")
         return _finish(row, suite)
     robot_cmd = [sys.executable, "-m", "tests.impls.robot", exp.name, "--target", line.split()[2]]
+    robot_cmd += ["--seed", str(seed)] if exp.name == RANDOM else []
     if args.time_out:
         robot_cmd += ["--time-out", str(args.time_out)]
-    robot = Proc(robot_cmd, work, "robot")
-    robot_rc = robot.wait(120)
-    row.notes.append(f"robot exit {robot_rc if robot_rc is not None else robot.killed}"
-                     + (f": {robot.last_line()}" if robot_rc else ""))
+    player = Proc(robot_cmd, work, "robot")
+    robot_rc = player.wait(120)
+    row.notes.append(f"robot exit {robot_rc if robot_rc is not None else player.killed}"
+                     + (f": {player.last_line()}" if robot_rc else ""))
     row.exit = suite.wait(args.limit, args.mem_limit)
     return _finish(row, suite, work / "report")
+
+
+def _knobs(exp: Expectation, seed: int | None, pending: bool) -> str:
+    from .box import describe, variant  # the box's own description of its knobs (same code as the process)
+
+    return describe(variant(exp.name, seed, pending=pending).choices) if seed is not None else ""
 
 
 def _finish(row: Row, suite: Proc, report: Path | None = None) -> Row:
@@ -266,8 +318,11 @@ def format_table(rows: list[Row]) -> str:
         totals = " ".join(f"{SHORT.get(k, k)}{v}" for k, v in r.totals.items())
         causes = "(no key)" if r.root_causes is None else ("; ".join(r.root_causes) or "[]")
         name = r.name if not r.seed else f"{r.name}#{r.seed}"
+        notes = r.notes + ([f"knobs: {r.knobs}"] if r.knobs else [])
+        if r.box_seed is not None and r.name != RANDOM:
+            notes.append(f"base seed {r.box_seed}")
         lines.append(f"| {name} | {r.role} | {r.kind} | {r.expected} | {r.judgement} | {r.exit} | {r.wall_s} | "
-                     f"{r.peak_rss_mb} | {totals} | {'<br>'.join(r.first)} | {causes} | {'; '.join(r.notes)} |")
+                     f"{r.peak_rss_mb} | {totals} | {'<br>'.join(r.first)} | {causes} | {'; '.join(notes)} |")
     return "\n".join(lines)
 
 
@@ -288,7 +343,7 @@ def rejudge(out: Path) -> int:
         print(f"error: cannot read {out / 'matrix.json'}: {exc}", file=sys.stderr)
         return 2
     for row in rows:
-        row.expected = _new_row(EXPECTATIONS[row.name], row.seed).expected
+        row.expected = _new_row(expectation(row.name, row.role), row.seed).expected
         row.first, row.root_causes, row.judgement = [], None, ""
         row.notes = [n for n in row.notes if not n.startswith(("no summary.json", "root_causes is empty"))]
         report = out / f"{row.name}-{row.seed}" / "report"
@@ -304,6 +359,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="+", metavar="NAME", help="only these implementations")
     parser.add_argument("--seeds", type=int, default=1, metavar="N",
                         help="runs per implementation: boxes with run --seed 1..N (fuzz cases), robots repeated")
+    parser.add_argument("--sample", type=int, default=0, metavar="N",
+                        help="run N random legal combinations instead (boxes; robots with --role robot)")
+    parser.add_argument("--seed", type=int, default=1, metavar="S", help="--sample draws its combinations from S")
+    parser.add_argument("--role", choices=("box", "robot"), default="box", help="what --sample samples (default box)")
+    parser.add_argument("--all-knobs", action="store_true",
+                        help="--sample: also draw the knob values a pending fix elsewhere is needed for (policy.PENDING)")
+    parser.add_argument("--base-seed", type=int, default=1, metavar="B",
+                        help="broken boxes sit on a random legal base drawn from B and their name (0: documented base)")
     parser.add_argument("--time-out", type=int, default=0, metavar="MS", help="time_out for the suite and robots")
     parser.add_argument("--jobs", type=int, default=1, help="implementations run at once (default 1)")
     parser.add_argument("--limit", type=float, default=1800, metavar="S", help="hard bound per suite run (s)")
@@ -316,14 +379,19 @@ def main(argv: list[str] | None = None) -> int:
         return rejudge(args.rejudge)
     names = args.only or list(EXPECTATIONS)
     unknown = [n for n in names if n not in EXPECTATIONS]
-    if unknown or not 1 <= args.seeds <= 100 or not 1 <= args.jobs <= 8 or args.limit <= 0:
-        print(f"error: {'unknown implementation(s): ' + ', '.join(unknown) if unknown else 'bad --seeds/--jobs/--limit'}",
+    if unknown or not 1 <= args.seeds <= 100 or not 1 <= args.jobs <= 8 or args.limit <= 0 \
+            or not 0 <= args.sample <= 1000 or args.base_seed < 0:
+        print(f"error: {'unknown implementation(s): ' + ', '.join(unknown) if unknown else 'bad --seeds/--jobs/--limit/--sample/--base-seed'}",
               file=sys.stderr)
         return 2
     out = args.out or ROOT / "reports" / time.strftime("impls-matrix-%Y%m%d-%H%M%S")
     out.mkdir(parents=True, exist_ok=True)
-    seeds = [0] if args.seeds == 1 else list(range(1, args.seeds + 1))  # 0: the suite's own default
-    jobs = [(EXPECTATIONS[n], seed) for n in names for seed in seeds]
+    if args.sample:
+        jobs = [(expectation(RANDOM, args.role), seed) for seed in sample_seeds(args.seed, args.sample)]
+    else:
+        seeds = [0] if args.seeds == 1 else list(range(1, args.seeds + 1))  # 0: the suite's own default
+        jobs = [(EXPECTATIONS[n], seed) for n in names for seed in seeds]
+    t0 = time.monotonic()
 
     def one(job: tuple[Expectation, int]) -> Row:
         exp, seed = job
@@ -335,7 +403,19 @@ def main(argv: list[str] | None = None) -> int:
 
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(one, jobs))
-    return write_table(rows, out)
+    status = write_table(rows, out)
+    clean = sum(r.judgement == "ok" for r in rows)
+    walls = sorted(r.wall_s for r in rows)
+    print(f"{len(rows)} run, {clean} as expected, {len(rows) - clean} not; wall per run min {walls[0]} s, "
+          f"median {walls[len(walls) // 2]} s, max {walls[-1]} s; {time.monotonic() - t0:.0f} s in all "
+          f"at --jobs {args.jobs}")
+    return status
+
+
+def sample_seeds(seed: int, n: int) -> list[int]:
+    """The seeds of ``n`` random combinations drawn from ``seed`` (each names one box or robot)."""
+    rng = random.Random(seed)
+    return [rng.randrange(1, 1_000_000) for _ in range(n)]
 
 
 if __name__ == "__main__":

@@ -2,7 +2,9 @@
 
 ``python -m tests.impls.robot --list`` lists them; ``python -m tests.impls.robot VARIANT
 --target HOST:PORT`` plays one session against a box (e.g. ``isight-conformance
-certify-robot``) and exits 0, or non-zero with one line on stderr. In-process::
+certify-robot``) and exits 0, or non-zero with one line on stderr; ``random --seed N``
+plays a random legal combination of the robot's knobs (``--flags`` prints the
+certify-robot flags it needs and exits). In-process::
 
     outcome = Robot(ROBOTS["canonical"].choices, ("127.0.0.1", port)).run()
 
@@ -18,7 +20,7 @@ import threading
 from dataclasses import dataclass, replace
 from typing import Any
 
-from .robots import Outcome, Robot, RobotChoices
+from .robots import Outcome, Robot, RobotChoices, random_choices
 
 
 @dataclass(frozen=True)
@@ -35,7 +37,7 @@ class RobotVariant:
 
     @property
     def extension(self) -> bool:
-        return self.choices.session == "extension"
+        return self.choices.session == "E4"
 
 
 _CANONICAL = RobotChoices()
@@ -43,11 +45,12 @@ _LIST = [
     RobotVariant("canonical", _CANONICAL,
                  "S1: connect, stream on (waits for the first pose answer), CycleOn, 2 s trajectory, CycleOff, "
                  "stream off (waits for the answers), disconnect; lock-step on the command connection"),
-    RobotVariant("karel-calls", replace(_CANONICAL, session="karel", read_late=True),
+    RobotVariant("karel-calls", replace(_CANONICAL, pings="1", tolerance_at="start", tolerance_blocks="3",
+                                        cmd_poses="both", read_late="late"),
                  "pings (00), tolerance with 3 blocks (25), stream on, a pose (23, ISIGHT(3,35)) and a register "
                  "pose (24, ISIGHT(3,36,PR_ID)) on the command connection, then S1; reads the stream's answers in "
                  "bursts every 0.5 s; closes the stream before the command connection"),
-    RobotVariant("extension", replace(_CANONICAL, session="extension"),
+    RobotVariant("extension", replace(_CANONICAL, session="E4"),
                  "E4: ProgIdx (26) first, then S1, stream off, 1 s wait, result request (27)"),
     RobotVariant("transfer-10", replace(_CANONICAL, transfer=0x10),
                  "every frame carries transfer type 10 (box->robot)", "F3"),
@@ -64,6 +67,18 @@ _LIST = [
                  "pose and tolerance floats little-endian", "F4"),
 ]
 ROBOTS: dict[str, RobotVariant] = {v.name: v for v in _LIST}
+RANDOM = "random"
+
+
+def variant(name: str, seed: int | None = None) -> RobotVariant:
+    """A robot by name; ``random`` with ``seed`` is a random legal combination of the knobs."""
+    if name != RANDOM:
+        return ROBOTS[name]
+    if seed is None:
+        raise ValueError("the random robot needs --seed")
+    choices = random_choices(seed)
+    diff = [f"{k}={v}" for k, v in choices.knobs().items() if getattr(_CANONICAL, k) != v]
+    return RobotVariant(f"random#{seed}", choices, "a random legal combination: " + (" ".join(diff) or "canonical"))
 
 
 def _target(text: str) -> tuple[str, int]:
@@ -73,17 +88,19 @@ def _target(text: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
-def run_robot(name: str, target: tuple[str, int], **overrides: Any) -> Outcome:
+def run_robot(name: str, target: tuple[str, int], seed: int | None = None, **overrides: Any) -> Outcome:
     """Play one session of robot ``name`` (every wait bounded)."""
-    return Robot(replace(ROBOTS[name].choices, **overrides), target).run()
+    return Robot(replace(variant(name, seed).choices, **overrides), target).run()
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.impls.robot", description=__doc__.split("\n\n")[0])
-    parser.add_argument("variant", nargs="?", help="which robot (see --list)")
+    parser.add_argument("variant", nargs="?", help="which robot (see --list), or 'random'")
+    parser.add_argument("--seed", type=int, help="random: the combination")
+    parser.add_argument("--flags", action="store_true", help="print the certify-robot flags the robot needs, exit")
     parser.add_argument("--target", default="127.0.0.1:9004", help="the box, HOST:PORT (default 127.0.0.1:9004)")
     parser.add_argument("--duration", type=float, default=2.0, help="primer trajectory seconds (default 2)")
-    parser.add_argument("--rate", type=float, default=50.0, help="declared stream rate in Hz (default 50)")
+    parser.add_argument("--rate", type=float, help="declared stream rate in Hz (default: the robot's, 50)")
     parser.add_argument("--time-out", type=int, default=5000, metavar="MS", help="time_out in ms (default 5000)")
     parser.add_argument("--vision-time-out", type=int, default=5000, metavar="MS", help="for 27 (default 5000)")
     parser.add_argument("--list", action="store_true", help="list the variants and exit")
@@ -93,17 +110,21 @@ def main(argv: list[str] | None = None) -> int:
             kind = "conforming" if v.conforming else f"broken [{v.clause}]"
             print(f"{v.name:<16} {kind:<14} {v.description}")
         return 0
-    if args.variant not in ROBOTS:
-        print(f"error: unknown robot {args.variant!r}; try --list", file=sys.stderr)
-        return 2
     try:
+        if args.variant not in ROBOTS and args.variant != RANDOM:
+            raise ValueError(f"unknown robot {args.variant!r}; try --list")
+        chosen = variant(args.variant, args.seed)
+        if args.flags:
+            print(" ".join(chosen.choices.suite_args()))
+            return 0
         target = _target(args.target)
-        if not 0 < args.duration <= 600 or not 0 < args.rate <= 1000 or not 0 < args.time_out <= 600_000:
+        rate = chosen.choices.rate if args.rate is None else f"{args.rate:g}"
+        if not 0 < args.duration <= 600 or not 0 < float(rate) <= 1000 or not 0 < args.time_out <= 600_000:
             raise ValueError("--duration, --rate and --time-out must be positive and sane")
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    choices = replace(ROBOTS[args.variant].choices, duration=args.duration, rate_hz=args.rate,
+    choices = replace(chosen.choices, duration=args.duration, rate=rate,
                       time_out=args.time_out / 1000, vision_time_out=args.vision_time_out / 1000)
     robot = Robot(choices, target)
     result: list[Outcome] = []

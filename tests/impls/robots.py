@@ -2,7 +2,11 @@
 
 ``Robot(choices, ("127.0.0.1", port)).run()`` plays one session and returns an
 :class:`Outcome`; every wait is bounded (``time_out``, ``vision_time_out``, the
-trajectory) and ``stop()`` aborts from another thread. The command connection is
+trajectory) and ``stop()`` aborts from another thread. :data:`KNOBS` is the robot's
+side of the legal-choice space (``conformance/protocol/legal.py``): pings, poses and
+tolerances on the command connection, several cycles per session, requests written in
+pieces, the stream's answers read late, the declared rate, S1 or E4;
+:func:`random_choices` draws a legal combination from a seed. The command connection is
 lock-step (send, then wait for the answer up to ``time_out``); the stream connection
 sends poses on a fixed clock from its own thread while another thread reads the
 answers, as they come or late, in bursts.
@@ -12,10 +16,11 @@ from __future__ import annotations
 
 import contextlib
 import math
+import random
 import socket
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from . import wire
 from .wire import Answer, encode_request, split_answers
@@ -24,10 +29,32 @@ HOME = (800.0, 0.0, 500.0, 180.0, 0.0, 0.0)
 SPIN = 0.0015  # seconds before each pose's due time the stream thread stops sleeping and spins
 
 
+#: knob -> its legal alternatives (the first is the default); the names are the legal table's robot knobs.
+KNOBS: dict[str, tuple[str, ...]] = {
+    "pings": ("0", "1", "3"),
+    "cmd_poses": ("none", "pose", "register", "both"),
+    "tolerance_at": ("none", "start", "in-cycle", "after-cycle"),
+    "tolerance_blocks": ("1", "3", "17"),
+    "cycles": ("1", "2", "3"),
+    "writer": ("whole", "pieces", "bytes"),
+    "read_late": ("as-they-come", "late"),
+    "session": ("S1", "E4"),
+    "rate": ("50", "20", "100"),
+}
+PIECE_PAUSE = 0.003  # writer "pieces": the header, then the rest this long after
+
+
 @dataclass(frozen=True)
 class RobotChoices:
-    session: str = "canonical"  # canonical | karel | extension | cycle-on-first
-    rate_hz: float = 50.0  # the declared stream rate
+    session: str = "S1"  # S1 | E4 | cycle-on-first (a defect: CycleOn before the stream is on)
+    pings: str = "0"  # NONE requests: 1 before anything; 3: also after stream on and during the first cycle
+    cmd_poses: str = "none"  # after stream on, on the command connection: ISIGHT(3,35) and/or ISIGHT(3,36)
+    tolerance_at: str = "none"
+    tolerance_blocks: str = "1"
+    cycles: str = "1"  # CycleOn -> CycleOff pairs between stream on and stream off
+    writer: str = "whole"
+    read_late: str = "as-they-come"  # late: read the stream's answers in bursts every 0.5 s (pipelined, S6)
+    rate: str = "50"  # the declared stream rate (Hz)
     rate_factor: float = 1.0  # the rate actually sent is rate_hz * rate_factor
     duration: float = 2.0  # primer trajectory, seconds
     time_out: float = 5.0
@@ -36,9 +63,27 @@ class RobotChoices:
     first_index: int = 0
     float_order: str = ">"
     nan_pose: bool = False  # one pose in the middle of the trajectory carries NaN
-    read_late: bool = False  # read the stream's answers in bursts every 0.5 s (pipelined, S6)
     leave_stream_open: bool = False  # never close the stream connection
     program_index: int = 7
+
+    @property
+    def rate_hz(self) -> float:
+        return float(self.rate)
+
+    def knobs(self) -> dict[str, str]:
+        return {name: getattr(self, name) for name in KNOBS}
+
+    def suite_args(self) -> tuple[str, ...]:
+        """The certify-robot flags this robot's flag-decided choices need."""
+        return (("--extension",) if self.session == "E4" else ()) + \
+            (("--pose-rate", self.rate) if self.rate != "50" else ())
+
+
+def random_choices(seed: int, base: RobotChoices | None = None) -> RobotChoices:
+    """A legal combination of the knobs drawn from ``seed`` (on ``base``'s other settings)."""
+    rng = random.Random(seed)
+    drawn = {name: rng.choice(legal) for name, legal in KNOBS.items()}
+    return replace(base or RobotChoices(), **drawn)  # type: ignore[arg-type]  # every value is a knob string
 
 
 @dataclass
@@ -77,27 +122,27 @@ class Robot:
         c = self.c
         try:
             self.cmd = self._connect()
-            if c.session == "karel":
-                self._command(wire.NONE)
-                self._command(wire.TOLERANCE, [0.5, 1.25, 2.0])
-            if c.session == "extension":
+            self._extras("start")
+            if c.session == "E4":
                 ans = self._command(wire.PROG_IDX, [c.program_index])
                 if ans.value == 409:
                     raise SessionStop(3, "ProgIdx answered 409: box not ready")
             if c.session == "cycle-on-first":
                 self._cycle_on()
                 self._stream_on()
+                self._wait(c.duration)
+                self._cycle_off()
             else:
                 self._stream_on()
-                if c.session == "karel":
-                    self._command(wire.POSE, [self._pose(time.perf_counter())])  # ISIGHT(3,35): the TP pose
-                    self._command(wire.REG_POSE, [HOME])  # ISIGHT(3,36,PR_ID)
-                self._cycle_on()
-            self._wait(c.duration)
-            self._command(wire.CYCLE_OFF)
-            self.cycle_t0 = None
+                self._extras("stream on")
+                for k in range(int(c.cycles)):
+                    self._cycle_on()
+                    self._extras("in-cycle" if k == 0 else "")
+                    self._wait(c.duration / int(c.cycles))
+                    self._cycle_off()
+                    self._extras("after-cycle" if k == 0 else "")
             self._stream_off()
-            if c.session == "extension":
+            if c.session == "E4":
                 self._wait(1.0)
                 self._vision_result()
             self._close(self.cmd)
@@ -145,7 +190,7 @@ class Robot:
     # -- the command connection: lock-step ------------------------------------------------------
     def _command(self, action: int, blocks: list | None = None, bound: float | None = None) -> Answer:  # type: ignore[type-arg]
         assert self.cmd is not None
-        self.cmd.sendall(self._encode(action, blocks or []))
+        self._send(self.cmd, self._encode(action, blocks or []))
         self.outcome.commands += 1
         bound = self.c.time_out if bound is None else bound
         deadline = time.monotonic() + bound
@@ -173,6 +218,34 @@ class Robot:
                 raise SessionStop(5, f"the box closed the command connection (waiting for action {action:02X})")
             self.cmd_buf += data
 
+    def _extras(self, when: str) -> None:
+        """The legal requests between the session's steps: pings, poses on the command connection, tolerances."""
+        c = self.c
+        if when == "start" and c.pings != "0" or when in ("stream on", "in-cycle") and c.pings == "3":
+            self._command(wire.NONE)
+        if c.tolerance_at == when:
+            self._command(wire.TOLERANCE, [0.5 + 0.25 * i for i in range(int(c.tolerance_blocks))])
+        if when == "stream on" and c.cmd_poses in ("pose", "both"):
+            self._command(wire.POSE, [self._pose(time.perf_counter())])  # ISIGHT(3,35): the TP pose
+        if when == "stream on" and c.cmd_poses in ("register", "both"):
+            self._command(wire.REG_POSE, [HOME])  # ISIGHT(3,36,PR_ID)
+
+    def _cycle_off(self) -> None:
+        self._command(wire.CYCLE_OFF)
+        self.cycle_t0 = None
+
+    def _send(self, sock: socket.socket, data: bytes) -> None:
+        """Write one request the robot's way (whole, in two pieces, or a byte per send)."""
+        if self.c.writer == "whole":
+            sock.sendall(data)
+        elif self.c.writer == "pieces":
+            sock.sendall(data[:12])
+            time.sleep(PIECE_PAUSE)
+            sock.sendall(data[12:])
+        else:
+            for i in range(len(data)):
+                sock.sendall(data[i : i + 1])
+
     def _cycle_on(self) -> None:
         ans = self._command(wire.CYCLE_ON)
         if ans.error == wire.NOT_READY:
@@ -199,7 +272,7 @@ class Robot:
             thread = threading.Thread(target=target, name=f"robot-{target.__name__}", daemon=True)
             thread.start()
             self.stream_threads.append(thread)
-        if not self.c.read_late:  # Send_Pos_On returns once the first pose is answered
+        if self.c.read_late != "late":  # Send_Pos_On returns once the first pose is answered
             deadline = time.monotonic() + self.c.time_out
             while self.outcome.poses_answered == 0 and time.monotonic() < deadline and not self.stopping.is_set():
                 time.sleep(0.01)
@@ -226,7 +299,7 @@ class Robot:
                 if nan_at == 0:
                     pose = (math.nan, *pose[1:])
             try:
-                stream.sendall(self._encode(wire.POSE, [pose]))
+                self._send(stream, self._encode(wire.POSE, [pose]))
             except OSError:
                 return
             sent += 1
@@ -242,7 +315,7 @@ class Robot:
         buf = bytearray()
         stream.settimeout(0.2)
         while not self.stopping.is_set():
-            if self.c.read_late and self.stopping.wait(0.5):
+            if self.c.read_late == "late" and self.stopping.wait(0.5):
                 return
             try:
                 data = stream.recv(65536)
