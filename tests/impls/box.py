@@ -122,13 +122,13 @@ VARIANTS: dict[str, Variant] = {v.name: v for v in _CONFORMING} | {name: _broken
 RANDOM = "random"
 
 
-def variant(name: str, seed: int | None = None, *, pending: bool = False) -> Variant:
+def variant(name: str, seed: int | None = None) -> Variant:
     """A box by name; ``random`` (with ``seed``) is a random legal combination, a broken box with ``seed``
     sits on a random legal base."""
     if name == RANDOM:
         if seed is None:
             raise ValueError("the random box needs --seed")
-        choices = random_choices(seed, pending=pending)
+        choices = random_choices(seed)
         return Variant(f"random#{seed}", choices, "a random legal combination: " + describe(choices))
     if name in _BROKEN and seed is not None:
         return _broken(name, seed)
@@ -160,8 +160,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("variant", nargs="?", help="which box (see --list), or 'random'")
     parser.add_argument("--port", type=int, default=0, help="TCP port on 127.0.0.1 (0: a free one)")
     parser.add_argument("--seed", type=int, help="random: the combination; a broken box: its random legal base")
-    parser.add_argument("--all-knobs", action="store_true",
-                        help="random: also draw the knob values the suite judges wrongly until a pending fix lands")
     parser.add_argument("--time-out", type=int, default=5000, metavar="MS", help="the time_out the box assumes")
     parser.add_argument("--list", action="store_true", help="list the variants and exit")
     args = parser.parse_args(argv)
@@ -173,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"unknown box {args.variant!r}; try --list")
         if not 0 <= args.port <= 65535 or not 0 < args.time_out <= 600_000:
             raise ValueError("--port must be 0..65535 and --time-out 1..600000")
-        chosen = variant(args.variant, args.seed, pending=args.all_knobs)
+        chosen = variant(args.variant, args.seed)
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

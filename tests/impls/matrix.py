@@ -1,7 +1,7 @@
 """Run the conformance suite against every independent implementation and tabulate the verdicts.
 
 ``python -m tests.impls.matrix [--only NAME ...] [--seeds N] [--time-out MS] [--jobs 1] [--base-seed B]``
-``python -m tests.impls.matrix --sample N --seed S [--jobs J] [--all-knobs]``
+``python -m tests.impls.matrix --sample N --seed S [--jobs J]``
 
 ``--sample`` runs N random legal combinations of the box's knobs instead (drawn from
 ``--seed``, reproducible: combination i is ``python -m tests.impls.box random --seed``
@@ -241,14 +241,13 @@ def run_box(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, se
     box_cmd = [sys.executable, "-m", "tests.impls.box", exp.name, "--port", "0"]
     box_cmd += ["--seed", str(row.box_seed)] if row.box_seed is not None else []
     box_cmd += ["--time-out", str(args.time_out)] if args.time_out else []
-    box_cmd += ["--all-knobs"] if getattr(args, "all_knobs", False) else []
     box = Proc(box_cmd, work, "box")
     line = box.first_line(20)
     if line is None or not line.startswith("listening tcp "):
         row.notes.append(f"box did not start: {box.last_line() or line!r}")
         box.stop()
         return _finish(row, box)
-    row.knobs = _knobs(exp, row.box_seed, getattr(args, "all_knobs", False))
+    row.knobs = _knobs(exp, row.box_seed)
     target = target_args(line)
     suite = Proc(suite_command() + ["run", *target, "--quiet", "--report-dir", str(work / "report"),
                                     "--pcap-dir", str(work / "pcaps"), *exp.suite_args,
@@ -291,10 +290,10 @@ def run_robot(exp: Expectation, args: argparse.Namespace, out: Path, seed: int, 
     return _finish(row, suite, work / "report")
 
 
-def _knobs(exp: Expectation, seed: int | None, pending: bool) -> str:
+def _knobs(exp: Expectation, seed: int | None) -> str:
     from .box import describe, variant  # the box's own description of its knobs (same code as the process)
 
-    return describe(variant(exp.name, seed, pending=pending).choices) if seed is not None else ""
+    return describe(variant(exp.name, seed).choices) if seed is not None else ""
 
 
 def _finish(row: Row, suite: Proc, report: Path | None = None) -> Row:
@@ -363,8 +362,6 @@ def main(argv: list[str] | None = None) -> int:
                         help="run N random legal combinations instead (boxes; robots with --role robot)")
     parser.add_argument("--seed", type=int, default=1, metavar="S", help="--sample draws its combinations from S")
     parser.add_argument("--role", choices=("box", "robot"), default="box", help="what --sample samples (default box)")
-    parser.add_argument("--all-knobs", action="store_true",
-                        help="--sample: also draw the knob values a pending fix elsewhere is needed for (policy.PENDING)")
     parser.add_argument("--base-seed", type=int, default=1, metavar="B",
                         help="broken boxes sit on a random legal base drawn from B and their name (0: documented base)")
     parser.add_argument("--time-out", type=int, default=0, metavar="MS", help="time_out for the suite and robots")

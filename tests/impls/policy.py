@@ -69,12 +69,6 @@ KNOBS: dict[str, tuple[str, ...]] = {
     "cycle_on_latency": ("0", "0.6 time_out"),
     "stream_port": ("same", "separate"),
 }
-#: Knob values the suite is known to judge wrongly until another branch's fix is merged: random
-#: combinations leave them out unless asked (``--all-knobs``), so CI stays green meanwhile.
-PENDING: dict[tuple[str, str], str] = {
-    ("ext_refusal", "error-echo"): "suite/extension.py takes a refusal of 27 (echoed action, non-zero error) "
-                                   "for support (issue 17, the detect branch)",
-}
 
 _ERRORS = {"0000": wire.OK, "0001": wire.NOT_READY, "0002": wire.OFF_FAILED, "1001": wire.POSE_ERROR,
            "FFFF": 0xFFFF}
@@ -163,14 +157,12 @@ def with_framing(choices: Choices, framing: Framing) -> Choices:
     return replace(choices, **{f"framing_{f.name}": getattr(framing, f.name) for f in fields(framing)})
 
 
-def random_choices(seed: int, *, pending: bool = False, fixed: dict[str, str] | None = None) -> Choices:
-    """A legal combination drawn from ``seed`` (the same seed, the same box); ``fixed`` knobs are kept.
-    Knob values listed in :data:`PENDING` are drawn only with ``pending=True``."""
+def random_choices(seed: int, *, fixed: dict[str, str] | None = None) -> Choices:
+    """A legal combination drawn from ``seed`` (the same seed, the same box); ``fixed`` knobs are kept."""
     rng = random.Random(seed)
     values = {}
     for name, legal in KNOBS.items():
-        options = [v for v in legal if pending or (name, v) not in PENDING]
-        values[name] = rng.choice(options)  # drawn for every knob, so a fixed one leaves the others unchanged
+        values[name] = rng.choice(legal)  # drawn for every knob, so a fixed one leaves the others unchanged
     return knob_choices(values | (fixed or {}))
 
 
