@@ -313,3 +313,11 @@ def test_action_name_names_known_actions_hex_for_others_and_says_what_none_means
     assert action_name(0x23) == "POSE" and action_name(Action.VISION_RESULT) == "VISION_RESULT"
     assert action_name(0x7F) == "0x7F"
     assert action_name(None) == "bytes that are not a request" and action_name(None, "-") == "-"
+
+
+def test_float32_bit_patterns_are_independent_of_byte_order() -> None:
+    from conformance.protocol.constants import f32_bits, f32_of_bits
+
+    assert f32_bits(1.0) == 0x3F800000 and f32_bits(-0.0) == 0x80000000 and f32_bits(-2.5) == 0xC0200000
+    for bits in (0x00000001, 0x007FFFFF, 0x7F7FFFFF, 0xFF7FFFFF, 0x49742400):
+        assert f32_bits(f32_of_bits(bits)) == bits

@@ -8,8 +8,6 @@ A3 fixes what a parse error earns: never 0000 (MUST), the action's error (SHOULD
 
 from __future__ import annotations
 
-import struct
-
 import pytest
 
 from conformance.harness.client import Answer
@@ -25,6 +23,7 @@ from conformance.protocol import (
     request,
     tolerance_blocks,
 )
+from conformance.protocol.constants import f32_bits
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
@@ -44,7 +43,7 @@ def f32(bits: int, profile: Profile) -> bytes:
 
 
 def value_bits(value: float) -> int:
-    return int.from_bytes(struct.pack(">f", value), "big")
+    return f32_bits(value)
 
 
 def block_bytes(action: Action, index: int, profile: Profile, floats: list[int] | None = None) -> bytes:

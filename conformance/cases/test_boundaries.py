@@ -24,7 +24,6 @@ answering ends the case there (bounded time: one time_out, not one per request).
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -40,6 +39,7 @@ from conformance.protocol import (
     encode,
     request,
 )
+from conformance.protocol.constants import f32_bits, f32_of_bits
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, CaseVerdict, Skip, answered, answered_allowed, answered_zero
 from conformance.suite.record import Expect, Requirement, case
@@ -73,7 +73,7 @@ WORST_FIRST = (Verdict.FAIL, Verdict.ERROR, Verdict.NON_STRICT, Verdict.INCONCLU
 
 def value_of(bits: int) -> float:
     """The float32 with this bit pattern (as a Python float: encoding it again gives the same bits)."""
-    return float(struct.unpack(">f", bits.to_bytes(4, "big"))[0])
+    return f32_of_bits(bits)
 
 
 def sample_block(action: Action, index: int, k: int) -> Block:
@@ -255,7 +255,7 @@ def _float_requests(action: Action, first: int) -> list[tuple[str, tuple[Block, 
         return out
     for i, axis in enumerate(COORDINATES):
         x, y, z, w, p, r = (-v if k == i else v for k, v in enumerate(BASE_POSE))
-        bits = int.from_bytes(struct.pack(">f", -BASE_POSE[i]), "big")
+        bits = f32_bits(-BASE_POSE[i])
         out.append((f"negative-{axis}", (PoseBlock(first, (x, y, z, w, p, r)),), f"coordinate {axis}", bits))
     return out
 

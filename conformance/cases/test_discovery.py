@@ -43,6 +43,7 @@ from conformance.protocol import (
     request,
     value_blocks,
 )
+from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, Skip
 from conformance.suite.record import Requirement, case
@@ -61,7 +62,7 @@ CONFIRM_WAIT_S = 1.0
 def fields(outcome: Outcome) -> tuple[str, int, int] | None:
     """(byte order, action, error code) of an answer, read in the order in which its version is 1."""
     raw = outcome.raw
-    if len(raw) < 12 or raw[:2] != b"\xfe\xfe":
+    if len(raw) < 12 or raw[:2] != START_BYTES:
         return None
     for order in ORDERS:
         if int.from_bytes(raw[2:4], order) == 1:  # type: ignore[arg-type]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from conformance.harness.client import Answer, Malformed
 from conformance.protocol import Action, Header, Transport, encode, encode_raw, pose_blocks, request
+from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Requirement, case
@@ -29,7 +30,7 @@ def _answer_bytes(isight: CaseContext, action: Action = Action.NONE) -> tuple[An
       checks={"answered": ANSWERED_0, "": Requirement(("F1",), "the start word is FE FE")})
 def test_answer_start_word(isight: CaseContext) -> None:
     _, raw = _answer_bytes(isight)
-    if raw[:2] != b"\xfe\xfe":
+    if raw[:2] != START_BYTES:
         raise isight.broken(expected="fe fe", observed=raw[:2].hex(" "), received=raw)
 
 

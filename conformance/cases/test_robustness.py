@@ -12,6 +12,7 @@ import pytest
 
 from conformance.harness.client import Answer, Closed, TcpConnection
 from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
+from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import CLOSED, NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
@@ -222,7 +223,7 @@ RESYNC_GARBAGE = {
     "ascii": b"hello iSight\r\n",
     "zeros": b"\x00" * 32,
     "bad-start-word": b"\xfe\xff\x00\x01\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00",
-    "bad-version": b"\xfe\xfe\x00\x02\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00",
+    "bad-version": START_BYTES + b"\x00\x02\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00",
 }
 
 

@@ -36,6 +36,7 @@ from conformance.protocol import (
     request,
 )
 from conformance.protocol.answers import Cycle
+from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
@@ -183,7 +184,7 @@ def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
 def _named_error(v: Vector) -> int | None:
     """A3: the error PROTOCOL.md names for this vector's parse error, if any."""
     d = v.data
-    if len(d) < HEADER_LEN or d[:4] != b"\xfe\xfe\x00\x01" or d[4] != 0x01:
+    if len(d) < HEADER_LEN or d[:4] != START_BYTES + b"\x00\x01" or d[4] != 0x01:
         return None
     if not v.clauses or v.clauses[0] not in ("B1", "B2", "B3", "B4", "B5"):
         return None

@@ -24,6 +24,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..protocol import HEADER_LEN, MAX_FRAME_LEN, Action, BlockType, Profile
+from ..protocol.constants import START_WORD
 from .strategies import BLOCK_ACTIONS, FuzzCase
 
 
@@ -41,7 +42,7 @@ EDGES_U8 = _edges(8)
 EDGES_U16 = _edges(16)
 #: Header fields: (name, offset, width, values the protocol defines).
 FIELDS: tuple[tuple[str, int, int, tuple[int, ...]], ...] = (
-    ("start_word", 0, 2, (0xFEFE, 0xFEFF, 0xFFFE, 0x00FE, 0xFE00)),
+    ("start_word", 0, 2, (START_WORD, 0xFEFF, 0xFFFE, 0x00FE, 0xFE00)),
     ("version", 2, 2, (0x0001, 0x0100, 0x0002)),
     ("transfer_type", 4, 1, (0x01, 0x10, 0x11)),
     ("action", 5, 1, tuple(int(a) for a in Action)),

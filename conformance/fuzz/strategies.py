@@ -31,7 +31,7 @@ from ..protocol import (
     Transport,
     codec_for,
 )
-from ..protocol.constants import MAX_BLOCK_COUNT, MAX_FRAME_LEN
+from ..protocol.constants import MAX_BLOCK_COUNT, MAX_FRAME_LEN, START_WORD
 from .case import FuzzCase, _finite
 from .oracle import expectations
 
@@ -145,7 +145,7 @@ class Strategies:
         )
 
     def start_word(self) -> st.SearchStrategy[FuzzCase]:
-        return self._field("F1-start-word", "F1", "start_word", st.integers(0, 0xFFFE).map(_skip(0xFEFE)), "start word")
+        return self._field("F1-start-word", "F1", "start_word", st.integers(0, 0xFFFE).map(_skip(START_WORD)), "start word")
 
     def version(self) -> st.SearchStrategy[FuzzCase]:
         return self._field("F2-version", "F2", "version", st.integers(0, 0xFFFE).map(_skip(1)), "version")

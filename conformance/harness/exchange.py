@@ -42,6 +42,7 @@ from ..protocol import (
     tolerance_blocks,
 )
 from ..protocol.answers import Seen
+from ..protocol.constants import START_WORD
 from ..protocol.explain import explain
 from ..protocol.framings import End, Explanation, embedded_actions
 from .client import MAX_DRAIN, Answer, Closed, Malformed, Outcome, Silence, TcpConnection
@@ -111,7 +112,7 @@ def action_of(outcome: Outcome) -> int | None:
     if isinstance(outcome, Answer):
         return int(outcome.frame.action)
     header = outcome.error.header if isinstance(outcome, Malformed) else None
-    return header.action if header is not None and header.start_word == 0xFEFE else None
+    return header.action if header is not None and header.start_word == START_WORD else None
 
 
 def answers_zero(outcome: Outcome, action: int) -> bool:
@@ -234,7 +235,7 @@ def seen_of(outcome: Answer | Malformed, profile: Profile) -> Seen:
         return Seen(int(f.action), f.error_code, value, "", outcome.describe())
     err = outcome.error
     h = err.header
-    if h is None or h.start_word != 0xFEFE:
+    if h is None or h.start_word != START_WORD:
         return Seen(None, None, None, err.clause, outcome.describe())
     value = None
     raw = err.raw

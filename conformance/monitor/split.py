@@ -11,10 +11,11 @@ It holds at most one frame's bytes (:data:`~conformance.protocol.MAX_FRAME_LEN`)
 from __future__ import annotations
 
 from ..protocol import HEADER_LEN, MAX_FRAME_LEN
+from ..protocol.constants import START_BYTES
 
 __all__ = ["Splitter"]
 
-_START = b"\xfe\xfe"
+_START = START_BYTES
 
 
 class Splitter:

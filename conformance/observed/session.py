@@ -229,7 +229,7 @@ def judge_order(view: SessionView, extension: bool) -> OrderResult:
     if seen["stream connect"] is not None and seen["pose during the cycle"] is None and judged(seen["CycleOff"]):
         result.notes.append("no pose was streamed during the cycle (noted; T2 judges the stream)")
     if extension and seen["result request"] is not None and seen["stream close"] is not None:
-        waited = seen["result request"] - seen["stream close"]  # type: ignore[operator]
+        waited = seen["result request"] - seen["stream close"]
         if 0 <= waited < E4_RESULT_WAIT_S:
             result.notes.append(f"the result request came {waited * 1000:.0f} ms after Send_Pos_Off; the revision "
                                 f"waits {E4_RESULT_WAIT_S:g} s (noted, not judged)")

@@ -7,6 +7,7 @@ error messages print a name, and every layout number lives here once.
 from __future__ import annotations
 
 import enum
+import struct
 
 START_WORD = 0xFEFE  # F1
 #: The start word as it stands on the wire (the same in either byte order).
@@ -160,3 +161,13 @@ SHAPES: dict[TransferType, dict[Action, Shape]] = {
     TransferType.ROBOT_TO_BOX: REQUEST_SHAPE,
     TransferType.BOX_TO_ROBOT: ANSWER_SHAPE,
 }
+
+
+def f32_bits(value: float) -> int:
+    """The IEEE-754 binary32 bit pattern of ``value`` as an integer (B4; independent of any byte order)."""
+    return int(struct.unpack("=I", struct.pack("=f", value))[0])
+
+
+def f32_of_bits(bits: int) -> float:
+    """The float32 with this bit pattern (encoding it again gives the same bits)."""
+    return float(struct.unpack("=f", struct.pack("=I", bits))[0])

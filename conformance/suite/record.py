@@ -141,7 +141,7 @@ def case(id: str, clauses: list[str] | tuple[str, ...], level: Level | str, titl
     info = record(id, clauses, level, title, expect, needs, requirement, checks)
 
     def deco(fn: F) -> F:
-        return pytest.mark.isight_case(info)(fn)  # type: ignore[no-any-return]
+        return pytest.mark.isight_case(info)(fn)
 
     return deco
 
