@@ -205,15 +205,18 @@ def _print_result(result: CampaignResult, summary: Path) -> None:
     cov = result.coverage["fraction"]
     line = ", ".join(f"{k} {v:.0%}" for k, v in cov.items())
     if sessions.coverage:
-        line += f"; state transitions {sessions.coverage['reached']}/{sessions.coverage['of']}"
-    print(f"fuzz: coverage: {line}" + (f"; the box was restarted {result.restarts} times" if result.restarts else ""))
+        line += _("; state transitions {reached}/{of}").format(reached=sessions.coverage["reached"],
+                                                                of=sessions.coverage["of"])
+    if result.restarts:
+        line += _("; the box was restarted {n} times").format(n=result.restarts)
+    print("fuzz: " + _("coverage: {coverage}").format(coverage=line))
     for obs in result.non_strict:
         print(f"  NON-STRICT [{obs.clause}] {obs.requirement} (×{obs.count}, first on {obs.hex[:80]})")
     for f in result.failures:
         print(f"  FAIL {f.number} [{', '.join(f.clauses)}] {f.message}")
         print(f"       vector: {f.vector}" + (f"  pcap: {f.pcap}" if f.pcap else ""))
     if result.hint:
-        print(f"fuzz: hint: {result.hint}")
+        print("fuzz: " + _("hint: {hint}").format(hint=_(result.hint)))
     print(f"fuzz: summary {summary}; seed {result.seed}")
 
 
