@@ -76,7 +76,7 @@ def add_fuzz_arguments(p: argparse.ArgumentParser) -> None:
                    help=_("[R2] a shell command that brings a dead box back (e.g. 'systemctl restart aibox'): a death "
                    "is then confirmed, shrunk to the shortest killing sequence, and the campaign goes on"))
     p.add_argument("--quiet", action="store_true", help=_("no progress lines"))
-    group = p.add_argument_group("profile")
+    group = p.add_argument_group(_("profile"))
     add_profile_options(group.add_argument)
 
 
@@ -88,7 +88,7 @@ def add_replay_arguments(p: argparse.ArgumentParser) -> None:
                    help=_("send every vector on one connection, in file order (a fuzz 'context' failure)"))
     p.add_argument("--settle-ms", type=int, default=0, metavar="MS",
                    help=_("after each probe's answer, watch this long for late extra answers (default: 0)"))
-    group = p.add_argument_group("profile")
+    group = p.add_argument_group(_("profile"))
     add_profile_options(group.add_argument)
 
 

@@ -40,7 +40,7 @@ def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
         "SIGINT, SIGTERM or SIGHUP (or --duration), then writes summary.json, junit.xml, report.html and monitor.json. "
         "Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or cannot listen. See docs/MONITOR.md."),
     )
-    net = p.add_argument_group("the line")
+    net = p.add_argument_group(_("the line"))
     net.add_argument("--listen", required=True, metavar="HOST:PORT",
                      help=_("where the robot connects (the address in its $HOSTC_CFG; port 0 picks a free one)"))
     net.add_argument("--upstream", required=True, metavar="BOX_HOST:PORT", help=_("the AI Box"))
@@ -49,13 +49,13 @@ def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
                      help=_("seconds the box has to accept a connection before the robot's is reset (default: 5)"))
     net.add_argument("--duration", type=float, default=0.0, metavar="S",
                      help=_("stop after S seconds (default: run until SIGINT/SIGTERM/SIGHUP)"))
-    faults = p.add_argument_group("fault injection (on the box's side; see docs/MONITOR.md)")
+    faults = p.add_argument_group(_("fault injection (on the box's side; see docs/MONITOR.md)"))
     faults.add_argument("--fault", action="append", default=[], metavar="SPEC",
                         help=_("KIND:ACTION[:ARG][,every=N|,p=P][,count=K][,after=S]: delay:CYCLE_ON:6000, "
                              "drop:POSE,every=10, error:CYCLE_ON:1, corrupt:CYCLE_OFF:check, close:CYCLE_OFF, "
                              "stall:any:2000 (repeatable)"))
     faults.add_argument("--seed", type=int, default=0, metavar="N", help=_("seed for p= faults (default: 0)"))
-    out = p.add_argument_group("evidence")
+    out = p.add_argument_group(_("evidence"))
     out.add_argument("--report-dir", type=Path, default=None, metavar="DIR",
                      help=_("summary.json, junit.xml, report.html, monitor.json (default: reports/monitor-<timestamp>)"))
     out.add_argument("--pcap-dir", type=Path, default=None, metavar="DIR",
@@ -67,13 +67,13 @@ def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     out.add_argument("--checkpoint", type=float, default=10.0, metavar="MINUTES",
                      help=_("write the reports every MINUTES minutes too; 0: only on stop (default: 10)"))
     out.add_argument("--quiet", action="store_true", help=_("findings only: no live panel, no status lines"))
-    judge = p.add_argument_group("judgement (as analyze)")
+    judge = p.add_argument_group(_("judgement (as analyze)"))
     judge.add_argument("--extension", action=argparse.BooleanOptionalAction, default=None,
                        help=_("[E4] judge every session as the revision's / as S1; default: by what the session uses"))
     judge.add_argument("--rate-tolerance", type=float, default=10.0, metavar="PCT", help=_("[T2] robot (default: 10)"))
     judge.add_argument("--jitter-tolerance", type=float, default=50.0, metavar="PCT", help=_("[T2] robot (default: 50)"))
     judge.add_argument("--linger", type=float, default=5.0, metavar="S", help=_("[S5] robot (default: 5)"))
-    group = p.add_argument_group("profile")
+    group = p.add_argument_group(_("profile"))
     add_profile_options(group.add_argument)
     p.set_defaults(func=main_monitor)
     return p
