@@ -198,10 +198,11 @@ def _restart(args: argparse.Namespace, box: Bundled | None) -> Callable[[], None
 def _print_result(result: CampaignResult, summary: Path) -> None:
     rate = result.examples_per_s or 0
     sessions = result.stateful
-    print(f"fuzz: {result.examples:,} examples in {result.duration_s:.1f} s "
-          f"({rate:,.0f}/s{' frames' if sessions.steps else ''}); "
-          f"{sessions.steps:,} session steps in {sessions.runs} sessions; "
-          f"{len(result.failures)} failures; {len(result.non_strict)} kinds of NON-STRICT")
+    print("fuzz: " + _("{examples} examples in {seconds} s ({rate}/s{frames}); {steps} session steps in {sessions} "
+                       "sessions; {failures} failures; {kinds} kinds of NON-STRICT").format(
+        examples=f"{result.examples:,}", seconds=f"{result.duration_s:.1f}", rate=f"{rate:,.0f}",
+        frames=_(" frames") if sessions.steps else "", steps=f"{sessions.steps:,}", sessions=sessions.runs,
+        failures=len(result.failures), kinds=len(result.non_strict)))
     cov = result.coverage["fraction"]
     line = ", ".join(f"{k} {v:.0%}" for k, v in cov.items())
     if sessions.coverage:
@@ -217,7 +218,7 @@ def _print_result(result: CampaignResult, summary: Path) -> None:
         print(f"       vector: {f.vector}" + (f"  pcap: {f.pcap}" if f.pcap else ""))
     if result.hint:
         print("fuzz: " + _("hint: {hint}").format(hint=_(result.hint)))
-    print(f"fuzz: summary {summary}; seed {result.seed}")
+    print("fuzz: " + _("summary {path}; seed {seed}").format(path=summary, seed=result.seed))
 
 
 # -- replay -------------------------------------------------------------------------------------------
