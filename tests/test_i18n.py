@@ -202,3 +202,36 @@ def test_diff_in_chinese(tmp_path: Path, capsys):
     out = capsys.readouterr().out
     assert "OLD 结果：不符合：" in out and "变差 (2):" in out and "PASS → FAIL" in out
     assert out.rstrip().splitlines()[-1].startswith("变差：2 个变差，0 个变好")
+
+
+def test_wrapped_chinese_keeps_its_punctuation_with_its_neighbour():
+    text = ("[R2] 使失效的 AI Box 恢复运行的 shell 命令（例如 'systemctl restart aibox'）：有了它，AI Box 的失效会被"
+            "确认，并缩减为导致失效的最短序列（例如【一二三】）")
+    for width in range(20, 80):
+        lines = i18n.wrap_cells(text, width)
+        assert "".join(lines).replace(" ", "") == text.replace(" ", "")  # nothing lost, nothing added
+        assert all(i18n.cells(line) <= width for line in lines), width
+        assert not any(line[0] in "，。、；：）】" for line in lines), (width, lines)  # no line opens with a closing mark
+        assert not any(line[-1] in "（【" for line in lines), (width, lines)  # nor ends with an opening one
+
+
+def test_monitor_help_and_status_line_in_chinese(capsys, monkeypatch):
+    from conformance.analyze.context import AnalyzeConfig
+    from conformance.monitor.hub import Hub, MonitorSettings
+    from conformance.monitor.view import View
+
+    monkeypatch.setenv("COLUMNS", "80")
+    with pytest.raises(SystemExit) as done:
+        main(["monitor", "--lang", "zh-CN", "--help"])
+    assert done.value.code == 0
+    out = capsys.readouterr().out
+    assert "等待机器人连接" in out and "故障注入" in out and "机器人连接的地址" in out
+    assert max(cell_len(line) for line in out.splitlines()) <= 80
+    hub = Hub(MonitorSettings(("127.0.0.1", 1), ("127.0.0.1", 9004), AnalyzeConfig(ports=(9004,)), None))
+    view = View(io.StringIO(), tty=False)
+    view.counts.update(hub)
+    english = view.status(hub)
+    with i18n.language("zh-CN"):
+        chinese = view.status(hub)
+    assert " status: 0 open / 0 connection(s), 0 session(s) done, frames robot→box 0 box→robot 0, " in english
+    assert " 状态：0 个已打开 / 共 0 个连接，已完成 0 个会话，" in chinese and "ms；" in chinese

@@ -76,7 +76,7 @@ def add_fuzz_arguments(p: argparse.ArgumentParser) -> None:
                    help=_("[R2] a shell command that brings a dead box back (e.g. 'systemctl restart aibox'): a death "
                    "is then confirmed, shrunk to the shortest killing sequence, and the campaign goes on"))
     p.add_argument("--quiet", action="store_true", help=_("no progress lines"))
-    group = p.add_argument_group("profile")
+    group = p.add_argument_group(_("profile"))
     add_profile_options(group.add_argument)
 
 
@@ -88,7 +88,7 @@ def add_replay_arguments(p: argparse.ArgumentParser) -> None:
                    help=_("send every vector on one connection, in file order (a fuzz 'context' failure)"))
     p.add_argument("--settle-ms", type=int, default=0, metavar="MS",
                    help=_("after each probe's answer, watch this long for late extra answers (default: 0)"))
-    group = p.add_argument_group("profile")
+    group = p.add_argument_group(_("profile"))
     add_profile_options(group.add_argument)
 
 
@@ -198,23 +198,27 @@ def _restart(args: argparse.Namespace, box: Bundled | None) -> Callable[[], None
 def _print_result(result: CampaignResult, summary: Path) -> None:
     rate = result.examples_per_s or 0
     sessions = result.stateful
-    print(f"fuzz: {result.examples:,} examples in {result.duration_s:.1f} s "
-          f"({rate:,.0f}/s{' frames' if sessions.steps else ''}); "
-          f"{sessions.steps:,} session steps in {sessions.runs} sessions; "
-          f"{len(result.failures)} failures; {len(result.non_strict)} kinds of NON-STRICT")
+    print("fuzz: " + _("{examples} examples in {seconds} s ({rate}/s{frames}); {steps} session steps in {sessions} "
+                       "sessions; {failures} failures; {kinds} kinds of NON-STRICT").format(
+        examples=f"{result.examples:,}", seconds=f"{result.duration_s:.1f}", rate=f"{rate:,.0f}",
+        frames=_(" frames") if sessions.steps else "", steps=f"{sessions.steps:,}", sessions=sessions.runs,
+        failures=len(result.failures), kinds=len(result.non_strict)))
     cov = result.coverage["fraction"]
     line = ", ".join(f"{k} {v:.0%}" for k, v in cov.items())
     if sessions.coverage:
-        line += f"; state transitions {sessions.coverage['reached']}/{sessions.coverage['of']}"
-    print(f"fuzz: coverage: {line}" + (f"; the box was restarted {result.restarts} times" if result.restarts else ""))
+        line += _("; state transitions {reached}/{of}").format(reached=sessions.coverage["reached"],
+                                                                of=sessions.coverage["of"])
+    if result.restarts:
+        line += _("; the box was restarted {n} times").format(n=result.restarts)
+    print("fuzz: " + _("coverage: {coverage}").format(coverage=line))
     for obs in result.non_strict:
         print(f"  NON-STRICT [{obs.clause}] {obs.requirement} (×{obs.count}, first on {obs.hex[:80]})")
     for f in result.failures:
         print(f"  FAIL {f.number} [{', '.join(f.clauses)}] {f.message}")
         print(f"       vector: {f.vector}" + (f"  pcap: {f.pcap}" if f.pcap else ""))
     if result.hint:
-        print(f"fuzz: hint: {result.hint}")
-    print(f"fuzz: summary {summary}; seed {result.seed}")
+        print("fuzz: " + _("hint: {hint}").format(hint=_(result.hint)))
+    print("fuzz: " + _("summary {path}; seed {seed}").format(path=summary, seed=result.seed))
 
 
 # -- replay -------------------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..harness.transcript import Transcript
+from ..i18n import N_
 from .config import CampaignConfig
 from .evidence import Failure, clauses_of
 from .executor import Executor, Result, alive
@@ -29,8 +30,8 @@ from .restart import History, Step, kills, recover, shrink
 from .strategies import FuzzCase
 
 STOPPED = "the box stopped answering new connections (R2)"
-RESTART_HINT = ("give the campaign a way to restart the box (fuzz --restart-cmd 'CMD', e.g. 'systemctl restart "
-                "aibox' or 'docker restart aibox') and it confirms the death, shrinks it and goes on")
+RESTART_HINT = N_("give the campaign a way to restart the box (fuzz --restart-cmd 'CMD', e.g. 'systemctl restart "
+                  "aibox' or 'docker restart aibox') and it confirms the death, shrinks it and goes on")  # translated where printed
 
 
 @dataclass

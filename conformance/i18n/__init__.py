@@ -168,7 +168,10 @@ def lang_in_argv(argv: Sequence[str]) -> str | None:
 
 
 # -- text that fits a terminal whose Chinese characters take two columns -------------------------------
-_TOKEN = re.compile(r"[\u2e80-\u9fff\uff00-\uffef\u3000-\u303f]|[^\s\u2e80-\u9fff\uff00-\uffef\u3000-\u303f]+|\s+")
+_WIDE = "\u2e80-\u9fff\uff00-\uffef\u3000-\u303f"
+#: punctuation a line does not start with (closing) or end with (opening): it stays with its neighbour
+_CLOSE, _OPEN = "，。、；：！？）】》」』〉", "（【《「『〈"
+_TOKEN = re.compile(f"[{_OPEN}]*(?:[{_WIDE}]|[^\\s{_WIDE}]+)[{_CLOSE}]*|\\s+")
 
 
 def cells(text: str) -> int:

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from ..analyze.cli import config_from_args
 from ..certify.cli import parse_listen
 from ..harness.target import Target
+from ..i18n import _
 from ..options import add_profile_options
 from ..rundirs import default_run_dirs, drop_if_empty
 from .hub import MonitorSettings
@@ -31,48 +32,48 @@ NAME = "isight-conformance monitor"
 def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     p = sub.add_parser(
         "monitor",
-        help="sit in-line between a robot and its AI Box: forward every byte, judge both sides live, record a "
-             "pcapng ring, inject protocol-aware faults",
-        description="Listen for the robot (point its $HOSTC_CFG at this PC), open a connection to the box for each "
+        help=_("sit in-line between a robot and its AI Box: forward every byte, judge both sides live, record a "
+             "pcapng ring, inject protocol-aware faults"),
+        description=_("Listen for the robot (point its $HOSTC_CFG at this PC), open a connection to the box for each "
         "robot connection and pass the bytes on unchanged both ways, judging both sides live with analyze's engine. "
         "The first line on stdout is 'listening tcp HOST:PORT [udp HOST:PORT] -> upstream HOST:PORT'. Runs until "
         "SIGINT, SIGTERM or SIGHUP (or --duration), then writes summary.json, junit.xml, report.html and monitor.json. "
-        "Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or cannot listen. See docs/MONITOR.md.",
+        "Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or cannot listen. See docs/MONITOR.md."),
     )
-    net = p.add_argument_group("the line")
+    net = p.add_argument_group(_("the line"))
     net.add_argument("--listen", required=True, metavar="HOST:PORT",
-                     help="where the robot connects (the address in its $HOSTC_CFG; port 0 picks a free one)")
-    net.add_argument("--upstream", required=True, metavar="BOX_HOST:PORT", help="the AI Box")
-    net.add_argument("--udp", action="store_true", help="forward UDP datagrams on the same port too")
+                     help=_("where the robot connects (the address in its $HOSTC_CFG; port 0 picks a free one)"))
+    net.add_argument("--upstream", required=True, metavar="BOX_HOST:PORT", help=_("the AI Box"))
+    net.add_argument("--udp", action="store_true", help=_("forward UDP datagrams on the same port too"))
     net.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
-                     help="seconds the box has to accept a connection before the robot's is reset (default: 5)")
+                     help=_("seconds the box has to accept a connection before the robot's is reset (default: 5)"))
     net.add_argument("--duration", type=float, default=0.0, metavar="S",
-                     help="stop after S seconds (default: run until SIGINT/SIGTERM/SIGHUP)")
-    faults = p.add_argument_group("fault injection (on the box's side; see docs/MONITOR.md)")
+                     help=_("stop after S seconds (default: run until SIGINT/SIGTERM/SIGHUP)"))
+    faults = p.add_argument_group(_("fault injection (on the box's side; see docs/MONITOR.md)"))
     faults.add_argument("--fault", action="append", default=[], metavar="SPEC",
-                        help="KIND:ACTION[:ARG][,every=N|,p=P][,count=K][,after=S]: delay:CYCLE_ON:6000, "
+                        help=_("KIND:ACTION[:ARG][,every=N|,p=P][,count=K][,after=S]: delay:CYCLE_ON:6000, "
                              "drop:POSE,every=10, error:CYCLE_ON:1, corrupt:CYCLE_OFF:check, close:CYCLE_OFF, "
-                             "stall:any:2000 (repeatable)")
-    faults.add_argument("--seed", type=int, default=0, metavar="N", help="seed for p= faults (default: 0)")
-    out = p.add_argument_group("evidence")
+                             "stall:any:2000 (repeatable)"))
+    faults.add_argument("--seed", type=int, default=0, metavar="N", help=_("seed for p= faults (default: 0)"))
+    out = p.add_argument_group(_("evidence"))
     out.add_argument("--report-dir", type=Path, default=None, metavar="DIR",
-                     help="summary.json, junit.xml, report.html, monitor.json (default: reports/monitor-<timestamp>)")
+                     help=_("summary.json, junit.xml, report.html, monitor.json (default: reports/monitor-<timestamp>)"))
     out.add_argument("--pcap-dir", type=Path, default=None, metavar="DIR",
-                     help="the pcapng ring (default: pcaps/monitor-<timestamp>)")
-    out.add_argument("--no-pcap", action="store_true", help="record no pcapng")
-    out.add_argument("--ring", type=int, default=10, metavar="N", help="keep the newest N pcapng files (default: 10)")
+                     help=_("the pcapng ring (default: pcaps/monitor-<timestamp>)"))
+    out.add_argument("--no-pcap", action="store_true", help=_("record no pcapng"))
+    out.add_argument("--ring", type=int, default=10, metavar="N", help=_("keep the newest N pcapng files (default: 10)"))
     out.add_argument("--ring-mb", type=float, default=100.0, metavar="M",
-                     help="start a new pcapng file when the current one reaches M MB (default: 100)")
+                     help=_("start a new pcapng file when the current one reaches M MB (default: 100)"))
     out.add_argument("--checkpoint", type=float, default=10.0, metavar="MINUTES",
-                     help="write the reports every MINUTES minutes too; 0: only on stop (default: 10)")
-    out.add_argument("--quiet", action="store_true", help="findings only: no live panel, no status lines")
-    judge = p.add_argument_group("judgement (as analyze)")
+                     help=_("write the reports every MINUTES minutes too; 0: only on stop (default: 10)"))
+    out.add_argument("--quiet", action="store_true", help=_("findings only: no live panel, no status lines"))
+    judge = p.add_argument_group(_("judgement (as analyze)"))
     judge.add_argument("--extension", action=argparse.BooleanOptionalAction, default=None,
-                       help="[E4] judge every session as the revision's / as S1; default: by what the session uses")
-    judge.add_argument("--rate-tolerance", type=float, default=10.0, metavar="PCT", help="[T2] robot (default: 10)")
-    judge.add_argument("--jitter-tolerance", type=float, default=50.0, metavar="PCT", help="[T2] robot (default: 50)")
-    judge.add_argument("--linger", type=float, default=5.0, metavar="S", help="[S5] robot (default: 5)")
-    group = p.add_argument_group("profile")
+                       help=_("[E4] judge every session as the revision's / as S1; default: by what the session uses"))
+    judge.add_argument("--rate-tolerance", type=float, default=10.0, metavar="PCT", help=_("[T2] robot (default: 10)"))
+    judge.add_argument("--jitter-tolerance", type=float, default=50.0, metavar="PCT", help=_("[T2] robot (default: 50)"))
+    judge.add_argument("--linger", type=float, default=5.0, metavar="S", help=_("[S5] robot (default: 5)"))
+    group = p.add_argument_group(_("profile"))
     add_profile_options(group.add_argument)
     p.set_defaults(func=main_monitor)
     return p

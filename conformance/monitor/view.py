@@ -18,6 +18,7 @@ import time
 from typing import IO, Any
 
 from ..analyze.findings import Observation
+from ..i18n import _
 from ..stats import percentile
 from .hub import Hub
 from .judge import Cause
@@ -68,7 +69,7 @@ class View:
         n = cause.count
         if n > SHOWN and not (n >= 10 and math.log10(n).is_integer()):
             return
-        more = f" [{n:,}× so far]" if n > SHOWN else ""
+        more = " " + _("[{n}× so far]").format(n=f"{n:,}") if n > SHOWN else ""
         self.line(f"{time.strftime('%H:%M:%S')} {finding.verdict.value} {side.upper()} {clause}: "
                   f"{finding.line()}{more}")
 
@@ -82,13 +83,17 @@ class View:
     def status(self, hub: Hub) -> str:
         requests, answers, poses, recent = self.counts.update(hub)
         lat = hub.ctx.latency
-        pose = f"pose latency p50 {_ms(percentile(recent, 50))} p99 {_ms(percentile(recent, 99))} ms; " if recent else ""
+        pose = _("pose latency p50 {p50} p99 {p99} ms; ").format(
+            p50=_ms(percentile(recent, 50)), p99=_ms(percentile(recent, 99))) if recent else ""
         bad = sum(c.count for c in hub.findings.roots.causes.values())
-        return (f"{time.strftime('%H:%M:%S')} status: {len(hub.open)} open / {hub.connections:,} connection(s), "
-                f"{hub.ctx.stats.sessions:,} session(s) done, frames robot→box {requests:,} box→robot {answers:,}, "
-                f"answer latency p50 {_ms(lat.percentile(50))} p99 {_ms(lat.percentile(99))} ms; {pose}"
-                f"stream {self.counts.rate:.1f} poses/s; findings {bad:,} in {len(hub.findings.roots.causes)} "
-                f"root cause(s); injected {hub.reactions.total:,}")
+        return time.strftime('%H:%M:%S') + " " + _(
+            "status: {open} open / {connections} connection(s), {sessions} session(s) done, frames robot→box "
+            "{requests} box→robot {answers}, answer latency p50 {p50} p99 {p99} ms; {pose}stream {rate} poses/s; "
+            "findings {findings} in {causes} root cause(s); injected {injected}").format(
+            open=len(hub.open), connections=f"{hub.connections:,}", sessions=f"{hub.ctx.stats.sessions:,}",
+            requests=f"{requests:,}", answers=f"{answers:,}", p50=_ms(lat.percentile(50)),
+            p99=_ms(lat.percentile(99)), pose=pose, rate=f"{self.counts.rate:.1f}", findings=f"{bad:,}",
+            causes=len(hub.findings.roots.causes), injected=f"{hub.reactions.total:,}")
 
     def _panel(self, hub: Hub) -> Any:
         from rich.table import Table
@@ -100,17 +105,21 @@ class View:
                         f" ({hub.elapsed():.0f} s)", show_header=False, expand=False)
         t.add_column(style="bold")
         t.add_column()
-        t.add_row("connections", f"{len(hub.open)} open, {hub.connections:,} in all, "
-                                 f"{hub.upstream_failures} the box did not accept")
-        t.add_row("sessions completed", f"{hub.ctx.stats.sessions:,}")
-        t.add_row("frames", f"robot → box {requests:,}, box → robot {answers:,} ({hub.wire.frames:,} packets)")
-        t.add_row("answer latency", f"p50 {_ms(lat.percentile(50))} ms, p99 {_ms(lat.percentile(99))} ms"
-                                    + (f"; poses p50 {_ms(percentile(recent, 50))}, p99 "
-                                       f"{_ms(percentile(recent, 99))} ms" if recent else ""))
-        t.add_row("pose stream", f"{self.counts.rate:.1f} poses/s ({poses:,} in all)")
-        t.add_row("faults injected", f"{hub.reactions.total:,}")
+        t.add_row(_("connections"), _("{open} open, {all} in all, {refused} the box did not accept").format(
+            open=len(hub.open), all=f"{hub.connections:,}", refused=hub.upstream_failures))
+        t.add_row(_("sessions completed"), f"{hub.ctx.stats.sessions:,}")
+        t.add_row(_("frames"), _("robot → box {requests}, box → robot {answers} ({packets} packets)").format(
+            requests=f"{requests:,}", answers=f"{answers:,}", packets=f"{hub.wire.frames:,}"))
+        latency = _("p50 {p50} ms, p99 {p99} ms").format(p50=_ms(lat.percentile(50)), p99=_ms(lat.percentile(99)))
+        if recent:
+            latency += _("; poses p50 {p50}, p99 {p99} ms").format(p50=_ms(percentile(recent, 50)),
+                                                                  p99=_ms(percentile(recent, 99)))
+        t.add_row(_("answer latency"), latency)
+        t.add_row(_("pose stream"), _("{rate} poses/s ({poses} in all)").format(rate=f"{self.counts.rate:.1f}",
+                                                                               poses=f"{poses:,}"))
+        t.add_row(_("faults injected"), f"{hub.reactions.total:,}")
         causes = hub.findings.roots.ordered()
-        t.add_row("root causes", f"{len(causes)}" if causes else "none so far")
+        t.add_row(_("root causes"), f"{len(causes)}" if causes else _("none so far"))
         for c in causes[:8]:
             t.add_row(f"  {c.verdict.value} {c.side} {c.clause}", f"{c.count:,}× {c.signature}"[:110])
         return t
