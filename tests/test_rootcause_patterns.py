@@ -252,3 +252,23 @@ def test_a_field_wrong_in_every_answer_comes_before_a_larger_case_level_group() 
     causes = find_root_causes(cases)
     assert [(c.kind, c.clauses) for c in causes] == [("malformed-answers", ("F3",)), ("wrong-code", ("A1", "B2"))]
     assert causes[0].title == "Every answer of the box is malformed the same way: transfer type 01 (F3)"
+
+
+def test_a_fuzz_finding_on_a_block_request_joins_the_b3_position_cause() -> None:
+    """FUZZ-01 quotes the request, not the answer: a valid 17-block pose it found refused is the same
+    B3 defect as the catalogue's (found against a box counting indexes in 4 bits)."""
+    from conformance.suite.judge import CaseVerdict
+
+    fuzz = raised("FUZZ-01", "R1 R2 A1 A3", CaseVerdict(
+        Verdict.FAIL, "A1: a well-formed request (POSE ×17) is answered 0000; the box answered 1001",
+        sent=poses(POSE, 17), signature=Signature.fuzz("A1"), judged=("A1", "A3")))
+    cases = [*modulo_16_run(boundaries=False), fuzz]
+    causes = find_root_causes(cases, SessionFacts())
+    assert causes[0].kind == "block-position" and "FUZZ-01" in causes[0].cases
+    assert "from block 17 on" not in causes[0].title and "17, 255 blocks" in causes[0].title
+    # a fuzz finding about a wrong index answered 0000 counts as accepted at that position
+    wrong = raised("FUZZ-01", "R1 B3", CaseVerdict(
+        Verdict.FAIL, "R1: a request with a wrong index MUST NOT be answered 0000", sent=poses(POSE, 20, wrong_at=16),
+        signature=Signature.fuzz("R1"), judged=("R1", "B3")))
+    [cause] = [c for c in find_root_causes([*modulo_16_run(boundaries=False), wrong]) if c.kind == "block-position"]
+    assert "wrong index at block 17" in cause.title and "FUZZ-01" in cause.cases

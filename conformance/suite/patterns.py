@@ -122,11 +122,18 @@ def blocks_of(sent_hex: str, first_index: int) -> Blocks | None:
     return Blocks(action, count, wrong[0] if wrong else None)
 
 
-def _accepted(case: CaseResult) -> bool | None:
+def _accepted(case: CaseResult, blocks: Blocks) -> bool | None:
     """True: answered 0000; False: refused (a non-zero error, or a close); None: neither is known."""
     sig = case.signature
     if sig is None:
         return None
+    if sig.kind is Sig.FUZZ and not sig.field and sig.reply is None and case.verdict is Verdict.FAIL:
+        # a fuzz finding quotes the request, not the answer: a valid request fails when it is refused
+        # (A1/A3), one with a wrong index when it is answered 0000 (R1/B3)
+        judged = set(case.judged or case.clauses)
+        if blocks.wrong_at is None:
+            return False if judged & {"A1", "A3"} else None
+        return True if judged & {"R1", "B3"} else None
     if sig.reply is not None and sig.kind is not Sig.ANSWER:
         return sig.reply.error == 0
     return False if sig.kind is Sig.CLOSED else None
@@ -139,7 +146,8 @@ def block_position_cause(cases: Sequence[CaseResult], first_index: int) -> Claim
     for case in cases:
         if case.verdict not in _JUDGED or not case.sent_hex:
             continue
-        blocks, accepted = blocks_of(case.sent_hex, first_index), _accepted(case)
+        blocks = blocks_of(case.sent_hex, first_index)
+        accepted = None if blocks is None else _accepted(case, blocks)
         if blocks is None or accepted is None:
             continue
         if blocks.wrong_at is None and not accepted:
