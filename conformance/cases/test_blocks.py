@@ -23,7 +23,7 @@ from conformance.protocol import (
     request,
     tolerance_blocks,
 )
-from conformance.protocol.constants import f32_bits
+from conformance.protocol.constants import EDGE_FLOAT32, f32_bits
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
@@ -239,15 +239,7 @@ def test_non_finite(isight: CaseContext, action: Action, bits: int, where: tuple
 
 
 #: legal float32 values a box must take: (id, bit pattern)
-EDGE_FLOATS = [
-    ("neg-zero", 0x80000000),
-    ("min-subnormal", 0x00000001),
-    ("neg-min-subnormal", 0x80000001),
-    ("max-subnormal", 0x007FFFFF),
-    ("min-normal", 0x00800000),
-    ("max-float32", 0x7F7FFFFF),
-    ("neg-max-float32", 0xFF7FFFFF),
-]
+EDGE_FLOATS = EDGE_FLOAT32
 
 
 @case("B4-02", ["B4", "A1", "A3"], Level.MUST, "Legal float32 edge values (-0.0, subnormals, max) are accepted",

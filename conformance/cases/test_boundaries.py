@@ -39,7 +39,7 @@ from conformance.protocol import (
     encode,
     request,
 )
-from conformance.protocol.constants import f32_bits, f32_of_bits
+from conformance.protocol.constants import EDGE_FLOAT32, f32_bits, f32_of_bits
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, CaseVerdict, Skip, answered, answered_allowed, answered_zero
 from conformance.suite.record import Expect, Requirement, case
@@ -55,13 +55,7 @@ WRAP_POSITIONS = (17, 129)
 #: (id, float32 bit pattern): every float of the block holds it
 FLOAT_VALUES = [
     ("zero", 0x00000000),
-    ("neg-zero", 0x80000000),
-    ("min-subnormal", 0x00000001),
-    ("neg-min-subnormal", 0x80000001),
-    ("max-subnormal", 0x007FFFFF),
-    ("min-normal", 0x00800000),
-    ("max-float32", 0x7F7FFFFF),
-    ("neg-max-float32", 0xFF7FFFFF),
+    *EDGE_FLOAT32,
     ("1e6", 0x49742400),
     ("neg-1e6", 0xC9742400),
 ]

@@ -171,3 +171,15 @@ def f32_bits(value: float) -> int:
 def f32_of_bits(bits: int) -> float:
     """The float32 with this bit pattern (encoding it again gives the same bits)."""
     return float(struct.unpack("=f", struct.pack("=I", bits))[0])
+
+
+#: Legal float32 values a hurried implementation gets wrong (B4: any finite float32 is a value): (id, bit pattern)
+EDGE_FLOAT32 = (
+    ("neg-zero", 0x80000000),
+    ("min-subnormal", 0x00000001),
+    ("neg-min-subnormal", 0x80000001),
+    ("max-subnormal", 0x007FFFFF),
+    ("min-normal", 0x00800000),
+    ("max-float32", 0x7F7FFFFF),
+    ("neg-max-float32", 0xFF7FFFFF),
+)
