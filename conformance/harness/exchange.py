@@ -184,16 +184,42 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
             out.outcomes.append(outcome)
             continue
         extra = _settle(conn, settle.window(outcome.latency_s, not answers_zero(outcome, probe)))
+        if not answers_zero(outcome, probe):
+            extra += _await_probe(conn, probe, start, extra, timeout_s)
         out.close = next((o for o in extra if isinstance(o, Closed)), None)
         extra = [o for o in extra if not isinstance(o, Closed)]
-        if extra and answers_zero(extra[0], probe):
-            out.outcomes.append(outcome)
-            outcome = extra.pop(0)
+        late = next((k for k, o in enumerate(extra) if answers_zero(o, probe)), None)
+        if late is not None:  # the first answered the bytes; what came between them too
+            out.outcomes += [outcome, *extra[:late]]
+            outcome = extra.pop(late)
+            extra = extra[late:]
         out.outcomes += extra  # late extras: attribution sees them as answers nobody asked for
         out.end = outcome
         return out
     out.end = Silence(time.monotonic() - start)
     return out
+
+
+def _await_probe(conn: TcpConnection, probe: int, start: float, got: list[Outcome],
+                 timeout_s: float | None) -> list[Outcome]:
+    """After an error answer with the probe's action and its settle window: unless a close or a 0000
+    with the probe's action came in the window, read on until one comes, or time_out since the probe
+    was sent. A refusal of the bytes may carry the probe's action (A5), and the probe's own 0000 may
+    trail it by anything up to time_out (T1): taking the refusal for the probe's answer left that 0000
+    to be read as the answer to the next request on the connection (a false A1)."""
+    if any(isinstance(o, Closed) or answers_zero(o, probe) for o in got):
+        return []
+    more: list[Outcome] = []
+    deadline = start + (conn.time_out_s if timeout_s is None else timeout_s)
+    while len(got) + len(more) < MAX_DRAIN:
+        outcome = conn.next_outcome(max(0.0, deadline - time.monotonic()), since=start)
+        if isinstance(outcome, Silence):
+            break
+        more.append(outcome)
+        if isinstance(outcome, Closed) or answers_zero(outcome, probe):
+            more += _settle(conn, 0.0) if not isinstance(outcome, Closed) else []
+            break
+    return more
 
 
 def _settle(conn: TcpConnection, window_s: float) -> list[Outcome]:
