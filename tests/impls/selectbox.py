@@ -8,8 +8,10 @@ boxes do not, each named by the clause that allows it:
 - every answer is delayed by a random latency (per request, below ``time_out / 2``, T1) and
   written in two or three pieces with short pauses between them (a receiver reassembles, R3);
 - answers on one connection keep request order (A1) whatever their latencies;
-- the cycle state is kept per connection; CycleOn twice is answered 0000 both times, CycleOff
-  without CycleOn 0002 (S3: either is legal);
+- the cycle state is kept per connection, CycleOn twice answered 0000 both times, CycleOff
+  without CycleOn 0002; or (``box-cycle``) box-wide, owned by the connection that opened it,
+  CycleOn while on answered 0001, CycleOff without CycleOn 0000 (S3: all legal);
+- the TCP check field: 00 00 or a correct CRC-16/MODBUS accepted, or (``box-cycle``) ignored (F6);
 - a frame that is not a request (A5) is answered with a non-zero error under action ``00`` in
   the ``a5err`` configurations, or makes the box close the connection in the ``close`` ones;
 - a request that breaks B3-B5 is answered with its action's error (A3), 0001 for 00/01/02;
@@ -53,7 +55,10 @@ class Config:
     on_non_request: str = "a5err"  # "a5err": error under action 00; "close"; "silent"
     finite_only: bool = True  # B4 SHOULD: NaN/infinity is a parse error
     max_latency_ms: float = 200.0
-    crc_ok: bool = True  # accept a correct CRC-16/MODBUS in the TCP check field (F6 SHOULD)
+    check: str = "zero-or-crc"  # TCP check field accepted: "zero-or-crc" (CRC-16/MODBUS) or "any" (ignored, F6)
+    cycle_scope: str = "conn"  # the cycle state belongs to each connection or to the box (S3)
+    second_cycle_on: int = 0x0000  # the answer to CycleOn while a cycle is on (S3: 0000 or an error)
+    off_without_on: int = 0x0002  # the answer to CycleOff with no cycle on (S3: 0000 or an error)
 
 
 CONFIGS = {
@@ -62,6 +67,7 @@ CONFIGS = {
                          finite_only=False),
     "ext0-silent": Config(extension=True, on_non_request="silent", max_latency_ms=600.0),
     "slow": Config(max_latency_ms=2400.0),
+    "box-cycle": Config(cycle_scope="box", second_cycle_on=0x0001, off_without_on=0x0000, check="any"),
 }
 
 
@@ -98,6 +104,7 @@ class Box:
         self.cfg, self.rng = cfg, rng
         self.sel = selectors.DefaultSelector()
         self.conns: dict[int, Conn] = {}
+        self.cycle_owner: Conn | None = None  # the connection whose CycleOn is in force (box-wide scope)
 
     # ---- answers -------------------------------------------------------------------------
     def send_later(self, conn: Conn, data: bytes) -> None:
@@ -128,7 +135,7 @@ class Box:
             return self.non_request(conn)
         want_kind, want_len, err = known[action]
         body = frame[12:-2]
-        crc_fine = check == 0 or (self.cfg.crc_ok and check == crc16_modbus(frame[:-2]))
+        crc_fine = self.cfg.check == "any" or check in (0, crc16_modbus(frame[:-2]))
         if want_kind == 0:
             shape_ok = kind == 0 and count == 0 and length == 0
         else:
@@ -140,16 +147,27 @@ class Box:
         self.send_later(conn, self.reply(conn, action, body))
 
     def reply(self, conn: Conn, action: int, body: bytes) -> bytes:
-        if action == 0x01:
-            conn.cycle_on = True  # a second CycleOn is answered 0000 as well (S3)
-        elif action == 0x02:
-            was_on, conn.cycle_on = conn.cycle_on, False
-            return answer(action, 0 if was_on else 0x0002)
+        if action in (0x01, 0x02):
+            return answer(action, self.cycle(conn, action == 0x01))
         elif action == 0x26:
             return answer(action, 0, (self.cfg.first_index, INT.unpack(body)[1]))
         elif action == 0x27:
             return answer(action, 0, (self.cfg.first_index, 1))
         return answer(action)
+
+    def cycle(self, conn: Conn, on: bool) -> int:
+        """CycleOn / CycleOff: the error code. A box-wide cycle belongs to the connection that opened it
+        and ends when that connection closes."""
+        owner = self.cycle_owner if self.cfg.cycle_scope == "box" else (conn if conn.cycle_on else None)
+        if on:
+            if owner is not None:
+                return self.cfg.second_cycle_on
+            conn.cycle_on, self.cycle_owner = True, conn
+            return 0
+        if owner is None:
+            return self.cfg.off_without_on
+        owner.cycle_on, self.cycle_owner = False, None
+        return 0
 
     def non_request(self, conn: Conn) -> None:
         if self.cfg.on_non_request == "close":
@@ -242,6 +260,8 @@ class Box:
             self.sel.unregister(conn.sock)
             del self.conns[fd]
         conn.sock.close()
+        if self.cycle_owner is conn:
+            self.cycle_owner = None
 
     def flush(self, conn: Conn, now: float) -> None:
         while conn.pieces and conn.pieces[0][0] <= now:
