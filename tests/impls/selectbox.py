@@ -11,6 +11,7 @@ boxes do not, each named by the clause that allows it:
 - the cycle state is kept per connection, CycleOn twice answered 0000 both times, CycleOff
   without CycleOn 0002; or (``box-cycle``) box-wide, owned by the connection that opened it,
   CycleOn while on answered 0001, CycleOff without CycleOn 0000 (S3: all legal);
+- (``warm-up``) the first CycleOn on each connection is answered 0001, not ready (S2);
 - the TCP check field: 00 00 or a correct CRC-16/MODBUS accepted, or (``box-cycle``) ignored (F6);
 - a frame that is not a request (A5) is answered with a non-zero error under action ``00`` in
   the ``a5err`` configurations, or makes the box close the connection in the ``close`` ones;
@@ -59,6 +60,7 @@ class Config:
     cycle_scope: str = "conn"  # the cycle state belongs to each connection or to the box (S3)
     second_cycle_on: int = 0x0000  # the answer to CycleOn while a cycle is on (S3: 0000 or an error)
     off_without_on: int = 0x0002  # the answer to CycleOff with no cycle on (S3: 0000 or an error)
+    warm_up: bool = False  # the first CycleOn of each connection is answered 0001, not ready (S2)
 
 
 CONFIGS = {
@@ -67,6 +69,7 @@ CONFIGS = {
                          finite_only=False),
     "ext0-silent": Config(extension=True, on_non_request="silent", max_latency_ms=600.0),
     "slow": Config(max_latency_ms=2400.0),
+    "warm-up": Config(warm_up=True, on_non_request="silent", max_latency_ms=50.0),
     "box-cycle": Config(cycle_scope="box", second_cycle_on=0x0001, off_without_on=0x0000, check="any"),
 }
 
@@ -94,6 +97,7 @@ class Conn:
         self.buf = bytearray()
         self.skip = 0  # bytes of a trusted bad frame still to discard (R6 a)
         self.cycle_on = False
+        self.warmed = False  # a CycleOn was refused on this connection (warm-up)
         self.pieces: list[tuple[float, bytes]] = []  # (due, bytes), in order
         self.last_due = 0.0
         self.closing = False
@@ -160,6 +164,9 @@ class Box:
         and ends when that connection closes."""
         owner = self.cycle_owner if self.cfg.cycle_scope == "box" else (conn if conn.cycle_on else None)
         if on:
+            if self.cfg.warm_up and not conn.warmed:
+                conn.warmed = True
+                return 0x0001
             if owner is not None:
                 return self.cfg.second_cycle_on
             conn.cycle_on, self.cycle_owner = True, conn
