@@ -184,7 +184,7 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
             out.outcomes.append(outcome)
             continue
         extra = _settle(conn, settle.window(outcome.latency_s, not answers_zero(outcome, probe)))
-        if not answers_zero(outcome, probe):
+        if _maybe_refusal(outcome) and not answers_zero(outcome, probe):
             extra += _await_probe(conn, probe, start, extra, timeout_s)
         out.close = next((o for o in extra if isinstance(o, Closed)), None)
         extra = [o for o in extra if not isinstance(o, Closed)]
@@ -198,6 +198,13 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
         return out
     out.end = Silence(time.monotonic() - start)
     return out
+
+
+def _maybe_refusal(outcome: Outcome) -> bool:
+    """A sound frame whose only fault, if any, is its error code: what a refusal of the bytes looks like.
+    (An answer broken in its start word, version or direction is not waited on: a box whose every answer
+    is broken that way would cost time_out per exchange.)"""
+    return isinstance(outcome, Answer) or (isinstance(outcome, Malformed) and isinstance(outcome.error, AnswerError))
 
 
 def _await_probe(conn: TcpConnection, probe: int, start: float, got: list[Outcome],
