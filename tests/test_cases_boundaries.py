@@ -1,5 +1,6 @@
 """Self-tests for the boundary cases (B3-03, B3-04, B4-03): each runs in a subprocess against a
-small loopback box that parses frames its own way (2-6 s per run, six runs)."""
+small loopback box that parses frames its own way (2-6 s per run, seven runs;
+the last checks F6-02 under --first-index 1)."""
 
 from __future__ import annotations
 
@@ -129,3 +130,11 @@ def test_a_box_hanging_after_a_parse_error_ends_the_case_at_once(tmp_path: Path)
         assert case["message"].startswith("block 2 of 2: ") and "the box went silent; the 21 requests after it were " \
             "not sent" in case["message"], case["message"]
         assert results[f"B3-03[{action}]"]["verdict"] == "PASS"
+
+
+def test_f6_02_indexes_its_pose_from_the_profiles_first_index(tmp_path: Path) -> None:
+    """A box indexing from 1 that ignores the TCP check field accepts the CRC-carrying pose of F6-02
+    (it was sent indexed from 0 whatever --first-index said: a NON-STRICT false alarm)."""
+    with ScriptedBox(parsing_box(lambda indexes, floats: indexes == list(range(1, len(indexes) + 1)))) as box:
+        results = run_suite(tmp_path, ["F6-02"], None, "--target", box.target, "--time-out", "1000", "--first-index", "1")
+    assert verdicts(results) == {"F6-02": "PASS"}, results.get("F6-02")

@@ -170,6 +170,28 @@ def test_an_answer_begun_when_the_window_closes_is_read_to_its_end() -> None:
     assert explanation.findings == []
 
 
+def answer_late(conn: socket.socket, rest: bytes) -> None:
+    """The probe's answer 0.3 s after the refusal: past the settle window, well within time_out (T1)."""
+    time.sleep(0.3)
+    conn.sendall(rest)
+    conn.settimeout(5)
+    while conn.recv(65536):
+        pass
+
+
+def test_the_probe_s_answer_may_trail_a_refusal_with_its_action_by_more_than_the_window() -> None:
+    """A box refusing bytes under action 00 (A5) and answering the NONE probe 0.3 s later: the refusal was
+    taken for the probe's answer, and the probe's 0000 read as the answer to the next request (a false A1 in
+    fuzz campaigns against tests/impls/selectbox)."""
+    with ScriptedBox(refuse_bad_bytes(answer_late)) as box:
+        conn, probe, got = exchange(box.port, GARBAGE, Settle())
+        conn.close()
+    assert isinstance(got.end, Answer) and got.end.frame.action is probe and got.end.frame.error_code == 0
+    assert [refusal_code(o) for o in got.outcomes] == [0xFFFF] and got.close is None
+    explanation = attribute(GARBAGE + encode(probe_request(probe, P)), got, P, probe_at=len(GARBAGE))
+    assert explanation.findings == []
+
+
 def test_send_malformed_uses_the_engine_and_attributes_the_refusal_to_the_bytes() -> None:
     with ScriptedBox(refuse_bad_bytes(answer_in_two_writes)) as box:
         state = SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=P))

@@ -39,6 +39,16 @@ def test_trusting_the_header_and_waiting_for_its_body_explains_silence() -> None
     assert clauses(data, [], End.SILENT) == []
 
 
+def test_trusting_a_header_announcing_more_than_the_largest_legal_frame_explains_silence() -> None:
+    """R6 (a) bounds no length: a box that trusts a header announcing 255 x 65535 bytes and skips them (counting,
+    not buffering: R5) waits for them, with or without a refusal first. It was NON-STRICT R6 ("hangs") in fuzz
+    campaigns against tests/impls/selectbox."""
+    huge = encode_raw(Header(action=Action.POSE, block_type=1, block_count=255, block_length=0xFFFF))
+    assert clauses(huge + NONE, [], End.SILENT) == []
+    assert clauses(huge + NONE, [seen(Action.POSE, 0x1001)], End.SILENT) == []
+    assert [level for level, _ in clauses(huge + NONE, [seen(Action.POSE, 0)], End.SILENT)] == ["MUST"]  # no 0000
+
+
 def test_closing_after_bytes_that_are_not_a_request_is_legal() -> None:
     assert clauses(HALF_HEADER + NONE + POSE, [], End.CLOSED) == []
     assert clauses(b"hello" + POSE, [], End.CLOSED) == []

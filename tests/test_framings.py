@@ -90,14 +90,16 @@ def test_a_plausible_header_announcing_more_than_was_sent(eof: bool, end: int, w
     assert r.targets(0) == targets
 
 
-def test_a_header_no_receiver_can_trust_is_only_resynchronised() -> None:
-    """R5: 255 x 65535 block bytes is more than the largest legal frame: nothing trusts it (A5, never 0000)."""
+def test_a_header_announcing_more_than_any_legal_frame_is_resynchronised_or_waited_on() -> None:
+    """R5: 255 x 65535 block bytes is more than the largest legal frame: a receiver resynchronises, or trusts it
+    only to skip what it announces and so waits (R6 a; explain.py), never answering 0000 (A5)."""
     huge = encode_raw(Header(action=Action.POSE, block_type=1, block_count=255, block_length=0xFFFF))
     r = reader(huge + NONE)
     spot = r.spot(0)
-    assert (spot.kind, spot.end, spot.plausible, spot.junk) == (BAD, -1, False, True)
+    assert (spot.kind, spot.end, spot.plausible, spot.junk, spot.waits) == (BAD, -1, False, True, True)
     assert spot.exp is not None and (spot.exp.rule, spot.exp.clause) == (Rule.NOT_REQUEST, "F5")
     assert r.targets(0) == [len(huge)] and r.reference(0) == len(huge)
+    assert not reader(huge + NONE, eof=True).spot(0).waits  # the stream ended: nothing more to wait for
 
 
 PIECES = [b"\xfe", b"\xfe\xfe", HALF_HEADER, b"\x00", b"\x01", b"\x23", b"\x19", b"\x10", b"\xff",

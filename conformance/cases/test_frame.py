@@ -108,6 +108,7 @@ def test_tcp_check_zero(isight: CaseContext) -> None:
       checks={"": Requirement(("F6",), "a TCP receiver SHOULD ignore the check field (accept a correct CRC as well as 00 00)",
                               accept=answered_allowed(Action.POSE))})
 def test_tcp_check_crc_accepted(isight: CaseContext) -> None:
+    # indexed from the profile's first index: a box taking 01 first refuses a block indexed 00 (B3), not the CRC
     frame = request(Action.POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)], isight.profile.first_index))
     data = encode(frame, isight.profile, Transport.UDP)  # same bytes, CRC in the check field
     isight.judge(isight.exchange(data, "pose request whose check field holds its CRC"), sent=b"")

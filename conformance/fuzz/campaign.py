@@ -33,6 +33,7 @@ from hypothesis.errors import Flaky
 
 from .. import __version__
 from ..evidence.pcap import PcapRecorder
+from ..harness.client import Silence
 from ..harness.transcript import Transcript
 from ..options import profile_flags
 from ..suite.verdicts import Verdict
@@ -308,6 +309,10 @@ class Campaign:
         return back
 
     def _observe(self, case: FuzzCase, result: Result) -> None:
+        if case.kind == "R5-oversized" and isinstance(result.end, Silence) and case.kind not in self.disabled:
+            self.disabled.add(case.kind)  # legal (R6 a: it skips what the header announces), but each waits time_out
+            self.config.log(f"fuzz: the box waits on a {case.kind} header (R6 a trusts it and skips what it "
+                            f"announces); {case.kind} cases are not sent again in this campaign (each would wait time_out)")
         for f in result.judgement.findings:
             if f.verdict is not Verdict.NON_STRICT:
                 continue

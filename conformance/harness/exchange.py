@@ -173,16 +173,6 @@ def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_
     return collect(conn, probe, start, settle, timeout_s)
 
 
-def _probe_zero_at(first: Outcome, extra: list[Outcome], probe: int) -> int | None:
-    """Where the probe's own 0000 answer is among the ``extra`` answers after ``first`` (an
-    answer with the probe's action), when ``first`` was not the probe's: right after a first
-    0000, or anywhere after a first with an error (A5 lets a refusal of the bytes carry any
-    action, and the box may answer more of the bytes before it reads the probe)."""
-    if answers_zero(first, probe):
-        return 0 if extra and answers_zero(extra[0], probe) else None
-    return next((i for i, o in enumerate(extra) if answers_zero(o, probe)), None)
-
-
 def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle,
             timeout_s: float | None = None) -> Collected:
     """Everything the box sends until an answer with the probe's action (then the settle
@@ -200,17 +190,49 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
             out.outcomes.append(outcome)
             continue
         extra = _settle(conn, settle.window(outcome.latency_s, not answers_zero(outcome, probe)))
+        if _maybe_refusal(outcome) and not answers_zero(outcome, probe):
+            extra += _await_probe(conn, probe, start, extra, timeout_s)
         out.close = next((o for o in extra if isinstance(o, Closed)), None)
         extra = [o for o in extra if not isinstance(o, Closed)]
-        at = _probe_zero_at(outcome, extra, probe)
-        if at is not None:  # the probe's 0000 came later: everything before it answered the bytes
-            out.outcomes += [outcome, *extra[:at]]
-            outcome, extra = extra[at], extra[at + 1 :]
+        late = next((k for k, o in enumerate(extra) if answers_zero(o, probe)), None)
+        if late is not None:  # the first answered the bytes; what came between them too
+            out.outcomes += [outcome, *extra[:late]]
+            outcome = extra.pop(late)
+            extra = extra[late:]
         out.outcomes += extra  # late extras: attribution sees them as answers nobody asked for
         out.end = outcome
         return out
     out.end = Silence(time.monotonic() - start)
     return out
+
+
+def _maybe_refusal(outcome: Outcome) -> bool:
+    """A sound frame whose only fault, if any, is its error code: what a refusal of the bytes looks like.
+    (An answer broken in its start word, version or direction is not waited on: a box whose every answer
+    is broken that way would cost time_out per exchange.)"""
+    return isinstance(outcome, Answer) or (isinstance(outcome, Malformed) and isinstance(outcome.error, AnswerError))
+
+
+def _await_probe(conn: TcpConnection, probe: int, start: float, got: list[Outcome],
+                 timeout_s: float | None) -> list[Outcome]:
+    """After an error answer with the probe's action and its settle window: unless a close or a 0000
+    with the probe's action came in the window, read on until one comes, or time_out since the probe
+    was sent. A refusal of the bytes may carry the probe's action (A5), and the probe's own 0000 may
+    trail it by anything up to time_out (T1): taking the refusal for the probe's answer left that 0000
+    to be read as the answer to the next request on the connection (a false A1)."""
+    if any(isinstance(o, Closed) or answers_zero(o, probe) for o in got):
+        return []
+    more: list[Outcome] = []
+    deadline = start + (conn.time_out_s if timeout_s is None else timeout_s)
+    while len(got) + len(more) < MAX_DRAIN:
+        outcome = conn.next_outcome(max(0.0, deadline - time.monotonic()), since=start)
+        if isinstance(outcome, Silence):
+            break
+        more.append(outcome)
+        if isinstance(outcome, Closed) or answers_zero(outcome, probe):
+            more += _settle(conn, 0.0) if not isinstance(outcome, Closed) else []
+            break
+    return more
 
 
 def _settle(conn: TcpConnection, window_s: float) -> list[Outcome]:

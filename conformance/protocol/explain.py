@@ -165,7 +165,7 @@ class _Search:
         # bytes that are not a valid request: answered or not, then trusted, resynchronised, waited on
         run = graph.junk_run(p)
         if run is not None:
-            return steps + self._run_steps(p, i, spot, run)
+            return steps + self._trusted_junk(p, i, spot) + self._run_steps(p, i, spot, run)
         choices: list[tuple[int | None, list[Finding]]] = [(None, unanswered(exp, bad, self._how()))]
         if i < k:
             choices.append((i, judge_answer(exp, self.answers[i])))
@@ -185,6 +185,17 @@ class _Search:
             if j == k and end is End.CLOSED:
                 steps.append(_Step(base, tuple(found), event, None, note=f"closes after the bytes at offset {p}"))
         return steps
+
+    def _trusted_junk(self, p: int, i: int, spot: Spot) -> list[_Step]:
+        """A header only R6 (a) trusts (it announces more than the largest legal frame): refused or not, the box
+        may skip its announced length and so wait for it, which explains a silence after it."""
+        k, exp = len(self.answers), spot.exp
+        if not spot.waits or self.end is End.CLOSED or exp is None or i < k - 1:
+            return []
+        found = unanswered(exp, False, self._how()) if i == k else judge_answer(exp, self.answers[i])
+        note = f"trusts the header at offset {p} and waits for the length it announces"
+        return [_Step(_add(_cost(found), (0, 0, 1)), tuple(found), Event(p, p + 1, exp, None if i == k else i), None,
+                      note=note)]
 
     def _run_steps(self, p: int, i: int, spot: Spot, run: tuple[int, int]) -> list[_Step]:
         """A run of junk from ``p`` to ``run[0]`` with ``run[1]`` junk events: each may take one answer."""

@@ -3,8 +3,9 @@
 How a receiver frames bad bytes is its own choice. Every one of these is legal, and a
 box may mix them:
 
-* **trust** a header whose start word and version are right (and which announces at
-  most the largest legal frame): skip its announced length as one bad frame;
+* **trust** a header whose start word and version are right: skip its announced length
+  as one bad frame (a header announcing more than the largest legal frame may be trusted
+  too, its bytes skipped uncounted, R5, so the box waits for them);
 * **resynchronise**: reject the header and resume at the next ``FE FE`` found searching
   from any offset after its first byte (1 to 12: a box may skip the whole rejected
   header), so a valid frame that begins inside a rejected header may be answered;
@@ -166,14 +167,17 @@ class Reader:
                                              raw=data[p : p + HEADER_LEN], header=header, clause="F2"), end=-1)
         total = HEADER_LEN + header.body_length + CHECK_LEN
         if total > MAX_FRAME_LEN:
-            # a header no receiver can trust: like the reference decoder, a box may take it for bytes that are
-            # not a request (A5: silence is fine) whatever its action; 0000 is still never allowed
+            # a header announcing more than the largest legal frame: like the reference decoder, a box may take
+            # it for bytes that are not a request (A5: silence is fine) whatever its action, or trust it (R6 a
+            # bounds no length) and skip what it announces, counting rather than buffering (R5): it then waits
+            # for those bytes. 0000 is still never allowed
             message = f"header announces {header.body_length} block bytes, more than the largest legal frame"
             try:
                 self.codec.check_header(data[p : p + HEADER_LEN], TransferType.ROBOT_TO_BOX)
             except ProtocolError as exc:
                 message = exc.message
-            return self._error(LengthError(message, offset=p, raw=data[p : p + HEADER_LEN]), end=-1)
+            return self._error(LengthError(message, offset=p, raw=data[p : p + HEADER_LEN]), end=-1,
+                               waits=not self.eof)
         if total > rem:
             try:
                 self.codec.check_header(data[p : p + HEADER_LEN], TransferType.ROBOT_TO_BOX)
