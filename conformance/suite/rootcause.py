@@ -90,7 +90,7 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
     groups: dict[Signature, list[CaseResult]] = {}
     for case in cases:
         if case.verdict in _NOT_PASS and case.signature is not None and id(case) not in taken:
-            groups.setdefault(_group_key(case.signature, cases), []).append(case)
+            groups.setdefault(_group_key(case.signature, cases, case), []).append(case)
     for signature, members in groups.items():
         if len(members) >= MIN_GROUP and signature.groups:
             claim(_from_signature(signature, members), members)
@@ -142,11 +142,19 @@ def _session_causes(cases: Sequence[CaseResult], facts: SessionFacts) -> list[Cl
     return out
 
 
-def _group_key(signature: Signature, cases: Sequence[CaseResult]) -> Signature:
+#: one group for the silences after bad bytes (R6, SHOULD), whichever probe went unanswered
+HANGS_AFTER_BAD_BYTES = Signature(Sig.SILENCE, "after-bad-bytes")
+
+
+def _group_key(signature: Signature, cases: Sequence[CaseResult], case: CaseResult | None = None) -> Signature:
     """A fuzz finding about malformed answers joins the group of the same malformation;
-    parse errors left unanswered form one group whatever their action."""
+    parse errors left unanswered form one group whatever their action; so do the requests left
+    unanswered behind bad bytes (an R6 SHOULD, not a late answer: the probe's action is the case's choice)."""
     if signature.kind is Sig.SKIPPED:
         return Signature(Sig.SKIPPED)
+    if (signature.kind is Sig.SILENCE and case is not None and case.verdict is not Verdict.FAIL
+            and "R6" in case.judged):
+        return HANGS_AFTER_BAD_BYTES
     if signature.kind is Sig.FUZZ and signature.field == "answer":
         peers = {s for s in (c.signature for c in cases) if s is not None and s.kind is Sig.ANSWER
                  and s.clause == signature.clause}
@@ -169,6 +177,10 @@ def _from_signature(sig: Signature, members: list[CaseResult]) -> RootCause:
     if kind is Sig.SWAPPED:
         return RootCause("", ("F4", "A3"), gettext("The box writes error codes with their bytes swapped "
                                                    "(little-endian): 1001 goes out as 01 10"), evidence, kind="byte-order")
+    if sig == HANGS_AFTER_BAD_BYTES:
+        return RootCause("", ("R6",), gettext("After bytes that are not a request the box goes silent: the requests "
+                                              "behind them are not answered within time_out (R6: it SHOULD "
+                                              "resynchronise)"), evidence, kind="unanswered")
     if kind is Sig.SILENCE:  # a MUST: time_out (T1) is what it breaks; a SHOULD (R6: hangs after garbage) is not T1
         named = ("T1", *[c for c in clauses if c != "T1"][:1]) if level is Level.MUST else clauses
         return RootCause("", named, gettext("The box does not answer {what} within time_out").format(what=rest), evidence, kind="unanswered")
