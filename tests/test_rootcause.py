@@ -398,12 +398,14 @@ def test_a_non_strict_only_run_names_the_should_it_broke(tmp_path: Path) -> None
     cases = [judged(f"R6-01[{kind}]", "R6", Silence(5.0), resync(action), level="SHOULD")
              for kind, action in (("ascii", NONE), ("zeros", POSE), ("bad-start-word", POSE), ("bad-version", POSE))]
     cases.append(passed("A5-01[start-fffe]", "A5 R1 F1"))
-    assert ids(cases, Verdict.NON_STRICT) == [c.id for c in cases[:4]]
+    fuzz = CaseVerdict(Verdict.NON_STRICT, "[R6] hangs after garbage", signature=Signature.fuzz("R6", key="R6/hang"))
+    cases.append(raised("FUZZ-01", "R1 R2 A1 R6", fuzz, level="MUST"))  # fuzzing found the same hang
+    assert ids(cases, Verdict.NON_STRICT) == [*(c.id for c in cases[:4]), "FUZZ-01"]
     causes = find_root_causes(cases)
     [rc] = causes
     assert (rc.level, rc.kind, rc.clauses) == (Level.SHOULD, "unanswered", ("R6",))
     # one defect whichever probe went unanswered (NONE behind ascii, POSE behind the others): one root cause
-    assert rc.cases == ["R6-01[ascii]", "R6-01[zeros]", "R6-01[bad-start-word]", "R6-01[bad-version]"]
+    assert rc.cases == ["R6-01[ascii]", "R6-01[zeros]", "R6-01[bad-start-word]", "R6-01[bad-version]", "FUZZ-01"]
     assert "SHOULD resynchronise" in rc.title and "NONE" not in rc.title
     marked(cases, causes)
     assert verdict_of("no-resync", cases, causes, tmp_path) == "ok"

@@ -152,8 +152,9 @@ def _group_key(signature: Signature, cases: Sequence[CaseResult], case: CaseResu
     unanswered behind bad bytes (an R6 SHOULD, not a late answer: the probe's action is the case's choice)."""
     if signature.kind is Sig.SKIPPED:
         return Signature(Sig.SKIPPED)
-    if (signature.kind is Sig.SILENCE and case is not None and case.verdict is not Verdict.FAIL
-            and "R6" in case.judged):
+    if case is not None and case.verdict is not Verdict.FAIL and (
+            (signature.kind is Sig.SILENCE and "R6" in case.judged)
+            or (signature.kind is Sig.FUZZ and signature.clause == "R6")):  # fuzzing found the same hang
         return HANGS_AFTER_BAD_BYTES
     if signature.kind is Sig.FUZZ and signature.field == "answer":
         peers = {s for s in (c.signature for c in cases) if s is not None and s.kind is Sig.ANSWER
