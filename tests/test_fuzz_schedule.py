@@ -9,7 +9,16 @@ import pytest
 from conformance.fuzz.coverage import EDGES_U8, EDGES_U16, SIZE_POINTS, VALUE_CLASSES, Coverage, float_class, size_point
 from conformance.fuzz.schedule import FLOAT_SPECIALS, GARBAGE_SIZES, Schedule, boundary_counts
 from conformance.fuzz.strategies import BLOCK_ACTIONS, Strategies, _recount
-from conformance.protocol import DEFAULT_PROFILE, MAX_FRAME_LEN, Action, Header, Profile, Transport, parse_frame
+from conformance.protocol import (
+    DEFAULT_PROFILE,
+    MAX_FRAME_LEN,
+    Action,
+    Header,
+    Profile,
+    ProtocolError,
+    Transport,
+    parse_frame,
+)
 
 
 def schedule(profile: Profile = DEFAULT_PROFILE, udp: bool = True) -> list:
@@ -95,3 +104,18 @@ def test_a_mutated_count_byte_gives_a_well_formed_frame_of_that_count() -> None:
     assert [b.index for b in frame.blocks] == list(range(7))
     data[6] = 1  # another header byte changed too: not a count mutation
     assert _recount(s, header, body, bytes(data)) is None
+
+
+def test_one_wrong_index_where_a_counter_wraps_comes_first() -> None:
+    """B3 edges: a wrong index at blocks 1, 2, 17, 129 and 255 of every block action, in the first cases
+    (a box counting indexes in 4 bits takes a wrong index at block 17), each a parse error (never 0000)."""
+    cases = schedule(Profile(first_index=1))
+    at = [n for n, c in enumerate(cases) if c.kind == "edge-index"]
+    wrong = [cases[n] for n in at]
+    assert len(wrong) == 5 * len(BLOCK_ACTIONS) and max(at) < 7 * len(wrong)  # taken in turn with 6 other groups
+    for case in wrong:
+        with pytest.raises(ProtocolError) as bad:
+            parse_frame(case.data, Profile(first_index=1), Transport.TCP)
+        assert bad.value.clause == "B3" and not case.valid
+    at_17 = [c for c in wrong if c.data[7] == 17]
+    assert {c.data[12 + 16 * (25 if c.data[6] == 1 else 5)] for c in at_17} == {(1 + 16) & 0x0F}

@@ -9,6 +9,7 @@ seconds at the usual rate). The groups are taken in turn, so the small ones fini
 * **counts**: a well-formed pose, register-pose and tolerance request of every block
   count 1-255, with correct indexes and finite values (boundary counts first: 1, 2, 3,
   4, 7, 8, 9, ... 254, 255, then the rest);
+* **indexes**: one wrong block index at the first, second, 17th, 129th and last block (B3);
 * **fields**: every header field at each of its boundary values (:func:`.coverage.field_space`),
   on a NONE and on a one-pose request;
 * **values**: every float32 class of :data:`FLOAT_SPECIALS` (±0, subnormals, NaN with
@@ -68,7 +69,7 @@ class Schedule:
 
     def __init__(self, s: Strategies) -> None:
         self.s = s
-        groups = [self._fields(), self._values(), self._sizes(), self._splits(), self._counts()]
+        groups = [self._indexes(), self._fields(), self._values(), self._sizes(), self._splits(), self._counts()]
         if s.udp:
             groups.append(self._udp())
         self._iter = _round_robin(groups)
@@ -90,15 +91,28 @@ class Schedule:
             yield case
 
     # -- building ----------------------------------------------------------------------------
-    def request(self, action: Action, n: int, salt: int = 0, transport: Transport = Transport.TCP) -> bytes:
-        """A well-formed request of ``n`` blocks with correct indexes and finite values."""
+    def request(self, action: Action, n: int, salt: int = 0, transport: Transport = Transport.TCP,
+                indexes: list[int] | None = None) -> bytes:
+        """A request of ``n`` blocks with finite values, and correct indexes unless ``indexes`` are given."""
         s = self.s
         shape = REQUEST_SHAPE[action]
         bt = int(shape.block_type)
         per = BLOCK_LEN[shape.block_type]
         raw = random.Random(n * 1009 + int(action) * 31 + salt).randbytes(4 * max(0, per - 1))
-        body = s.blocks(bt, n, raw) if n else b""
+        body = s.blocks(bt, n, raw, indexes) if n else b""
         return s.raw(Header(action=action, block_type=bt, block_count=n, block_length=per), body, transport=transport)
+
+    def _indexes(self) -> Iterator[FuzzCase]:
+        """B3: one wrong index at the first block, the second, the 17th and the 129th (what a counter
+        wrapping at 16 or 128 expects there) and the last: a parse error, never 0000."""
+        first = self.s.first
+        for n, position, wrong in ((1, 0, first ^ 1), (2, 1, first + 2), (17, 16, (first + 16) & 0x0F),
+                                   (129, 128, (first + 128) & 0x7F), (255, 254, first + 255)):
+            for action in BLOCK_ACTIONS:
+                indexes = [(first + i) & 0xFF for i in range(n)]
+                indexes[position] = wrong & 0xFF
+                yield self.s.case("edge-index", "B3", self.request(action, n, indexes=indexes),
+                                  f"{action.name} ×{n}, index {wrong & 0xFF:02x} at block {position + 1}")
 
     def _counts(self) -> Iterator[FuzzCase]:
         for n in boundary_counts():
