@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 from .framers import Framer
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
+from .systematic import ConnState
 
 POLL = 0.2
 WRITE_BOUND = 10.0  # seconds a peer may leave an answer unread before the box gives up on it
@@ -180,6 +181,7 @@ class ThreadBox:
         cycle = self.cycle if choices.cycle_scope == "box" else Cycle()
         latency = LATENCY[choices.latency]
         hung = choices.defect == "dead"
+        remembers = ConnState()
         while not self.stop_event.is_set():
             try:
                 data = conn.recv(65536)
@@ -193,7 +195,7 @@ class ThreadBox:
             framer.feed(data)
             answered = 0
             for event in framer.events():
-                reply = decide(choices, event, cycle)
+                reply = decide(choices, event, cycle, remembers)
                 if reply.hang:
                     hung = True
                     break
