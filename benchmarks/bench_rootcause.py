@@ -18,6 +18,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 import zlib
 from concurrent.futures import ThreadPoolExecutor
@@ -27,8 +28,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.impls.boxcore import ThreadBox  # noqa: E402 - the project root first
 from tests.impls.box import describe  # noqa: E402
+from tests.impls.boxcore import ThreadBox  # noqa: E402 - the project root first
 from tests.impls.policy import random_choices  # noqa: E402
 from tests.impls.systematic import FIXED, SYSTEMATIC  # noqa: E402
 
@@ -48,6 +49,13 @@ class Row:
     run_s: float = 0.0
     exit: int | None = None
     knobs: str = ""
+
+
+def _quiet(args: threading.ExceptHookArgs) -> None:
+    """A box's writer thread meets a peer that went away: not worth a traceback in the table."""
+    if args.exc_type is not None and issubclass(args.exc_type, (BrokenPipeError, ConnectionResetError)):
+        return
+    threading.__excepthook__(args)
 
 
 def base_seed(name: str, base: int) -> int:
@@ -101,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit", type=float, default=300, help="hard bound per suite run, seconds")
     parser.add_argument("--out", type=Path, default=None, help="where reports go (default reports/bench-rootcause-*)")
     args = parser.parse_args(argv)
+    threading.excepthook = _quiet
     names = args.only or list(SYSTEMATIC)
     unknown = [n for n in names if n not in SYSTEMATIC]
     if unknown:

@@ -264,7 +264,8 @@ def cycle(p: Prober, alone: dict[int, Alone]) -> Found:
     if started and alone_ok != inside_ok and POSE in alone:
         failing_refused = (inside.answers and inside.answers[0].error) if alone_ok else alone[POSE].kind == "refused"
         what = gettext("Refuses") if failing_refused else gettext("Mishandles")
-        found.mechanisms.append(_mech("cycle-dependent", {POSE}, found, ("S3",), [off, on, pose, off],
+        shown = [off, on, pose, off] if alone_ok else [off, pose]  # the pose where it is mishandled
+        found.mechanisms.append(_mech("cycle-dependent", {POSE}, found, ("S3",), shown,
                                       action=POSE, inside=not inside_ok, what=what))
     found.stories["cycle-dependent"] = (Status.CONFIRMED, "") if found.mechanisms else (
         (Status.RULED_OUT, "a pose is answered the same inside a cycle and alone") if started
