@@ -191,8 +191,8 @@ class Alone:
 def classify_alone(action: int, exchange: Exchange) -> Alone:
     """The request (frame 0) then a NONE (frame 1) on one connection: what the box did with the request.
 
-    Answers come in order (A1): every answer heard before the NONE's belongs to the request, and one more
-    answer than the two requests asked for after the NONE is a late extra."""
+    Answers come in order (A1): every answer heard before the NONE was sent belongs to the request, and an
+    answer with the request's action read after the NONE is a late extra."""
     first, after = exchange.reading(0), exchange.reading(1)
     heard = list(first.answers)
     if not heard and first.closed:
@@ -205,7 +205,9 @@ def classify_alone(action: int, exchange: Exchange) -> Alone:
                              after.answers[0].action, after.answers[0].error)
             return Alone(action, "missing", 0)
         return Alone(action, "silent", 0)
-    extra = len(heard) + max(0, len(after.answers) - 1)
+    # a late extra answer to the request comes after the NONE's wait with the request's action (a NONE answered
+    # twice itself is the NONE's own defect, not this request's)
+    extra = len(heard) + sum(1 for b in after.answers if b.action == action != 0)
     a = heard[0]
     if a.malformed:
         return Alone(action, "malformed", extra, a.action, a.error)
