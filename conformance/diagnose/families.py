@@ -232,7 +232,8 @@ def after_error(p: Prober, actions: Sequence[int], alone: dict[int, Alone]) -> F
             what = {"refused": f"refuses (error {after.error or 0:04X})", "missing": "leaves unanswered",
                     "silent": "leaves unanswered", "closed": "closes the connection on",
                     "echo": "answers with the wrong action", "extra": "answers twice"}.get(after.kind, "mishandles")
-            found.mechanisms.append(_mech("state-leak", {action}, found, ("A1", "A3"),
+            # one leak is enough: the next request is spoilt whatever its action (each try may cost time_out)
+            found.mechanisms.append(_mech("state-leak", set(CORE) | set(actions), found, ("A1", "A3"),
                                           [(bad, Expect("invalid", POSE)), (frame, expect)], action=action, what=what))
             break
     found.stories["state-leak"] = (Status.CONFIRMED, "") if found.mechanisms else (

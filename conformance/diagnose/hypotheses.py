@@ -205,9 +205,10 @@ def classify_alone(action: int, exchange: Exchange) -> Alone:
                              after.answers[0].action, after.answers[0].error)
             return Alone(action, "missing", 0)
         return Alone(action, "silent", 0)
-    # a late extra answer to the request comes after the NONE's wait with the request's action (a NONE answered
-    # twice itself is the NONE's own defect, not this request's)
-    extra = len(heard) + sum(1 for b in after.answers if b.action == action != 0)
+    # a late extra answer to the request is read after the NONE was sent, before the NONE's own (last) answer, with
+    # the request's action (a NONE answered twice is the NONE's own defect; a box answering everything with the
+    # request's action answers the NONE with it too)
+    extra = len(heard) + sum(1 for b in after.answers[:-1] if b.action == action != 0)
     a = heard[0]
     if a.malformed:
         return Alone(action, "malformed", extra, a.action, a.error)

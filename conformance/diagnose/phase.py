@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.target import Target
-from ..protocol import Profile
+from ..protocol import Action, Profile
 from ..suite.rootcause import SessionFacts
 from ..suite.session import SessionState
-from ..suite.verdicts import CaseResult, RootCause
+from ..suite.verdicts import CaseResult, Level, RootCause
 from . import families, match, titles
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
@@ -88,12 +88,13 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
 def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, match.CauseFacts],
          cases: Sequence[CaseResult], own: dict[str, Found]) -> None:
     involved = set().union(*(facts_by[c.id].asked for c in probed))
+    p.exchange([p.valid_request(int(Action.CYCLE_OFF))])  # the catalogue may have left a cycle on (S3: idle first)
     alone = lab.add(families.answers(p, [*CORE, *(a for a in CYCLES if a in involved)])).alone
     if p.unreachable:
         return
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
     lab.add(families.size(p, usable))
-    lab.add(families.after_error(p, [NONE, POSE, *sorted(a for a in involved if a in BLOCK_ACTIONS and a != POSE)],
+    lab.add(families.after_error(p, [NONE, POSE, *sorted(a for a in involved if a in CORE and a not in (NONE, POSE))],
                                  alone))
 
     def unexplained() -> list[RootCause]:
@@ -165,9 +166,16 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
     return _ordered(kept, repros)
 
 
+def _rank(cause: RootCause) -> tuple[bool, bool, bool]:
+    """Confirmed first; then a broken MUST first; then a mechanism named (or the session's finding) before a
+    story only seen again on a fresh connection (the catalogue's order within, as sorted is stable)."""
+    mechanism = (cause.diagnosis or {}).get("mechanism")
+    return cause.confirmed is False, cause.level is not Level.MUST, mechanism in ("reproduces", "order-dependent")
+
+
 def _ordered(causes: list[RootCause], repros: dict[str, tuple[tuple[bytes, Expect], ...]]) -> Diagnosed:
-    """Confirmed root causes first (each group in the catalogue's order), numbered again; cases re-pointed."""
-    ordered = sorted(causes, key=lambda c: c.confirmed is False)
+    """Confirmed root causes first (see :func:`_rank`), numbered again; cases re-pointed by :func:`relink`."""
+    ordered = sorted(causes, key=_rank)
     renamed: dict[str, tuple[tuple[bytes, Expect], ...]] = {}
     for n, cause in enumerate(ordered, 1):
         new = f"RC{n}"

@@ -42,10 +42,21 @@ def count_limit(n: int, per_action: int | None = None) -> str:
                    "count up to 255").format(n=n, m=n - 1)
 
 
-def byte_limit(max_bytes: int, examples: str) -> str:
-    return gettext("Refuses every frame longer than {n} bytes (a {n}-byte receive buffer?): {examples}; F5/B5 allow "
-                   "frames of up to {max} bytes — size the buffer for 255 pose blocks").format(
-        n=max_bytes, examples=examples, max=MAX_FRAME)
+#: buffer sizes a firmware is likely to have: named when one lies between the largest accepted and smallest refused frame
+ROUND_SIZES = (256, 500, 512, 768, 1000, 1024, 1200, 1280, 1400, 1460, 1500, 2000, 2048, 4000, 4096)
+
+
+def byte_limit(max_bytes: int, examples: str, refused_bytes: int | None = None) -> str:
+    """``max_bytes``: the largest frame seen accepted; ``refused_bytes``: the smallest seen refused."""
+    top = refused_bytes if refused_bytes is not None else max_bytes + 1
+    guess = next((n for n in ROUND_SIZES if max_bytes <= n < top), None)
+    if guess is not None:
+        return gettext("Refuses every frame longer than {n} bytes (a {n}-byte receive buffer?): {examples}; F5/B5 "
+                       "allow frames of up to {max} bytes — size the buffer for 255 pose blocks").format(
+            n=guess, examples=examples, max=MAX_FRAME)
+    return gettext("Refuses every frame of {top} bytes or more (frames of {n} bytes are accepted): {examples}; F5/B5 "
+                   "allow frames of up to {max} bytes — size the buffer for 255 pose blocks").format(
+        top=top, n=max_bytes, examples=examples, max=MAX_FRAME)
 
 
 def index(block: int, value: int, right: int, threshold: int) -> str:
@@ -111,7 +122,7 @@ def of(kind: str, detail: dict[str, Any]) -> str:
     if kind == "count-limit":
         return count_limit(int(d["threshold"]), d.get("per_action"))
     if kind == "byte-limit":
-        return byte_limit(int(d["max_bytes"]), str(d.get("examples", "")))
+        return byte_limit(int(d["max_bytes"]), str(d.get("examples", "")), d.get("refused_bytes"))
     if kind == "index":
         return index(int(d["block"]), int(d["value"]), int(d["right"]), int(d["threshold"]))
     if kind == "extra-answer":

@@ -40,6 +40,11 @@ def test_an_extra_answer_is_counted_whether_it_comes_at_once_or_after_the_none()
     assert (late.kind, late.count) == ("extra", 2)
 
 
+def test_a_none_answered_with_the_requests_action_is_no_extra_answer() -> None:
+    """A box answering everything with action 23 answers the NONE behind a pose with 23 too."""
+    assert classify_alone(POSE, ex(Reading((ok(POSE),)), Reading((ok(POSE),)))).kind == "ok"
+
+
 def test_a_none_answered_twice_is_not_the_request_before_it_answered_twice() -> None:
     assert classify_alone(TOL, ex(Reading((ok(TOL),)), Reading((ok(NONE), ok(NONE))))).kind == "ok"
     assert classify_alone(NONE, ex(Reading((ok(NONE), ok(NONE))), Reading((ok(NONE), ok(NONE))))).kind == "extra"
