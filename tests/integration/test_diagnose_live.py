@@ -62,6 +62,14 @@ def run(defect: str, seed: int, kind: str, asked: int, answered: int, error: int
     ("register-as-23", "wrong-code", Action.REGISTER_POSE, Action.POSE, 0),
     ("sticky-error", "wrong-code", Action.NONE, Action.NONE, 0x1001),
     ("pose-refused-idle", "wrong-code", Action.POSE, Action.POSE, 0x1001),
+    ("pose-refused-in-cycle", "wrong-code", Action.POSE, Action.POSE, 0x1001),
+    ("count-over-100", "block-position", Action.TOLERANCE, Action.TOLERANCE, 0x1002),
+    ("frame-512", "block-position", Action.POSE, Action.POSE, 0x1001),
+    ("tolerance-count-50", "block-position", Action.TOLERANCE, Action.TOLERANCE, 0x1002),
+    ("echo-00-all", "action-not-echoed", Action.POSE, Action.NONE, 0),
+    ("tolerance-missing", "unanswered", Action.TOLERANCE, Action.TOLERANCE, 0),
+    ("connection-limit-20", "unanswered", Action.POSE, Action.POSE, 0),
+    ("swallow-after-error", "unanswered", Action.NONE, Action.NONE, 0),
 ])
 def test_the_phase_confirms_the_planted_mechanism_and_its_repro_is_judged(
         defect: str, kind: str, asked: int, answered: int, error: int, tmp_path: Path) -> None:
