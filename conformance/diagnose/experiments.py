@@ -65,9 +65,10 @@ class Prober:
     def _wait(self) -> float:
         return max(0.0, min(self.time_out_s, self.left()))
 
-    def exchange(self, frames: Sequence[bytes], quiet: Sequence[bool] = ()) -> Exchange | None:
+    def exchange(self, frames: Sequence[bytes], quiet: Sequence[bool] = (), settle: bool = True) -> Exchange | None:
         """``frames`` in order on a fresh connection, reading after each (a ``quiet`` frame may go unanswered:
-        its wait is :data:`QUIET_S`). None when the deadline leaves no room for it."""
+        its wait is :data:`QUIET_S`; ``settle`` False: after the first answer only what has already arrived is
+        read, for experiments that count no extra answers). None when the deadline leaves no room for it."""
         if self.left() < MIN_LEFT_S:
             return None
         self.count += 1
@@ -84,7 +85,7 @@ class Prober:
                     readings.append(Reading((), True))
                     break
                 may_skip = i < len(quiet) and quiet[i]
-                reading = self._read(conn, min(QUIET_S, self._wait()) if may_skip else self._wait())
+                reading = self._read(conn, min(QUIET_S, self._wait()) if may_skip else self._wait(), settle)
                 readings.append(reading)
                 if reading.closed:
                     break
@@ -92,13 +93,14 @@ class Prober:
             conn.close("diagnose")
         return Exchange(tuple(frames), tuple(readings))
 
-    def _read(self, conn: TcpConnection, wait_s: float) -> Reading:
+    def _read(self, conn: TcpConnection, wait_s: float, settle: bool = True) -> Reading:
         first = conn.next_outcome(wait_s)
         if isinstance(first, Silence):
             return Reading()
         if isinstance(first, Closed):
             return Reading((), True)
-        got: list[Outcome] = [first, *conn.drain(min(SETTLE_MAX_S, max(SETTLE_MIN_S, SETTLE_PACE * first.latency_s)))]
+        window = min(SETTLE_MAX_S, max(SETTLE_MIN_S, SETTLE_PACE * first.latency_s))
+        got: list[Outcome] = [first, *(conn.drain(window) if settle else conn.poll())]
         answers = tuple(heard(o) for o in got if isinstance(o, (Answer, Malformed)))
         return Reading(answers, any(isinstance(o, Closed) for o in got))
 

@@ -45,7 +45,7 @@ CYCLES = (int(Action.CYCLE_ON), int(Action.CYCLE_OFF))
 #: wrong index values tried at the position where acceptance changes
 INDEX_TRIES = 6
 #: requests sent on one connection to look for a per-connection limit
-PER_CONNECTION = 40
+PER_CONNECTION = 30
 
 
 def _valid(p: Prober, action: int) -> tuple[bytes, Expect]:
@@ -116,7 +116,7 @@ def _mech(kind: str, actions: set[int], found: Found, clauses: tuple[str, ...],
 def _accepted(p: Prober, exp: Experiment, frame: bytes) -> bool | None:
     """The request, then a NONE: True answered 0000, False refused (an error, a close, or unanswered while
     the NONE behind it was answered), None when the box answered neither (out of time, gone)."""
-    ex = p.exchange([frame, p.valid_request(NONE)], quiet=[True, False])
+    ex = p.exchange([frame, p.valid_request(NONE)], quiet=[True, False], settle=False)
     if ex is None or not ex.reached:
         return None
     exp.exchanges.append(ex)
@@ -223,7 +223,7 @@ def after_error(p: Prober, actions: Sequence[int], alone: dict[int, Alone]) -> F
         if alone.get(action) is None or alone[action].kind != "ok":
             continue  # a defect of the request alone is not a leak
         frame, expect = _valid(p, action)
-        ex = p.exchange([bad, frame, p.valid_request(NONE)], quiet=[True, False, False])
+        ex = p.exchange([bad, frame, p.valid_request(NONE)], quiet=[True, False, False], settle=False)
         if ex is None or not ex.reached:
             break
         found.experiment.exchanges.append(ex)
@@ -249,7 +249,7 @@ def cycle(p: Prober, alone: dict[int, Alone]) -> Found:
     pose = _valid(p, POSE)
     started, inside = False, None
     for _ in range(2):  # a box may refuse its first CycleOn (0001, not ready: S2): once more
-        ex = p.exchange([off[0], on[0], pose[0], off[0]])
+        ex = p.exchange([off[0], on[0], pose[0], off[0]], settle=False)
         if ex is None or not ex.reached:
             break
         found.experiment.exchanges.append(ex)
@@ -277,7 +277,7 @@ def cycle(p: Prober, alone: dict[int, Alone]) -> Found:
 def per_connection(p: Prober) -> Found:
     found = Found(Experiment("per-connection", f"{PER_CONNECTION} NONE requests on one connection"))
     none = _valid(p, NONE)
-    ex = p.exchange([none[0]] * PER_CONNECTION)
+    ex = p.exchange([none[0]] * PER_CONNECTION, settle=False)
     if ex is None or not ex.reached:
         found.stories["connection-count"] = (Status.UNTESTED, "no exchange made")
         return found

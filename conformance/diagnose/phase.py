@@ -88,7 +88,7 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
 def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, match.CauseFacts],
          cases: Sequence[CaseResult], own: dict[str, Found]) -> None:
     involved = set().union(*(facts_by[c.id].asked for c in probed))
-    p.exchange([p.valid_request(int(Action.CYCLE_OFF))])  # the catalogue may have left a cycle on (S3: idle first)
+    p.exchange([p.valid_request(int(Action.CYCLE_OFF))], settle=False)  # the catalogue may have left a cycle on (S3: idle first)
     alone = lab.add(families.answers(p, [*CORE, *(a for a in CYCLES if a in involved)])).alone
     if p.unreachable:
         return
