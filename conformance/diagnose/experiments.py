@@ -65,10 +65,13 @@ class Prober:
     def _wait(self) -> float:
         return max(0.0, min(self.time_out_s, self.left()))
 
-    def exchange(self, frames: Sequence[bytes], quiet: Sequence[bool] = (), settle: bool = True) -> Exchange | None:
+    def exchange(self, frames: Sequence[bytes], quiet: Sequence[bool] = (), settle: bool = True,
+                 together: bool = False) -> Exchange | None:
         """``frames`` in order on a fresh connection, reading after each (a ``quiet`` frame may go unanswered:
         its wait is :data:`QUIET_S`; ``settle`` False: after the first answer only what has already arrived is
-        read, for experiments that count no extra answers). None when the deadline leaves no room for it."""
+        read, for experiments that count no extra answers). ``together``: all frames in one write (one
+        segment, as a case that coalesced them sent them), then every answer in one reading. None when the
+        deadline leaves no room for it."""
         if self.left() < MIN_LEFT_S:
             return None
         self.count += 1
@@ -80,6 +83,8 @@ class Prober:
             return Exchange(tuple(frames), (), reached=False)
         readings: list[Reading] = []
         try:
+            if together:
+                return Exchange(tuple(frames), (self._read_all(conn, b"".join(frames), len(frames)),), together=True)
             for i, frame in enumerate(frames):
                 if not conn.send(frame, "diagnose"):
                     readings.append(Reading((), True))
@@ -92,6 +97,24 @@ class Prober:
         finally:
             conn.close("diagnose")
         return Exchange(tuple(frames), tuple(readings))
+
+    def _read_all(self, conn: TcpConnection, data: bytes, count: int) -> Reading:
+        """``data`` in one write; then answers until ``count`` came (and a settle window), a close, or silence."""
+        if not conn.send(data, "diagnose"):
+            return Reading((), True)
+        got: list[Outcome] = []
+        while len(got) < count + 4:
+            outcome = conn.next_outcome(self._wait() if not got else min(QUIET_S, self._wait()))
+            if isinstance(outcome, Silence):
+                break
+            got.append(outcome)
+            if isinstance(outcome, Closed):
+                break
+            if len(got) >= count:
+                got += conn.drain(SETTLE_MIN_S)
+                break
+        answers = tuple(heard(o) for o in got if isinstance(o, (Answer, Malformed)))
+        return Reading(answers, any(isinstance(o, Closed) for o in got))
 
     def _read(self, conn: TcpConnection, wait_s: float, settle: bool = True) -> Reading:
         first = conn.next_outcome(wait_s)

@@ -61,13 +61,14 @@ class Exchange:
     frames: tuple[bytes, ...]
     readings: tuple[Reading, ...]
     reached: bool = True  # False: the connection could not be made
+    together: bool = False  # the frames went in one write; ``readings`` is one reading of every answer
 
     def reading(self, i: int) -> Reading:
         return self.readings[i] if i < len(self.readings) else Reading(closed=True)
 
     def to_dict(self) -> dict[str, Any]:
         return {"sent": [f.hex() for f in self.frames], "readings": [r.to_dict() for r in self.readings],
-                "reached": self.reached}
+                "reached": self.reached, "one_write": self.together}
 
 
 @dataclass
@@ -117,6 +118,15 @@ class Expect:
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Expect:
         return cls(str(data["kind"]), int(data["action"]), tuple(int(c) for c in data.get("errorCodes", (0,))))
+
+    def take(self, answers: list[Heard]) -> Reading:
+        """From the answers to frames sent in one write (in order), the ones that belong to this frame: a valid
+        request's first answer; a parse error's answer when it carries its action (it may have none)."""
+        if not answers:
+            return Reading()
+        if self.kind == "valid" or answers[0].action == self.action:
+            return Reading((answers.pop(0),))
+        return Reading()
 
     def broken_by(self, reading: Reading) -> str:
         """What in ``reading`` is outside the legal set ("" when it is legal)."""

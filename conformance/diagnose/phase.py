@@ -182,7 +182,8 @@ def _ordered(causes: list[RootCause], repros: dict[str, tuple[tuple[bytes, Expec
         if cause.id in repros:
             renamed[new] = repros[cause.id]
             if cause.diagnosis is not None:
-                cause.diagnosis["repro"] = repro_entry(new, repros[cause.id])
+                one_write = bool(cause.diagnosis.get("detail", {}).get("one_write"))
+                cause.diagnosis["repro"] = repro_entry(new, repros[cause.id], one_write)
         cause.id = new
     return Diagnosed(ordered, renamed)
 

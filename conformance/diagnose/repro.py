@@ -34,9 +34,11 @@ def file_name(cause_id: str) -> str:
     return f"rootcause-{cause_id.removeprefix('RC')}.json"
 
 
-def repro_entry(cause_id: str, frames: Sequence[tuple[bytes, Expect]]) -> dict[str, Any]:
-    """What a root cause's diagnosis keeps of its repro (summary.json shows it)."""
-    return {"file": file_name(cause_id), "frames": [{"hex": f.hex(), "expect": e.to_dict()} for f, e in frames]}
+def repro_entry(cause_id: str, frames: Sequence[tuple[bytes, Expect]], one_write: bool = False) -> dict[str, Any]:
+    """What a root cause's diagnosis keeps of its repro (summary.json shows it); ``one_write``: the frames go
+    in one write (the defect shows only when they arrive together)."""
+    return {"file": file_name(cause_id), "one_write": one_write,
+            "frames": [{"hex": f.hex(), "expect": e.to_dict()} for f, e in frames]}
 
 
 def document(cause: RootCause, profile: Profile) -> dict[str, Any] | None:
@@ -60,7 +62,7 @@ def document(cause: RootCause, profile: Profile) -> dict[str, Any] | None:
     return {"schema": SCHEMA, "description": f"{cause.id}: {cause.title}", "numberOfTests": len(tests),
             "notes": {"RootCause": NOTE},
             "rootCause": {"id": cause.id, "title": cause.title, "clauses": list(cause.clauses), "kind": cause.kind,
-                          "confirmed": bool(cause.confirmed)},
+                          "confirmed": bool(cause.confirmed), "oneWrite": bool(repro.get("one_write"))},
             "testGroups": [{"transport": "tcp", "crc": profile.crc if profile.crc in _CRCS else "modbus",
                             "direction": "robot-to-box", "profile": {"firstIndex": profile.first_index},
                             "tests": tests}]}
@@ -113,23 +115,31 @@ class Judged:
         return f"{self.status:<14} {self.name}{tail}"
 
 
-def load(path: str | Path) -> tuple[str, list[tuple[bytes, Expect]]]:
+def load(path: str | Path) -> tuple[str, list[tuple[bytes, Expect]], bool]:
+    """A repro's name (id: title), its frames with their legal answers, and whether they go in one write."""
     doc = json.loads(Path(path).read_text(encoding="utf-8"))
     rc = doc["rootCause"]
     tests = sorted((t for g in doc["testGroups"] for t in g["tests"]), key=lambda t: t["tcId"])
-    return f"{rc['id']}: {rc['title']}", [(bytes.fromhex(t["hex"]), Expect.from_dict(t["expect"])) for t in tests]
+    frames = [(bytes.fromhex(t["hex"]), Expect.from_dict(t["expect"])) for t in tests]
+    return f"{rc['id']}: {rc['title']}", frames, bool(rc.get("oneWrite"))
 
 
 def judge(path: str | Path, target: Target, profile: Profile, time_out_s: float) -> Judged:
     """Send the repro on one fresh connection and judge every answer against its legal set."""
-    name, frames = load(path)
+    name, frames, one_write = load(path)
     deadline = time.monotonic() + time_out_s * (len(frames) + 1) + 5
     prober = Prober(target, profile, time_out_s, deadline)
-    ex = prober.exchange([f for f, _ in frames], quiet=[e.kind == "invalid" for _, e in frames])
+    ex = prober.exchange([f for f, _ in frames], quiet=[e.kind == "invalid" for _, e in frames], together=one_write)
     if ex is None or not ex.reached:
         return Judged(name, "could not tell", (prober.unreachable or "no connection",))
-    problems = tuple(f"frame {i + 1}: {why}" for i, (_, e) in enumerate(frames) if (why := e.broken_by(ex.reading(i))))
-    return Judged(name, "still present" if problems else "fixed", problems)
+    if one_write:
+        answers = list(ex.reading(0).answers)
+        readings = [e.take(answers) for _, e in frames]
+        extra = [f"{len(answers)} answer(s) more than the requests"] if answers else []
+    else:
+        readings, extra = [ex.reading(i) for i in range(len(frames))], []
+    problems = tuple(f"frame {i + 1}: {why}" for i, (_, e) in enumerate(frames) if (why := e.broken_by(readings[i])))
+    return Judged(name, "still present" if problems or extra else "fixed", problems + tuple(extra))
 
 
 def replay_repros(paths: Sequence[str | Path], target: Target, profile: Profile, time_out_s: float,

@@ -27,6 +27,8 @@ def shows(sig: Signature, ex: Exchange) -> bool:
     readings = ex.readings
     if sig.kind is Sig.CLOSED:
         return any(r.closed for r in readings)
+    if sig.kind in (Sig.SILENCE, Sig.SKIPPED) and ex.together:
+        return sum(len(r.answers) for r in readings) < len(ex.frames)  # some frame went unanswered
     if sig.kind in (Sig.SILENCE, Sig.SKIPPED):
         return len(readings) == len(ex.frames) and readings[-1].silent if sig.kind is Sig.SILENCE else \
             any(r.silent for r in readings)
@@ -66,14 +68,20 @@ def reproduce(p: Prober, case: CaseResult, title: str) -> Found:
         found.stories["reproduces"] = (Status.UNTESTED, "the case's bytes are not readable")
         return found
 
+    together = False
+
     def seen(candidate: Sequence[bytes]) -> bool | None:
-        ex = p.exchange(list(candidate), quiet=[True] * (len(candidate) - 1) + [False])
+        ex = p.exchange(list(candidate), quiet=[True] * (len(candidate) - 1) + [False], settle=False,
+                        together=together)
         if ex is None or not ex.reached:
             return None
         found.experiment.exchanges.append(ex)
         return shows(sig, ex)
 
     first = seen(frames)
+    if first is False and len(frames) > 1:  # as the case sent them: in one write (R4: several frames, one segment)
+        together = True
+        first = seen(frames)
     if not first:
         status = Status.UNTESTED if first is None else Status.RULED_OUT
         found.stories["reproduces"] = (status, "out of time" if first is None else
@@ -88,7 +96,7 @@ def reproduce(p: Prober, case: CaseResult, title: str) -> Found:
     actions = {e.action for _, e in repro}
     found.mechanisms.append(Mechanism(kind, frozenset(actions), found.experiment.name, final,
                                       tuple(dict.fromkeys(case.judged or case.clauses)), repro,
-                                      {"frames": len(kept), "title": final}))
+                                      {"frames": len(kept), "title": final, "one_write": together}))
     found.stories[kind] = (Status.CONFIRMED, f"{len(kept)} of {len(frames)} frames show it on a fresh connection")
     found.experiment.finding = found.stories[kind][1]
     return found

@@ -110,3 +110,24 @@ def test_a_silent_box_ends_the_phase_within_its_bound() -> None:
                         Target("127.0.0.1", box.port), profile, 1.5, budget_s=4.0)
     assert done.elapsed_s < 4.0 + 2 * 1.5
     assert done.causes[0].confirmed is False
+
+
+def test_a_defect_that_shows_only_when_frames_arrive_together_is_replayed_in_one_write(tmp_path: Path) -> None:
+    """A box answering only the first of several frames in one read (R4): sent one by one they are all answered;
+    the case's bytes in one write show it again, and the repro keeps the one write."""
+    choices = random_choices(5, fixed=FIXED | FAST).with_defect("drops-coalesced")
+    profile = Profile().replace(first_index=int(choices.first_index), time_out_ms=1500)
+    none = bytes.fromhex("fefe00010100000000000000" "0000")
+    member = CaseResult("R4-01", "R4-01", ("R4",), Level.MUST, Verdict.FAIL, "seen", sent_hex=(none * 3).hex(" "))
+    member.signature = Signature(Sig.SILENCE, "NONE")
+    cause = RootCause("RC1", ("R4",), "The box does not answer NONE within time_out", "e", ["R4-01"], kind="unanswered")
+    with serving(choices) as box:
+        done = diagnose([cause], [member], SessionFacts(), Target("127.0.0.1", box.port), profile, 1.5)
+    first = done.causes[0]
+    assert first.confirmed is True and first.diagnosis is not None, first.diagnosis
+    assert first.diagnosis["repro"]["one_write"] is True and first.title == cause.title
+    [path] = repro.write_repros(tmp_path, done.causes[:1], profile)
+    with serving(choices) as box:
+        assert repro.judge(path, Target("127.0.0.1", box.port), profile, 1.5).status == "still present"
+    with serving(replace(choices, defect=None)) as box:
+        assert repro.judge(path, Target("127.0.0.1", box.port), profile, 1.5).status == "fixed"
