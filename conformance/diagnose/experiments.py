@@ -66,12 +66,12 @@ class Prober:
         return max(0.0, min(self.time_out_s, self.left()))
 
     def exchange(self, frames: Sequence[bytes], quiet: Sequence[bool] = (), settle: bool = True,
-                 together: bool = False) -> Exchange | None:
+                 together: bool = False, stop_silent: bool = False) -> Exchange | None:
         """``frames`` in order on a fresh connection, reading after each (a ``quiet`` frame may go unanswered:
         its wait is :data:`QUIET_S`; ``settle`` False: after the first answer only what has already arrived is
         read, for experiments that count no extra answers). ``together``: all frames in one write (one
-        segment, as a case that coalesced them sent them), then every answer in one reading. None when the
-        deadline leaves no room for it."""
+        segment, as a case that coalesced them sent them), then every answer in one reading; ``stop_silent``:
+        no frame is sent after one went unanswered for the whole wait. None when the deadline leaves no room."""
         if self.left() < MIN_LEFT_S:
             return None
         self.count += 1
@@ -92,7 +92,7 @@ class Prober:
                 may_skip = i < len(quiet) and quiet[i]
                 reading = self._read(conn, min(QUIET_S, self._wait()) if may_skip else self._wait(), settle)
                 readings.append(reading)
-                if reading.closed:
+                if reading.closed or (stop_silent and reading.silent and not may_skip):
                     break
         finally:
             conn.close("diagnose")

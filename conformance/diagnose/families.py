@@ -277,7 +277,7 @@ def cycle(p: Prober, alone: dict[int, Alone]) -> Found:
 def per_connection(p: Prober) -> Found:
     found = Found(Experiment("per-connection", f"{PER_CONNECTION} NONE requests on one connection"))
     none = _valid(p, NONE)
-    ex = p.exchange([none[0]] * PER_CONNECTION, settle=False)
+    ex = p.exchange([none[0]] * PER_CONNECTION, settle=False, stop_silent=True)
     if ex is None or not ex.reached:
         found.stories["connection-count"] = (Status.UNTESTED, "no exchange made")
         return found
