@@ -19,10 +19,10 @@ The robot (``isight-conformance robot``):
 * :mod:`.robot_io` — its connections, clock and record on asyncio;
 * :mod:`.robot` — :class:`RobotSession`, the asyncio driver that plays the steps.
 
-The primer trajectory the simulated robot streams is :mod:`conformance.trajectory`.
+The primer trajectory the simulated robot streams is :mod:`conformance.harness.trajectory`.
 """
 
-from ..trajectory import PrimerTrajectory, RoundedRectangle
+from ..harness.trajectory import PrimerTrajectory, RoundedRectangle
 from .behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
 from .connection import BoxConnection
 from .framelog import FrameLog
