@@ -8,7 +8,7 @@ The box:
 * :mod:`.server` — :class:`ReferenceBox`, the box over asyncio TCP + UDP;
 * :mod:`.framelog` — ``--log FILE``, one JSON line per frame in and out;
 * :mod:`.loop` — event-loop helpers and :class:`BoxThread`, a box for synchronous code;
-* :mod:`.serve` — the ``isight-conformance serve`` command;
+* :mod:`.serve` — the ``isight-conformance serve`` command's body (its parser: :mod:`conformance.commands.serve`);
 * :mod:`.bundled` — the box a run starts on loopback when it names no target.
 
 The robot (``isight-conformance robot``):
