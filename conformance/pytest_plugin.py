@@ -37,6 +37,8 @@ from . import __version__, i18n
 from .harness.transcript import Transcript
 from .suite import signals
 from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
+    BASELINE,
+    BASELINE_DIFF,
     CAUSES,
     FACTS,
     RESULTS,
@@ -297,5 +299,6 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         report_dir = Path(state.settings.report_dir) / (safe_name(key) if key else "")
         with signals.deferred():  # a second signal does not cut the reports short
             info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED, key=key)
-            write_reports(report_dir, info, cases, causes[key])
+            diff = write_reports(report_dir, info, cases, causes[key], baseline=config.stash.get(BASELINE, None))
+        config.stash.setdefault(BASELINE_DIFF, diff)
     config.stash[CAUSES] = next(iter(causes.values()), [])

@@ -248,7 +248,7 @@ def test_none_answered_error_fails_a4(tmp_path: Path, broken: BrokenBox) -> None
 def test_missing_vectors_give_one_skip(tmp_path: Path) -> None:
     """Without the vector directory the replay collects one SKIP per kind instead of crashing."""
     code = (
-        "import conformance.vectors as v, pathlib; v.REPO_VECTORS = pathlib.Path('/nonexistent');"
+        "import conformance.evidence.vectors_file as v, pathlib; v.REPO_VECTORS = pathlib.Path('/nonexistent');"
         "import sys, pytest; sys.exit(pytest.main(sys.argv[1:]))"
     )
     report = tmp_path / "report"

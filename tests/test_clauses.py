@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from conformance.options import PROFILE_OPTIONS
 from conformance.protocol import clauses as registry
 from conformance.protocol.clauses import (
     REGISTRY_VERSION,
@@ -23,6 +22,7 @@ from conformance.protocol.clauses import (
     parse_registry,
     text_of,
 )
+from conformance.suite.profile_options import PROFILE_OPTIONS
 from conformance.suite.settings import SUITE_OPTIONS
 
 EXPECTED_IDS = [f"{f}{i}" for f, n in zip("FBASTRE", (7, 5, 5, 6, 2, 7, 5)) for i in range(1, n + 1)]

@@ -17,7 +17,7 @@ from rich.cells import cell_len
 from rich.console import Console
 
 from conformance import i18n
-from conformance.cli import LANG_COMMANDS, build_parser, main
+from conformance.commands import COMMANDS, build_parser, main
 from conformance.report.html import render_html
 from conformance.report.junit import junit_bytes
 from conformance.report.summary import overall_line, write_summary
@@ -26,6 +26,8 @@ from conformance.report.terminal import print_final_table
 from .test_report_summary import sample_cases, sample_root_causes, sample_suite
 
 CJK = re.compile(r"[\u4e00-\u9fff]")
+#: the commands that take --lang (the registry's flag)
+LANG_COMMANDS = tuple(c.name for c in COMMANDS if c.lang)
 
 
 @pytest.mark.parametrize(("env", "lang"), [

@@ -2,15 +2,15 @@
 verdict, or FAIL on format alone for a malformed answer that read leniently would be acceptable),
 ``answer_view``, the signatures, CaseVerdict, and what a verdict becomes downstream: its CaseResult
 (suite/results.py), the clause table (report/summary.by_clause), the overall line of a run cut short and
-the exit codes (runner.py; run end to end by test_runner.py and test_signals.py). Outcomes come from the
+the exit codes (conformance/model/exit_codes.py; run end to end by test_runner.py and test_signals.py). Outcomes come from the
 codec, no sockets. ``judge``/``broken`` (the routine over a Requirement) are in test_record.py."""
 
 from __future__ import annotations
 
 import pytest
 
-from conformance import runner
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
+from conformance.model import exit_codes as runner
 from conformance.protocol import (
     Action,
     Header,
@@ -342,7 +342,7 @@ def test_a_run_cut_short_is_incomplete_never_conforms() -> None:
 
 
 def test_exit_codes_and_which_verdicts_fail_a_run() -> None:
-    # runner.main_run: 0 clean, 1 a FAIL/ERROR, 2 usage, 3 cut short (end to end: test_runner.py, test_signals.py)
+    # commands.run.main_run: 0 clean, 1 a FAIL/ERROR, 2 usage, 3 cut short (end to end: test_runner.py, test_signals.py)
     assert (runner.EXIT_OK, runner.EXIT_FAILED, runner.EXIT_USAGE, runner.EXIT_INCOMPLETE) == (0, 1, 2, 3)
     assert {v for v in Verdict if v.failing} == {Verdict.FAIL, Verdict.ERROR}
     assert _f2_result().verdict.failing  # a malformed answer fails the run even in a SHOULD case

@@ -8,7 +8,7 @@ import threading
 
 import pytest
 
-from conformance.cli import main
+from conformance.commands import main
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.loop import BoxThread
 from conformance.endpoints.robot import RobotSession, parse_target, run_robot

@@ -16,7 +16,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..stats import percentile
+from ..model.percentiles import percentile
 from ..suite.verdicts import VERDICT_ORDER, Verdict
 
 __all__ = ["BOX", "ROBOT", "SIDES", "Observation", "Findings", "Series", "Tally", "frames_text"]

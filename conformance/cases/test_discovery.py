@@ -28,7 +28,6 @@ from typing import Any
 
 from conformance.harness.client import Closed, Outcome, Silence, TcpConnection, UdpChannel
 from conformance.harness.target import Unreachable
-from conformance.options import profile_flags
 from conformance.protocol import (
     Action,
     Frame,
@@ -46,6 +45,7 @@ from conformance.protocol import (
 from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, Skip
+from conformance.suite.profile_options import profile_flags
 from conformance.suite.record import Requirement, case
 from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import Level

@@ -21,6 +21,7 @@ from typing import Any
 
 import pytest
 
+from conformance.evidence.vectors_file import REPO_VECTORS, Vector, load_dir
 from conformance.harness.client import Answer, Outcome
 from conformance.harness.transcript import Kind
 from conformance.protocol import (
@@ -41,7 +42,6 @@ from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.verdicts import Level
-from conformance.vectors import REPO_VECTORS, Vector, load_dir
 
 VECTORS_DIR = REPO_VECTORS / "frames"
 

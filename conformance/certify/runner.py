@@ -19,6 +19,7 @@ from pathlib import Path
 from .. import __version__
 from ..evidence.pcap import write_transcript
 from ..harness.transcript import ConnectionInfo, Transcript, WireEvent
+from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..observed.connections import SessionRecord
 from ..report import write_reports
 from ..suite.rootcause import find_root_causes
@@ -26,8 +27,6 @@ from ..suite.verdicts import CaseResult, RootCause, SuiteInfo
 from .checks import judge
 from .listener import CertifyListener
 from .records import CertifyConfig, RunRecord
-
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 
 class ListenError(OSError):

@@ -8,7 +8,7 @@ The box:
 * :mod:`.server` — :class:`ReferenceBox`, the box over asyncio TCP + UDP;
 * :mod:`.framelog` — ``--log FILE``, one JSON line per frame in and out;
 * :mod:`.loop` — event-loop helpers and :class:`BoxThread`, a box for synchronous code;
-* :mod:`.serve` — the ``isight-conformance serve`` command;
+* :mod:`.serve` — the ``isight-conformance serve`` command's body (its parser: :mod:`conformance.commands.serve`);
 * :mod:`.bundled` — the box a run starts on loopback when it names no target.
 
 The robot (``isight-conformance robot``):
@@ -19,10 +19,10 @@ The robot (``isight-conformance robot``):
 * :mod:`.robot_io` — its connections, clock and record on asyncio;
 * :mod:`.robot` — :class:`RobotSession`, the asyncio driver that plays the steps.
 
-The primer trajectory the simulated robot streams is :mod:`conformance.trajectory`.
+The primer trajectory the simulated robot streams is :mod:`conformance.harness.trajectory`.
 """
 
-from ..trajectory import PrimerTrajectory, RoundedRectangle
+from ..harness.trajectory import PrimerTrajectory, RoundedRectangle
 from .behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
 from .connection import BoxConnection
 from .framelog import FrameLog

@@ -24,6 +24,7 @@ from collections import deque
 from collections.abc import Awaitable, Callable, Sequence
 
 from ..harness.target import Target
+from ..harness.trajectory import Pose, PrimerTrajectory
 from ..protocol import (
     DEFAULT_PORT,
     DEFAULT_PROFILE,
@@ -35,7 +36,6 @@ from ..protocol import (
     request,
     value_blocks,
 )
-from ..trajectory import Pose, PrimerTrajectory
 from .loop import run_loop
 from .robot_io import SessionIO, Stop
 from .robot_result import (

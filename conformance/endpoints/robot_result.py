@@ -10,15 +10,10 @@ import math
 import statistics
 from dataclasses import dataclass, field
 
+from ..model.exit_codes import EXIT_CONNECTION, EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, EXIT_TIMEOUT
+from ..model.percentiles import percentile
 from ..protocol import Frame, ResultCode, TransferType
 from ..protocol.frames import PoseBlock, ValueBlock
-from ..stats import percentile
-
-EXIT_OK = 0
-EXIT_MISBEHAVED = 1  # the box broke the protocol (wrong code, action, malformed answer, ...)
-EXIT_NOT_READY = 3  # CycleOn answered 0001 / ProgIdx answered 409: the cycle is inconclusive (S2)
-EXIT_TIMEOUT = 4  # no answer within time_out / vision_time_out (T1, E3)
-EXIT_CONNECTION = 5  # connection refused, failed or closed by the box
 
 
 @dataclass

@@ -22,12 +22,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..evidence.vectors_file import Vector, load
 from ..harness.liveness import responsive
 from ..harness.target import Target
 from ..harness.transcript import Transcript
 from ..protocol import HEADER_LEN, Profile, TransferType, Transport
 from ..suite.verdicts import Verdict
-from ..vectors import Vector, load
 from .evidence import splits_of
 from .executor import Executor
 from .oracle import expectations

@@ -29,6 +29,9 @@ FACTS = pytest.StashKey[dict[str, SessionFacts]]()  # the controller's: what the
 STARTED = pytest.StashKey[float]()
 SELECTED = pytest.StashKey[list[str]]()
 CAUSES = pytest.StashKey[list[RootCause]]()
+#: ``run --baseline``: the report.Baseline the run driver hands the plugin's report writers, and their comparison
+BASELINE = pytest.StashKey[Any]()
+BASELINE_DIFF = pytest.StashKey[Any]()
 
 
 def target_keys(settings: SuiteSettings) -> dict[str, Any]:

@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
+from ..harness.trajectory import PrimerTrajectory
+from ..model.percentiles import percentile
 from ..protocol import Action, pose_blocks, request
-from ..stats import percentile
-from ..trajectory import PrimerTrajectory
 from .judge import Expect, answered, check, fail
 from .verdicts import Level
 

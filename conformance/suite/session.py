@@ -21,6 +21,7 @@ The pytest plugin only forwards to :meth:`SessionState.before_case` and
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from dataclasses import dataclass, field
@@ -85,6 +86,7 @@ class SessionState:
     _witness: TcpConnection | None = None
     _log: Transcript = field(default_factory=lambda: Transcript(case_id="session"))
     _lock: threading.Lock = field(default_factory=threading.Lock)
+    _boxes: contextlib.ExitStack = field(default_factory=contextlib.ExitStack)
 
     @property
     def profile(self) -> Profile:
@@ -98,13 +100,10 @@ class SessionState:
     def target(self) -> Target:
         with self._lock:
             if self._target is None:
-                if self.settings.target is not None:
-                    self._target = self.settings.target
-                else:
-                    from ..endpoints.bundled import start_bundled
+                from ..endpoints.bundled import bundled_or_target
 
-                    self.embedded = start_bundled(self.profile)
-                    self._target, self._udp_target = self.embedded.target, self.embedded.udp_target
+                self._target, self._udp_target, self.embedded = self._boxes.enter_context(
+                    bundled_or_target(self.settings.target, None, self.profile))
             return self._target
 
     def udp_target(self) -> Target | None:
@@ -125,9 +124,8 @@ class SessionState:
         if self._witness is not None:
             self._witness.close("end of the session")
             self._witness = None
-        if self.embedded is not None:
-            self.embedded.stop()
-            self.embedded = None
+        self._boxes.close()  # the bundled box, if the session started it
+        self.embedded = None
 
     # -- probes ---------------------------------------------------------------------------
     def probe(self, transcript: Transcript, label: str = "liveness") -> Outcome:

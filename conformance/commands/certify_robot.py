@@ -17,55 +17,17 @@ import shlex
 import signal
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from ..i18n import _
-from ..options import add_profile_options, profile_from_options
-from ..rundirs import default_run_dirs, drop_if_empty
-from .records import INJECTIONS, CertifyConfig
-from .runner import EXIT_USAGE, CertifyOutcome, ListenError, certify
-
-if TYPE_CHECKING:
-    from ..options import Subparsers
+from ..certify.records import INJECTIONS, CertifyConfig
+from ..certify.runner import CertifyOutcome, ListenError, certify
+from ..i18n import N_, _
+from ..model.exit_codes import EXIT_USAGE
+from ..report.rundirs import default_run_dirs, drop_if_empty
+from ..suite.profile_options import profile_from_options
+from .options import add_profile_group, parse_listen
+from .registry import Command
 
 DEFAULT_LISTEN = "127.0.0.1:9004"
-
-
-def parse_listen(text: str) -> tuple[str, int]:
-    """``HOST:PORT`` or ``[V6]:PORT`` (port 0 picks a free one); ValueError if malformed."""
-    text = text.strip()
-    if text.startswith("["):
-        host, sep, rest = text[1:].partition("]")
-        if not sep or not rest.startswith(":"):
-            raise ValueError(f"bad --listen {text!r}; expected [IPv6]:PORT")
-        port_text = rest[1:]
-    elif text.count(":") == 1:
-        host, port_text = text.split(":")
-    else:
-        raise ValueError(f"bad --listen {text!r}; expected HOST:PORT (e.g. 0.0.0.0:9004)")
-    if not host:
-        raise ValueError(f"bad --listen {text!r}: no host")
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise ValueError(f"bad port in --listen {text!r}") from None
-    if not 0 <= port <= 65535:
-        raise ValueError(f"port out of range in --listen {text!r}")
-    return host, port
-
-
-def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "certify-robot",
-        help=_("act as the AI Box and certify a robot (client) implementation against PROTOCOL.md"),
-        description=_("Become the AI Box: answer the robot with the reference box's logic, record everything and "
-        "judge the robot's frames, session order, stream rate and closes. The first line on stdout is "
-        "'listening tcp HOST:PORT udp HOST:PORT'. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or "
-        "no robot connected within --wait. See docs/CERTIFY.md."),
-    )
-    add_arguments(p)
-    p.set_defaults(func=main_certify)
-    return p
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -97,8 +59,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     out.add_argument("--pcap-dir", type=Path, default=None, metavar="DIR",
                      help=_("one pcapng per connection and per session (default: pcaps/<timestamp>)"))
     out.add_argument("--quiet", action="store_true", help=_("no line per connection event (for CI logs)"))
-    group = p.add_argument_group("profile (--pose-rate is the rate the robot declares)")
-    add_profile_options(group.add_argument)
+    add_profile_group(p, "profile (--pose-rate is the rate the robot declares)")
 
 
 def config_from_args(args: argparse.Namespace) -> CertifyConfig:
@@ -173,3 +134,12 @@ def main_certify(args: argparse.Namespace) -> int:
     if outcome.exit_code:
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
     return outcome.exit_code
+
+
+COMMAND = Command(
+    "certify-robot", N_("act as the AI Box and certify a robot (client) implementation against PROTOCOL.md"), add_arguments, main_certify,
+    description=N_("Become the AI Box: answer the robot with the reference box's logic, record everything and "
+        "judge the robot's frames, session order, stream rate and closes. The first line on stdout is "
+        "'listening tcp HOST:PORT udp HOST:PORT'. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or "
+        "no robot connected within --wait. See docs/CERTIFY.md."), lang=True,
+)

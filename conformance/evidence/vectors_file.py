@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .protocol import (
+from ..protocol import (
     DEFAULT_PROFILE,
     Action,
     Frame,
@@ -30,9 +30,9 @@ SCHEMA = "isight-vectors-1"
 DIRECTIONS = {"robot-to-box": TransferType.ROBOT_TO_BOX, "box-to-robot": TransferType.BOX_TO_ROBOT}
 def _vectors_dir() -> Path:
     """``vectors/`` of a source checkout, else the copy a wheel ships as ``conformance/_vectors``."""
-    here = Path(__file__).resolve().parent
-    checkout = here.parent / "vectors"
-    return checkout if checkout.is_dir() else here / "_vectors"
+    package = Path(__file__).resolve().parents[1]  # conformance/
+    checkout = package.parent / "vectors"
+    return checkout if checkout.is_dir() else package / "_vectors"
 
 
 #: The golden vectors and scripted sequences (data, not code).

@@ -1,8 +1,9 @@
-"""``isight-conformance run``: the suite as one command.
+"""``isight-conformance run``'s body: the suite through pytest (its parser and handler are
+:mod:`conformance.commands.run`).
 
-A thin driver around pytest: it reads the same options the pytest plugin offers,
+A thin driver around pytest: the handler reads the same options the pytest plugin offers,
 starts the bundled reference box when no ``--target`` is given, checks that the
-target is reachable (one clear line and exit 2 if not), runs ``conformance.cases``
+target is reachable (one clear line and exit 2 if not); this module runs ``conformance.cases``
 through :func:`pytest.main` with its settings passed as the plugin's flags (so they
 are resolved in one place), shows progress, applies the expected-failures list and
 sets the exit code: 0 nothing FAILed or ERRORed (or the failing set equals the
@@ -13,54 +14,23 @@ say INCOMPLETE).
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from . import i18n
-from .harness.target import check_reachable
-from .i18n import _
-from .protocol.clauses import all_clauses, clause_ids
-from .protocol.clauses import families as registry_families
-from .report.diff_cli import apply_baseline, load_baseline
-from .rundirs import default_run_dirs
-from .suite.collected import CAUSES, results, suite_info
-from .suite.record import CaseRecord, info_of
-from .suite.settings import SuiteSettings, add_suite_options
-from .suite.verdicts import CaseResult, RootCause, Verdict
-
-EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INCOMPLETE = 0, 1, 2, 3
-
-
-def add_run_arguments(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("suite")
-    add_suite_options(group.add_argument)
-    group.add_argument("--list", action="store_true", help=_("list the cases (ID, clauses, level, title) and exit"))
-    group.add_argument("--list-format", choices=["text", "markdown", "json"], default="text",
-                       help=_("with --list: plain text, the Markdown catalogue (docs/CATALOGUE.md), or JSON"))
-    group.add_argument("--expected-failures", metavar="FILE", default=None,
-                       help=_("case IDs expected to FAIL/ERROR, one per line, # comments; the run passes "
-                            "only when the failing set equals the list"))
-    group.add_argument("--quiet", action="store_true",
-                       help=_("no live progress line: only the final summary, as without a terminal (CI logs)"))
-    group.add_argument("--verbose", action="store_true",
-                       help=_("print every case as it finishes, PASS, INFORMATIONAL and SKIP included (by default "
-                            "a terminal shows only FAIL, ERROR, NON-STRICT and INCONCLUSIVE cases as they finish, "
-                            "a log none, before the final summary)"))
-    group.add_argument("--baseline", metavar="OLD", default=None,
-                       help=_("an earlier run (summary.json or its report directory): print what changed since it "
-                            "at the end and add the comparison to report.html (see 'diff')"))
-    fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
-    fleet.add_argument("--targets", metavar="FILE", default=None,
-                       help=_("test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
-                            "into --report-dir (default reports/fleet-<timestamp>), each box's reports in DIR/<name>/"))
-    fleet.add_argument("--jobs", type=int, metavar="N", default=None, help=_("with --targets: boxes tested at once (default 1)"))
+from .. import i18n
+from ..model.exit_codes import EXIT_FAILED, EXIT_INCOMPLETE, EXIT_OK, EXIT_USAGE
+from ..protocol.clauses import all_clauses, clause_ids
+from ..protocol.clauses import families as registry_families
+from ..report.baseline import Baseline, print_comparison
+from ..suite.collected import BASELINE, BASELINE_DIFF, CAUSES, results, suite_info
+from ..suite.record import CaseRecord, info_of
+from ..suite.settings import SuiteSettings
+from ..suite.verdicts import RootCause
 
 
 def read_expected_failures(path: Path) -> set[str]:
@@ -75,14 +45,16 @@ def read_expected_failures(path: Path) -> set[str]:
 class _RunPlugin:
     """Watches the run: the catalogue collected, progress, collection errors."""
 
-    def __init__(self, progress: Any = None) -> None:
+    def __init__(self, progress: Any = None, baseline: Baseline | None = None) -> None:
         self.progress = progress
+        self.baseline = baseline
         self.config: pytest.Config | None = None
         self.collected: list[CaseRecord] = []
         self.collect_errors: list[str] = []
 
     def pytest_configure(self, config: pytest.Config) -> None:
         self.config = config
+        config.stash[BASELINE] = self.baseline  # the report writers compare with it (report.html once)
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.collected = [info for item in session.items if (info := info_of(item)) is not None]
@@ -177,56 +149,17 @@ def list_cases(settings: SuiteSettings, fmt: str = "text") -> int:
     return EXIT_OK
 
 
-def main_run(args: argparse.Namespace) -> int:
-    if getattr(args, "targets", None):
-        from .fleet import main_fleet
-
-        return main_fleet(args)
-    try:
-        settings = SuiteSettings.resolve(lambda dest: getattr(args, dest, None))
-        expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
-        baseline = load_baseline(getattr(args, "baseline", None))  # a bad baseline stops the run before it starts
-    except (ValueError, OSError) as exc:
-        print(f"isight-conformance run: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    if args.list:
-        return list_cases(settings, args.list_format)
-
-    if settings.target is not None:  # before any directory is made: an unreachable target leaves nothing behind
-        problem = check_reachable(settings.target, settings.time_out_s)
-        if problem:
-            print(f"isight-conformance run: {problem}", file=sys.stderr)
-            return EXIT_USAGE
-    try:
-        report_dir, pcap_dir = default_run_dirs(settings.report_dir, settings.pcap_dir, settings.capture != "off")
-    except OSError as exc:
-        print(f"isight-conformance run: cannot create the report directory: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    settings = replace(settings, report_dir=report_dir, pcap_dir=pcap_dir)
-    embedded = None
-    if settings.target is None:
-        from .endpoints.bundled import start_bundled
-
-        embedded = start_bundled(settings.profile)
-        settings = replace(settings, target=embedded.target, udp_target=settings.udp_target or embedded.udp_target,
-                           target_label=settings.target_label or embedded.label)
-    try:
-        return _run(settings, expected, quiet=args.quiet, baseline=baseline, baseline_label=args.baseline,
-                    verbose=args.verbose)
-    finally:
-        if embedded is not None:
-            embedded.stop()
-
-
-def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool, baseline: dict[str, Any] | None = None,
-         baseline_label: str = "baseline", verbose: bool = False) -> int:
+def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, baseline: Baseline | None = None,
+              verbose: bool = False) -> int:
+    """Run the selected cases against ``settings.target`` (known to answer), show progress and the final
+    table, and return the exit status."""
     from rich.console import Console
 
-    from .report.terminal import Progress, print_final_table
+    from ..report.terminal import Progress, print_final_table
 
     console = Console(stderr=False)
     progress = Progress(console=console, quiet=quiet, verbose=verbose)
-    plugin = _RunPlugin(progress)
+    plugin = _RunPlugin(progress, baseline)
     try:
         code = pytest.main(_pytest_args(settings), plugins=[plugin])
     except KeyboardInterrupt:  # a signal between pytest's own handlers: the plugin wrote what it could
@@ -256,7 +189,7 @@ def _run(settings: SuiteSettings, expected: set[str] | None, quiet: bool, baseli
     if settings.pcap_dir is not None:
         reports["pcaps"] = settings.pcap_dir
     print_final_table(info, cases, console, reports=reports, root_causes=causes)
-    apply_baseline(baseline, report_dir, cases, console, baseline_label)
+    print_comparison(baseline, plugin.config.stash.get(BASELINE_DIFF, None), console)
     if interrupted or not info.complete:
         print(f"isight-conformance run: interrupted after {len(cases)} of {info.cases_total} cases; the reports "
               "cover the cases that ran and say INCOMPLETE", file=sys.stderr)
@@ -287,6 +220,3 @@ def _write_lines(path: Path, lines: list[str]) -> None:
     tmp.write_text("".join(f"{line}\n" for line in lines), encoding="utf-8")
     os.replace(tmp, path)
 
-
-def verdict_counts(cases: list[CaseResult]) -> dict[str, int]:
-    return {v.value: sum(1 for c in cases if c.verdict is v) for v in Verdict}

@@ -12,33 +12,23 @@ import datetime as _dt
 import shlex
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from ..i18n import _
-from ..options import add_profile_options, profile_from_options
-from .context import AnalyzeConfig
-from .engine import CaptureError, analyze
-from .report import write_analysis
+from ..analyze.context import AnalyzeConfig
+from ..analyze.engine import CaptureError, analyze
+from ..analyze.report import write_analysis
+from ..i18n import N_, _
+from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
+from ..suite.profile_options import profile_from_options
+from .options import add_profile_group
+from .registry import Command
 
-if TYPE_CHECKING:
-    from ..options import Subparsers
+__all__ = ["COMMAND", "config_from_args", "main_analyze"]
 
-__all__ = ["add_parser", "main_analyze"]
-
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 #: captures at least this large get a progress bar (on a terminal)
 PROGRESS_FROM = 4 << 20
 
 
-def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "analyze",
-        help=_("judge a capture (pcap/pcapng) of real robot <-> box traffic against PROTOCOL.md, both roles"),
-        description=_("Judge a capture of real robot <-> AI Box traffic (tcpdump on a mirror port, Wireshark on the box) "
-        "against PROTOCOL.md's clauses, both roles, and write summary.json (suite.role = observed), junit.xml and "
-        "report.html. Every finding names the capture's frame numbers. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, "
-        "2 usage error, a file that is not a whole capture, or no iSight traffic in it. See docs/ANALYZE.md."),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("capture", type=Path, metavar="CAPTURE", help=_("the capture file (pcap or pcapng, may be .gz)"))
     found = p.add_argument_group("finding the iSight traffic")
     found.add_argument("--port", type=int, action="append", default=None, metavar="N",
@@ -63,10 +53,7 @@ def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     out.add_argument("--report-dir", type=Path, default=None, metavar="DIR",
                      help=_("summary.json, junit.xml, report.html (default: reports/analyze-<timestamp>)"))
     out.add_argument("--quiet", action="store_true", help=_("no progress bar"))
-    group = p.add_argument_group("profile (--pose-rate is the rate the robot declares; --crc is the UDP CRC)")
-    add_profile_options(group.add_argument)
-    p.set_defaults(func=main_analyze)
-    return p
+    add_profile_group(p, "profile (--pose-rate is the rate the robot declares; --crc is the UDP CRC)")
 
 
 def config_from_args(args: argparse.Namespace) -> AnalyzeConfig:
@@ -131,3 +118,12 @@ def main_analyze(args: argparse.Namespace) -> int:
         print(f"{name}: {len(failing)} case(s) FAIL/ERROR: " + ", ".join(c.id for c in failing[:8]), file=sys.stderr)
         return EXIT_FAILED
     return EXIT_OK
+
+
+COMMAND = Command(
+    "analyze", N_("judge a capture (pcap/pcapng) of real robot <-> box traffic against PROTOCOL.md, both roles"), add_arguments, main_analyze,
+    description=N_("Judge a capture of real robot <-> AI Box traffic (tcpdump on a mirror port, Wireshark on the box) "
+        "against PROTOCOL.md's clauses, both roles, and write summary.json (suite.role = observed), junit.xml and "
+        "report.html. Every finding names the capture's frame numbers. Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, "
+        "2 usage error, a file that is not a whole capture, or no iSight traffic in it. See docs/ANALYZE.md."), lang=True,
+)

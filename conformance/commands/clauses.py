@@ -13,32 +13,19 @@ import json
 import sys
 import textwrap
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
-from .i18n import _, current, wrap_cells
-from .protocol.clauses import REGISTRY_VERSION, Clause, all_clauses, families
+from ..i18n import N_, _, current, wrap_cells
+from ..model.exit_codes import EXIT_OK, EXIT_USAGE
+from ..protocol.clauses import REGISTRY_VERSION, Clause, all_clauses, families
+from .registry import Command
 
-if TYPE_CHECKING:
-    from .options import Subparsers
-
-EXIT_OK, EXIT_USAGE = 0, 2
 WIDTH = 88
 
 
-def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "clauses",
-        help=_("print the clauses of docs/PROTOCOL.md: level, title, text, flags and source"),
-        description=_("Print clauses of the protocol statement (docs/PROTOCOL.md) from the suite's clause registry: "
-        "each one's level (MUST broken is FAIL, SHOULD broken NON-STRICT, MAY INFORMATIONAL), title, text, the "
-        "flags that change how it is read, and where the source document speaks to it. With no ID, every clause. "
-        "Exit status: 0, or 2 for an unknown ID."),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("ids", nargs="*", metavar="ID", help=_("clause IDs (F1 ... E5) or family letters (F, B, A, S, T, R, E)"))
     p.add_argument("--format", choices=("text", "json"), default="text", help=_("plain text (default) or JSON"))
     p.add_argument("--brief", action="store_true", help=_("text: one line per clause (ID, level, title)"))
-    p.set_defaults(func=main_clauses)
-    return p
 
 
 def select(ids: Sequence[str]) -> list[Clause]:
@@ -96,3 +83,13 @@ def main_clauses(args: argparse.Namespace) -> int:
         sys.stdout.flush()
         sys.stdout.buffer.write(out.encode("utf-8"))
     return EXIT_OK
+
+
+COMMAND = Command(
+    "clauses", N_("print the clauses of docs/PROTOCOL.md: level, title, text, flags and source"), add_arguments, main_clauses,
+    description=N_("Print clauses of the protocol statement (docs/PROTOCOL.md) from the suite's clause registry: "
+        "each one's level (MUST broken is FAIL, SHOULD broken NON-STRICT, MAY INFORMATIONAL), title, text, the "
+        "flags that change how it is read, and where the source document speaks to it. With no ID, every clause. "
+        "Exit status: 0, or 2 for an unknown ID."),
+    lang=True,
+)

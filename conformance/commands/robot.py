@@ -4,25 +4,16 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import TYPE_CHECKING
 
-from ..i18n import _
-from ..options import add_profile_options, profile_from_options
-from .loop import new_event_loop
-from .robot import RobotSession, run_robot
-
-if TYPE_CHECKING:
-    from ..options import Subparsers
+from ..endpoints.loop import new_event_loop
+from ..endpoints.robot import RobotSession, run_robot
+from ..i18n import N_, _
+from ..suite.profile_options import profile_from_options
+from .options import add_profile_group
+from .registry import Command
 
 
-def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "robot",
-        help=_("play the canonical robot session (S1, or E4 with --extension) against a box"),
-        description=_("Play the canonical robot session against a box and print a timeline and a summary. "
-        "Exit status: 0 clean session, 1 the box broke the protocol, 3 box not ready (CycleOn 0001 / ProgIdx 409), "
-        "4 no answer within time_out, 5 connection refused or closed, 2 bad arguments."),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--target", required=True, metavar="HOST:PORT", help=_("the box's command connection address"))
     p.add_argument("--stream-target", metavar="HOST:PORT", help=_("the stream connection's address (default: --target)"))
     p.add_argument("--duration", type=float, default=2.0, metavar="S",
@@ -35,10 +26,7 @@ def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     p.add_argument("--ping", action="store_true", help=_("send action 00 after connecting (the optional ping)"))
     p.add_argument("--loop", choices=("asyncio", "uvloop"), default="asyncio", help=_("event loop (default: asyncio)"))
     p.add_argument("-q", "--quiet", action="store_true", help=_("print the summary only, not the timeline"))
-    group = p.add_argument_group("profile")
-    add_profile_options(group.add_argument)
-    p.set_defaults(func=main_robot)
-    return p
+    add_profile_group(p)
 
 
 def main_robot(args: argparse.Namespace) -> int:
@@ -55,3 +43,11 @@ def main_robot(args: argparse.Namespace) -> int:
     if not result.ok:
         print(f"isight-conformance robot: {result.reason}", file=sys.stderr)
     return result.exit_code
+
+
+COMMAND = Command(
+    "robot", N_("play the canonical robot session (S1, or E4 with --extension) against a box"), add_arguments, main_robot,
+    description=N_("Play the canonical robot session against a box and print a timeline and a summary. "
+        "Exit status: 0 clean session, 1 the box broke the protocol, 3 box not ready (CycleOn 0001 / ProgIdx 409), "
+        "4 no answer within time_out, 5 connection refused or closed, 2 bad arguments."),
+)

@@ -18,34 +18,21 @@ import tempfile
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from .options import Subparsers
+from ..i18n import N_, _
+from ..model.exit_codes import EXIT_OK, EXIT_USAGE
+from .registry import Command
 
-from .i18n import _
-
-EXIT_OK, EXIT_USAGE = 0, 2
 PLUGIN_NAME = "isight.lua"
 FOLDER_KEY = "Personal Lua Plugins"
 TSHARK_TIMEOUT_S = 30.0
 
 
-def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "wireshark",
-        help=_("print, or install into, Wireshark's personal Lua plugins folder the iSight dissector"),
-        description=_("The Wireshark dissector for iSight (isight.lua, see conformance/wireshark/README.md). "
-        "--path prints the personal Lua plugins folder (asked of tshark when it is on PATH, else Wireshark's "
-        "documented default for this OS), --install copies isight.lua there, --print writes it to stdout. "
-        "Exit status: 0, or 2 when the folder cannot be written."),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     what = p.add_mutually_exclusive_group(required=True)
     what.add_argument("--path", action="store_true", help=_("print the personal Lua plugins folder"))
     what.add_argument("--install", action="store_true", help=_("copy isight.lua into that folder (created if needed)"))
     what.add_argument("--print", action="store_true", help=_("write isight.lua to stdout"))
-    p.set_defaults(func=main_wireshark)
-    return p
 
 
 def dissector_bytes() -> bytes:
@@ -132,3 +119,13 @@ def main_wireshark(args: argparse.Namespace) -> int:
           "Restart Wireshark or use Analyze > Reload Lua Plugins (Ctrl+Shift+L); check with "
           "'tshark -G protocols | grep isight'.")
     return EXIT_OK
+
+
+COMMAND = Command(
+    "wireshark", N_("print, or install into, Wireshark's personal Lua plugins folder the iSight dissector"),
+    add_arguments, main_wireshark,
+    description=N_("The Wireshark dissector for iSight (isight.lua, see conformance/wireshark/README.md). "
+        "--path prints the personal Lua plugins folder (asked of tshark when it is on PATH, else Wireshark's "
+        "documented default for this OS), --install copies isight.lua there, --print writes it to stdout. "
+        "Exit status: 0, or 2 when the folder cannot be written."),
+)

@@ -10,36 +10,22 @@ import argparse
 import shlex
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-from ..analyze.cli import config_from_args
-from ..certify.cli import parse_listen
 from ..harness.target import Target
-from ..i18n import _
-from ..options import add_profile_options
-from ..rundirs import default_run_dirs, drop_if_empty
-from .hub import MonitorSettings
+from ..i18n import N_, _
+from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
+from ..monitor.hub import MonitorSettings
+from ..report.rundirs import default_run_dirs, drop_if_empty
+from .analyze import config_from_args
+from .options import add_profile_group, parse_listen
+from .registry import Command
 
-if TYPE_CHECKING:
-    from ..options import Subparsers
+__all__ = ["COMMAND", "main_monitor"]
 
-__all__ = ["add_parser", "main_monitor"]
-
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 NAME = "isight-conformance monitor"
 
 
-def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
-    p = sub.add_parser(
-        "monitor",
-        help=_("sit in-line between a robot and its AI Box: forward every byte, judge both sides live, record a "
-             "pcapng ring, inject protocol-aware faults"),
-        description=_("Listen for the robot (point its $HOSTC_CFG at this PC), open a connection to the box for each "
-        "robot connection and pass the bytes on unchanged both ways, judging both sides live with analyze's engine. "
-        "The first line on stdout is 'listening tcp HOST:PORT [udp HOST:PORT] -> upstream HOST:PORT'. Runs until "
-        "SIGINT, SIGTERM or SIGHUP (or --duration), then writes summary.json, junit.xml, report.html and monitor.json. "
-        "Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or cannot listen. See docs/MONITOR.md."),
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     net = p.add_argument_group(_("the line"))
     net.add_argument("--listen", required=True, metavar="HOST:PORT",
                      help=_("where the robot connects (the address in its $HOSTC_CFG; port 0 picks a free one)"))
@@ -73,10 +59,7 @@ def add_parser(sub: Subparsers) -> argparse.ArgumentParser:
     judge.add_argument("--rate-tolerance", type=float, default=10.0, metavar="PCT", help=_("[T2] robot (default: 10)"))
     judge.add_argument("--jitter-tolerance", type=float, default=50.0, metavar="PCT", help=_("[T2] robot (default: 50)"))
     judge.add_argument("--linger", type=float, default=5.0, metavar="S", help=_("[S5] robot (default: 5)"))
-    group = p.add_argument_group(_("profile"))
-    add_profile_options(group.add_argument)
-    p.set_defaults(func=main_monitor)
-    return p
+    add_profile_group(p, _("profile"))
 
 
 def settings_from_args(args: argparse.Namespace, pcap_dir: Path | None) -> MonitorSettings:
@@ -92,7 +75,7 @@ def settings_from_args(args: argparse.Namespace, pcap_dir: Path | None) -> Monit
         raise ValueError("--checkpoint and --duration must be >= 0, --connect-timeout in (0, 3600]")
     settings = MonitorSettings(listen, (up.host, up.port), config, pcap_dir, args.ring, args.ring_mb,
                                list(args.fault), args.seed, args.udp, args.connect_timeout)
-    from .faults import FaultPlan
+    from ..monitor.faults import FaultPlan
 
     FaultPlan(settings.faults)  # a malformed spec is a usage error now, not later
     return settings
@@ -101,9 +84,9 @@ def settings_from_args(args: argparse.Namespace, pcap_dir: Path | None) -> Monit
 def main_monitor(args: argparse.Namespace) -> int:
     from rich.console import Console
 
+    from ..monitor.runner import ListenError, monitor_main
+    from ..monitor.view import View
     from ..report.terminal import print_final_table
-    from .runner import ListenError, monitor_main
-    from .view import View
 
     try:
         settings_from_args(args, None)
@@ -131,3 +114,14 @@ def main_monitor(args: argparse.Namespace) -> int:
         print(f"{NAME}: {len(failing)} case(s) FAIL/ERROR: " + ", ".join(c.id for c in failing[:8]), file=sys.stderr)
         return EXIT_FAILED
     return EXIT_OK
+
+
+COMMAND = Command(
+    "monitor", N_("sit in-line between a robot and its AI Box: forward every byte, judge both sides live, record a "
+             "pcapng ring, inject protocol-aware faults"), add_arguments, main_monitor,
+    description=N_("Listen for the robot (point its $HOSTC_CFG at this PC), open a connection to the box for each "
+        "robot connection and pass the bytes on unchanged both ways, judging both sides live with analyze's engine. "
+        "The first line on stdout is 'listening tcp HOST:PORT [udp HOST:PORT] -> upstream HOST:PORT'. Runs until "
+        "SIGINT, SIGTERM or SIGHUP (or --duration), then writes summary.json, junit.xml, report.html and monitor.json. "
+        "Exit status: 0 no FAIL/ERROR, 1 FAIL/ERROR, 2 usage error or cannot listen. See docs/MONITOR.md."), lang=True,
+)

@@ -1,7 +1,8 @@
-"""The ``fuzz`` and ``replay`` subcommands (their arguments and their main functions).
+"""The ``fuzz`` and ``replay`` commands' bodies: the box, the campaign, the replay and what they print.
 
-Exit status, like ``run``: 0 no failure, 1 a failure was found (fuzz) or a vector
-still fails (replay), 2 usage error or unreachable target.
+Their parsers are :mod:`conformance.commands.fuzz` and :mod:`conformance.commands.replay`. Exit
+status, like ``run``: 0 no failure, 1 a failure was found (fuzz) or a vector still fails (replay),
+2 usage error or unreachable target.
 """
 
 from __future__ import annotations
@@ -12,84 +13,25 @@ import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from ..endpoints.bundled import Bundled, start_bundled
+from ..endpoints.bundled import Bundled, bundled_or_target
 from ..harness.client import TcpConnection
 from ..harness.target import Target, Unreachable, check_reachable
 from ..harness.transcript import Transcript
 from ..i18n import _
-from ..options import add_profile_options, profile_from_options
+from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..protocol import DEFAULT_PORT, Profile
-from ..rundirs import default_run_dirs
+from ..report.rundirs import default_run_dirs
 from ..suite.extension import detect_extension
-from .database import DEFAULT_DATABASE, resolve_database
+from ..suite.profile_options import profile_from_options
+from .database import resolve_database
 from .strategies import Strategies
 
 if TYPE_CHECKING:
     from .result import CampaignResult
 
-__all__ = ["DEFAULT_DATABASE", "add_fuzz_arguments", "add_replay_arguments", "main_fuzz", "main_replay",
-           "resolve_database"]
-
-EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
-
-
-def _targets(p: argparse.ArgumentParser | Any) -> None:
-    p.add_argument("--target", metavar="HOST:PORT", help=_("the AI Box over TCP (default: start the bundled reference box)"))
-    p.add_argument("--udp-target", metavar="HOST:PORT", help=_("the box's UDP endpoint (UDP cases only with it; "
-                   "the bundled box's UDP port when no --target is given)"))
-    p.add_argument("--extension", choices=("auto", "on", "off"), default="auto",
-                   help=_("extension E (actions 26/27): detect (auto, default), or force on/off"))
-
-
-def add_fuzz_arguments(p: argparse.ArgumentParser) -> None:
-    _targets(p)
-    p.add_argument("--stream-target", metavar="HOST:PORT", help=_("where the session machine's stream connection "
-                   "goes (default: --target)"))
-    budget = p.add_mutually_exclusive_group()
-    budget.add_argument("--max-examples", type=int, metavar="N", help=_("fuzz cases to send (default: 5000)"))
-    budget.add_argument("--duration", type=float, metavar="S", help=_("seconds to fuzz for"))
-    p.add_argument("--seed", type=int, metavar="N", help=_("the campaign's seed (printed at the start; default: random)"))
-    p.add_argument("--report-dir", metavar="DIR", help=_("fuzz-summary.json and one vector file per failure "
-                   "(default: reports/fuzz-<timestamp>)"))
-    p.add_argument("--pcap-dir", metavar="DIR", help=_("one pcapng per failure (default: pcaps/fuzz-<timestamp>)"))
-    p.add_argument("--capture", choices=("failures", "all", "off"), default="failures",
-                   help=_("pcaps of the failing examples (default), also every case of the campaign (all: "
-                        "campaign-NNN.pcapng, about 0.8 KB per case), or none"))
-    p.add_argument("--database", metavar="DIR|none|redis://HOST:PORT/DB",
-                   help="hypothesis example database: failures found before are replayed first; a directory, none, "
-                   f"or a redis URL shared by several machines (default: {DEFAULT_DATABASE}, or none when the active "
-                   "hypothesis profile, e.g. its built-in 'ci' profile, switches the database off)")
-    p.add_argument("--database-shared", metavar="URL|DIR",
-                   help=_("also replay the failures saved in this store (a redis URL or a directory), read-only: "
-                   "nothing is ever written to it (e.g. CI's corpus on a developer's machine)"))
-    p.add_argument("--stateful-share", type=float, default=0.2, metavar="F",
-                   help=_("share of the budget for the session state machine (default: 0.2; 0: frames only)"))
-    p.add_argument("--categories", metavar="LIST", help=_("only these case categories, comma-separated "
-                   "(e.g. B3-index,B4-floats; see docs/FUZZING.md)"))
-    p.add_argument("--batch", type=int, default=32, metavar="N", help=_("most cases per hypothesis example (default: 32)"))
-    p.add_argument("--liveness-every", type=int, default=64, metavar="K",
-                   help=_("[R2] liveness check on a fresh connection every K cases, and after every anomaly (default: 64)"))
-    p.add_argument("--max-failures", type=int, default=5, metavar="N", help=_("stop after N distinct failures (default: 5)"))
-    p.add_argument("--restart-cmd", metavar="CMD",
-                   help=_("[R2] a shell command that brings a dead box back (e.g. 'systemctl restart aibox'): a death "
-                   "is then confirmed, shrunk to the shortest killing sequence, and the campaign goes on"))
-    p.add_argument("--quiet", action="store_true", help=_("no progress lines"))
-    group = p.add_argument_group(_("profile"))
-    add_profile_options(group.add_argument)
-
-
-def add_replay_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("files", nargs="+", metavar="FILE", help=_("isight-vectors-1 files (golden vectors or fuzz failures)"))
-    _targets(p)
-    p.add_argument("--tc", type=int, action="append", metavar="ID", help=_("only this tcId (repeatable)"))
-    p.add_argument("--one-connection", action="store_true",
-                   help=_("send every vector on one connection, in file order (a fuzz 'context' failure)"))
-    p.add_argument("--settle-ms", type=int, default=0, metavar="MS",
-                   help=_("after each probe's answer, watch this long for late extra answers (default: 0)"))
-    group = p.add_argument_group(_("profile"))
-    add_profile_options(group.add_argument)
+__all__ = ["main_fuzz", "main_replay"]
 
 
 # -- shared -------------------------------------------------------------------------------------
@@ -108,13 +50,8 @@ def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tupl
         if problem:
             print(f"isight-conformance {name}: {problem}", file=sys.stderr)
             raise SystemExit(EXIT_USAGE)
-        yield target, udp, None
-        return
-    box = start_bundled(profile)
-    try:
-        yield box.target, udp or box.udp_target, box
-    finally:
-        box.stop()
+    with bundled_or_target(target, udp, profile) as box:
+        yield box
 
 
 def _extension(mode: str, target: Target, profile: Profile, transcript: Transcript) -> tuple[bool, str]:

@@ -7,17 +7,12 @@ place where values become a :class:`~conformance.protocol.Profile`.
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from .i18n import N_, gettext
-from .protocol import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc16_names
-
-if TYPE_CHECKING:
-    #: what ``ArgumentParser.add_subparsers()`` returns: each command module's ``add_parser(sub)`` takes it
-    Subparsers = argparse._SubParsersAction[argparse.ArgumentParser]
+from ..i18n import N_, gettext
+from ..protocol import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc16_names
 
 
 @dataclass(frozen=True)
