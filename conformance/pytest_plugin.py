@@ -35,6 +35,7 @@ import pytest
 
 from . import __version__, i18n
 from .harness.transcript import Transcript
+from .model.verdicts import CaseResult, RootCause, Verdict
 from .suite import signals
 from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
     CAUSES,
@@ -57,7 +58,6 @@ from .suite.record import info_of
 from .suite.results import attach_evidence, result_of, safe_name
 from .suite.session import SessionState
 from .suite.settings import SuiteSettings, add_suite_options
-from .suite.verdicts import CaseResult, RootCause, Verdict
 
 CTX = pytest.StashKey[CaseContext]()
 CASE_START = pytest.StashKey[float]()

@@ -26,6 +26,7 @@ import pytest
 from . import i18n
 from .harness.target import check_reachable
 from .i18n import _
+from .model.verdicts import CaseResult, RootCause, Verdict
 from .protocol.clauses import all_clauses, clause_ids
 from .protocol.clauses import families as registry_families
 from .report.diff_cli import apply_baseline, load_baseline
@@ -33,7 +34,6 @@ from .rundirs import default_run_dirs
 from .suite.collected import CAUSES, results, suite_info
 from .suite.record import CaseRecord, info_of
 from .suite.settings import SuiteSettings, add_suite_options
-from .suite.verdicts import CaseResult, RootCause, Verdict
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INCOMPLETE = 0, 1, 2, 3
 

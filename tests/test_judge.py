@@ -11,6 +11,8 @@ import pytest
 
 from conformance import runner
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
+from conformance.model.signature import Signature
+from conformance.model.verdicts import CaseResult, Level, SuiteInfo, Verdict, broken_verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -47,8 +49,6 @@ from conformance.suite.judge import (
 )
 from conformance.suite.record import Requirement, record
 from conformance.suite.results import result_of
-from conformance.suite.signature import Signature
-from conformance.suite.verdicts import CaseResult, Level, SuiteInfo, Verdict, broken_verdict
 
 BOX = TransferType.BOX_TO_ROBOT
 SENT = encode_raw(Header(start_word=0xFFFE))  # not a request (A5: a wrong start word)

@@ -10,6 +10,7 @@ import pytest
 from conformance.harness.client import Silence
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     Action,
     Profile,
@@ -27,7 +28,6 @@ from conformance.suite.quiet import CUT_S, HANG_CASES, Hangs, bad_kind, pattern_
 from conformance.suite.record import CaseRecord
 from conformance.suite.session import SessionState
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.verdicts import Level
 
 from .boxes import ScriptedBox
 

@@ -12,11 +12,11 @@ import pytest
 from rich.console import Console
 
 from conformance.cli import main
+from conformance.model.verdicts import Verdict
 from conformance.protocol import ErrorCode, answer, encode
 from conformance.report.diff_cli import apply_baseline, load_baseline
 from conformance.report.load import SummaryError
 from conformance.report.summary import write_summary
-from conformance.suite.verdicts import Verdict
 
 from .boxes import ScriptedBox, answering
 from .test_report_summary import sample_cases, sample_suite

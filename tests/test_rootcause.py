@@ -14,6 +14,8 @@ from typing import Any
 import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
+from conformance.model.signature import Death, DeathKind, Sig, Signature
+from conformance.model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
 from conformance.report.summary import write_summary
 from conformance.suite.judge import CLOSED, NOT_OK, CaseVerdict, Inconclusive, answered, answered_error, judge
@@ -22,8 +24,6 @@ from conformance.suite.record import CaseRecord, Requirement, record
 from conformance.suite.results import result_of
 from conformance.suite.rootcause import SessionFacts, find_root_causes
 from conformance.suite.session import S5_TEXT
-from conformance.suite.signature import Death, DeathKind, Sig, Signature
-from conformance.suite.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from tests.impls.expectations import EXPECTATIONS
 from tests.impls.expectations import judge as blame
 

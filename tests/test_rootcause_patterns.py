@@ -9,6 +9,8 @@ from __future__ import annotations
 import json
 
 from conformance.harness.client import Closed, Outcome
+from conformance.model.signature import Death, DeathKind, Sig, Signature
+from conformance.model.verdicts import CaseResult, Level, Verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -23,8 +25,6 @@ from conformance.suite.judge import NOT_OK, Inconclusive, answered, fail
 from conformance.suite.patterns import Blocks, blocks_of
 from conformance.suite.record import Requirement
 from conformance.suite.rootcause import SessionFacts, find_root_causes
-from conformance.suite.signature import Death, DeathKind, Sig, Signature
-from conformance.suite.verdicts import CaseResult, Level, Verdict
 from tests.test_rootcause import PARSE_ERROR, judged, malformed, marked, ok, parse_error, passed, raised, reply
 
 NONE, ON, OFF, POSE, REG, TOL = (Action.NONE, Action.CYCLE_ON, Action.CYCLE_OFF, Action.POSE, Action.REGISTER_POSE,

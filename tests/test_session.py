@@ -17,6 +17,8 @@ import pytest
 from conformance.harness.client import Answer, Closed, Malformed, Silence, TcpConnection
 from conformance.harness.target import Target
 from conformance.harness.transcript import Kind, Transcript
+from conformance.model.signature import DeathKind, Sig, Signature
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, StreamDecoder, TransferType, answer, encode, request
 from conformance.protocol.errors import ProtocolError
 from conformance.protocol.frames import Frame
@@ -31,8 +33,6 @@ from conformance.suite.session import (
     responsive,
 )
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.signature import DeathKind, Sig, Signature
-from conformance.suite.verdicts import Verdict
 
 PROFILE = Profile(time_out_ms=500)  # every silence in these tests costs at most this
 POLL = 0.05

@@ -13,6 +13,7 @@ import time
 import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     ACTION_ERROR,
     Action,
@@ -32,7 +33,6 @@ from conformance.protocol.answers import Cycle
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed, reply_signature
 from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
 ON, OFF, NONE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE

@@ -11,6 +11,7 @@ from __future__ import annotations
 import pytest
 
 from conformance.harness.client import Answer
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     ACTION_ERROR,
     BLOCK_LEN,
@@ -27,7 +28,6 @@ from conformance.protocol.constants import EDGE_FLOAT32, f32_bits
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
 #: block type and length of the blocks each data action carries (B1, B2, B5): the protocol's shape table

@@ -30,6 +30,7 @@ from typing import Any
 import pytest
 
 from conformance.harness.client import Answer, Closed, Outcome, Silence
+from conformance.model.verdicts import Level, Verdict
 from conformance.protocol import (
     ACTION_ERROR,
     Action,
@@ -43,7 +44,6 @@ from conformance.protocol.constants import EDGE_FLOAT32, f32_bits, f32_of_bits
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, CaseVerdict, Skip, answered, answered_allowed, answered_zero
 from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level, Verdict
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
 ACTIONS = [POSE, REG, TOL]

@@ -28,6 +28,8 @@ from typing import Any
 
 from conformance.harness.client import Closed, Outcome, Silence, TcpConnection, UdpChannel
 from conformance.harness.target import Unreachable
+from conformance.model.signature import Sig, Signature
+from conformance.model.verdicts import Level
 from conformance.options import profile_flags
 from conformance.protocol import (
     Action,
@@ -47,8 +49,6 @@ from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, Skip
 from conformance.suite.record import Requirement, case
-from conformance.suite.signature import Sig, Signature
-from conformance.suite.verdicts import Level
 
 ORDERS = ("big", "little")
 POSE = (640.0, -12.5, 280.0, 180.0, 0.0, 90.0)

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     Action,
     ErrorCode,
@@ -34,7 +35,6 @@ from conformance.protocol.answers import CONFLICT, Cycle
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level
 from conformance.trajectory import PrimerTrajectory
 
 #: E2 with ``progidx_conflict = "error-code"``: "409" in the error field, read as the

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from conformance.harness.client import Answer, Malformed
+from conformance.model.verdicts import Level
 from conformance.protocol import Action, Header, Transport, encode, encode_raw, pose_blocks, request
 from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Requirement, case
-from conformance.suite.verdicts import Level
 
 POSE = request(Action.POSE, pose_blocks([(500.0, 0.0, 300.0, 180.0, 0.0, 90.0)]))
 #: A1: the request whose answer a case inspects is answered 0000

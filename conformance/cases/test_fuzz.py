@@ -19,10 +19,10 @@ case's. For longer campaigns use ``isight-conformance fuzz`` (docs/FUZZING.md).
 from __future__ import annotations
 
 from conformance.fuzz.campaign import Campaign, CampaignConfig, CampaignResult
+from conformance.model.signature import Signature
+from conformance.model.verdicts import Level
 from conformance.suite.context import CaseContext
 from conformance.suite.record import Requirement, case
-from conformance.suite.signature import Signature
-from conformance.suite.verdicts import Level
 
 FRAMES_S = 2.0
 SESSION_S = 1.0

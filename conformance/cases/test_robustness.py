@@ -11,13 +11,13 @@ import time
 import pytest
 
 from conformance.harness.client import Answer, Closed, TcpConnection
+from conformance.model.verdicts import Level
 from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
 from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import CLOSED, NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.sequence import DEFAULT_POSE, latency_figures, pieces_of
-from conformance.suite.verdicts import Level
 
 #: R2: a fresh connection after the input gets NONE answered 0000
 ALIVE = Requirement(("R2",), "whatever bytes one connection sends, the box keeps accepting and answering new connections "

@@ -14,11 +14,11 @@ from typing import Any
 
 import pytest
 
+from conformance.model.verdicts import Level
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Skip
 from conformance.suite.record import MARKER, record
 from conformance.suite.sequence import Sequence, SequenceError, load, run_sequence, shipped
-from conformance.suite.verdicts import Level
 
 SHIPPED = shipped()
 

@@ -7,13 +7,13 @@ import time
 
 from conformance.harness.client import Answer, Closed, Outcome, Silence, TcpConnection
 from conformance.harness.transcript import Kind
+from conformance.model.verdicts import Level
 from conformance.protocol import Action, ErrorCode, Frame, pose_blocks, request, tolerance_blocks
 from conformance.protocol.answers import CANONICAL_CODES, Cycle
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import CLOSED, answered, answered_allowed
 from conformance.suite.record import Requirement, case
 from conformance.suite.sequence import PoseStream, latency_figures, percentile
-from conformance.suite.verdicts import Level
 
 HOME = (800.0, -100.0, 300.0, 180.0, 0.0, 0.0)
 ON, OFF, NONE, POSE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE, Action.POSE

@@ -5,12 +5,12 @@ from __future__ import annotations
 import time
 
 from conformance.harness.client import Answer, Outcome
+from conformance.model.verdicts import Level
 from conformance.protocol import Action, Frame, encode, pose_blocks, request, tolerance_blocks
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import answered
 from conformance.suite.record import Requirement, case
 from conformance.suite.sequence import DEFAULT_POSE, PoseStream, latency_figures
-from conformance.suite.verdicts import Level
 
 
 def _requests(isight: CaseContext) -> list[Frame]:

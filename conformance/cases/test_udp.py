@@ -18,6 +18,7 @@ import time
 import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, UdpChannel
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     Action,
     Frame,
@@ -33,7 +34,6 @@ from conformance.protocol import (
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level
 
 POSE = (500.0, -20.0, 300.0, 180.0, 0.0, 90.0)
 #: sessions whose UDP target answered no valid datagram (R7 cases end at once)

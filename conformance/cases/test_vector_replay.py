@@ -23,6 +23,7 @@ import pytest
 
 from conformance.harness.client import Answer, Outcome
 from conformance.harness.transcript import Kind
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     ACTION_ERROR,
     HEADER_LEN,
@@ -40,7 +41,6 @@ from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level
 from conformance.vectors import REPO_VECTORS, Vector, load_dir
 
 VECTORS_DIR = REPO_VECTORS / "frames"

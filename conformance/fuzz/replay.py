@@ -25,8 +25,8 @@ from pathlib import Path
 from ..harness.liveness import responsive
 from ..harness.target import Target
 from ..harness.transcript import Transcript
+from ..model.verdicts import Verdict
 from ..protocol import HEADER_LEN, Profile, TransferType, Transport
-from ..suite.verdicts import Verdict
 from ..vectors import Vector, load
 from .evidence import splits_of
 from .executor import Executor

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..suite.verdicts import CaseResult, RootCause, SuiteInfo
+from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from .html import render_html, write_html
 from .junit import write_junit
 from .summary import by_clause, conforms, overall_line, totals, write_summary

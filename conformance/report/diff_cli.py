@@ -21,7 +21,7 @@ from rich.console import Console
 from rich.text import Text
 
 from ..i18n import _
-from ..suite.verdicts import CaseResult
+from ..model.verdicts import CaseResult
 from .diff import RunDiff, compare, render, render_text
 from .load import SummaryError, load_summary, root_causes_of, suite_of, summary_path
 

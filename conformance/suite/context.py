@@ -21,6 +21,8 @@ from ..harness.exchange import Collected, Settle, attribute, choose_probe, colle
 from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
+from ..model.signature import Sig, Signature
+from ..model.verdicts import Level
 from ..protocol import Action, Frame, encode
 from ..protocol.constants import START_BYTES
 from ..protocol.framings import Explanation
@@ -28,8 +30,6 @@ from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clause
 from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, broken_besides_hang, hung, pattern_key
 from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
-from .signature import Sig, Signature
-from .verdicts import Level
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
 #: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).

@@ -24,8 +24,8 @@ from typing import Any, TypeVar
 import pytest
 
 from ..harness.client import Outcome
+from ..model.verdicts import Level
 from ..protocol.clauses import clause_ids
-from .verdicts import Level
 
 F = TypeVar("F", bound=Callable[..., Any])
 MARKER = "isight_case"

@@ -30,9 +30,9 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from ..i18n import gettext  # titles in the language of the run (the .format placeholders are named)
+from ..model.signature import Death, DeathKind, Sig, Signature
+from ..model.verdicts import CaseResult, Level, RootCause, Verdict
 from .patterns import Claim, block_position_cause, evidence_of, field_causes
-from .signature import Death, DeathKind, Sig, Signature
-from .verdicts import CaseResult, Level, RootCause, Verdict
 
 #: A signature shared by at least this many non-PASS cases is reported as a root cause.
 MIN_GROUP = 2

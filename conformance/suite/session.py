@@ -30,12 +30,12 @@ from ..harness.client import Answer, Outcome, TcpConnection
 from ..harness.liveness import PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
+from ..model.signature import Death, DeathKind, Sig, Signature
+from ..model.verdicts import Verdict
 from ..protocol import Action, Profile
 from .judge import CaseVerdict, Inconclusive
 from .quiet import Hangs
 from .settings import SuiteSettings
-from .signature import Death, DeathKind, Sig, Signature
-from .verdicts import Verdict
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
 RECHECK_S = 10.0
