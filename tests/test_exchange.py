@@ -35,9 +35,9 @@ from conformance.protocol import (
     pose_blocks,
     request,
 )
-from conformance.suite.context import CaseContext
+from conformance.suite.case_context import CaseContext
 from conformance.suite.record import CaseRecord
-from conformance.suite.session import SessionState
+from conformance.suite.run_state import SessionState
 from conformance.suite.settings import SuiteSettings
 
 from .boxes import ScriptedBox, answering

@@ -1,4 +1,4 @@
-"""Expectations and verdicts (conformance/suite/judge.py): the ready-made Expects, ``check`` (the level's
+"""Expectations and verdicts (conformance/suite/case_judge.py): the ready-made Expects, ``check`` (the level's
 verdict, or FAIL on format alone for a malformed answer that read leniently would be acceptable),
 ``answer_view``, the signatures, CaseVerdict, and what a verdict becomes downstream: its CaseResult
 (suite/results.py), the clause table (report/summary.by_clause), the overall line of a run cut short and
@@ -27,7 +27,7 @@ from conformance.protocol import (
     request,
 )
 from conformance.report.summary import by_clause, overall_line, overall_state
-from conformance.suite.judge import (
+from conformance.suite.case_judge import (
     CLOSED,
     NOT_MALFORMED,
     NOT_OK,

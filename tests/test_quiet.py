@@ -22,11 +22,11 @@ from conformance.protocol import (
     pose_blocks,
     request,
 )
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import Inconclusive
 from conformance.suite.quiet import CUT_S, HANG_CASES, Hangs, bad_kind, pattern_key
 from conformance.suite.record import CaseRecord
-from conformance.suite.session import SessionState
+from conformance.suite.run_state import SessionState
 from conformance.suite.settings import SuiteSettings
 
 from .boxes import ScriptedBox

@@ -12,8 +12,8 @@ from conformance.harness.transcript import Endpoint, Kind, Transcript
 from conformance.model.signature import Sig, Signature
 from conformance.model.verdicts import Level, Verdict, broken_verdict
 from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import CaseVerdict, Inconclusive, Skip, answered, check, fail
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import CaseVerdict, Inconclusive, Skip, answered, check, fail
 from conformance.suite.record import CaseRecord, record
 from conformance.suite.results import (
     QUOTED_BYTES,
@@ -23,7 +23,7 @@ from conformance.suite.results import (
     result_of,
     safe_name,
 )
-from conformance.suite.session import SessionState
+from conformance.suite.run_state import SessionState
 from conformance.suite.settings import SuiteSettings
 
 POSE_CASE = record("S3-01", ["S3"], Level.MUST, "Poses before CycleOn are answered 0000", "answered POSE 0000")

@@ -1,4 +1,4 @@
-"""conformance.suite.session: baseline, S4 preflight and witness, R2/S5 after a case, re-probes, known-late actions.
+"""conformance.suite.run_state: baseline, S4 preflight and witness, R2/S5 after a case, re-probes, known-late actions.
 
 The boxes are tiny loopback servers written here (threads, every wait bounded, all joined at the end)."""
 
@@ -23,8 +23,8 @@ from conformance.protocol import Action, Profile, StreamDecoder, TransferType, a
 from conformance.protocol.errors import ProtocolError
 from conformance.protocol.frames import Frame
 from conformance.suite import session as session_mod
-from conformance.suite.judge import CaseVerdict, Inconclusive
-from conformance.suite.session import (
+from conformance.suite.case_judge import CaseVerdict, Inconclusive
+from conformance.suite.run_state import (
     LATE_CASES,
     RECHECK_S,
     S5_TEXT,

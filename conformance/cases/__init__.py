@@ -2,5 +2,5 @@
 
 Run with ``isight-conformance run`` or ``pytest --pyargs conformance.cases --target HOST:PORT``.
 Every case is marked with :func:`conformance.suite.record.case` (stable ID, clauses,
-level, expectation) and takes the ``isight`` fixture (:class:`~conformance.suite.context.CaseContext`).
+level, expectation) and takes the ``isight`` fixture (:class:`~conformance.suite.case_context.CaseContext`).
 """

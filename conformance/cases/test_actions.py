@@ -30,8 +30,8 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.answers import Cycle
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed, reply_signature
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import NOT_OK, Skip, answered, answered_allowed, reply_signature
 from conformance.suite.record import Expect, Requirement, case
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE

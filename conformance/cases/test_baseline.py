@@ -12,10 +12,10 @@ from conformance.harness.client import Answer
 from conformance.model.signature import Signature
 from conformance.model.verdicts import Level
 from conformance.protocol import Action, encode, request
-from conformance.suite.context import CaseContext, answers_none
-from conformance.suite.judge import answered_allowed
+from conformance.suite.case_context import CaseContext, answers_none
+from conformance.suite.case_judge import answered_allowed
 from conformance.suite.record import Requirement, case
-from conformance.suite.session import responsive
+from conformance.suite.run_state import responsive
 
 
 @case("T1-00", ["A4", "T1"], Level.MUST, "Baseline: NONE is answered 0000 on a fresh connection within time_out",

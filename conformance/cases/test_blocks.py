@@ -25,8 +25,8 @@ from conformance.protocol import (
     tolerance_blocks,
 )
 from conformance.protocol.constants import EDGE_FLOAT32, f32_bits
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, answered, answered_allowed
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE

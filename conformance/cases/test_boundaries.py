@@ -41,8 +41,8 @@ from conformance.protocol import (
     request,
 )
 from conformance.protocol.constants import EDGE_FLOAT32, f32_bits, f32_of_bits
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, CaseVerdict, Skip, answered, answered_allowed, answered_zero
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import NOT_OK, CaseVerdict, Skip, answered, answered_allowed, answered_zero
 from conformance.suite.record import Expect, Requirement, case
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE

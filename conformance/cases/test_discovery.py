@@ -46,8 +46,8 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.constants import START_BYTES
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, Skip
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import Inconclusive, Skip
 from conformance.suite.record import Requirement, case
 
 ORDERS = ("big", "little")

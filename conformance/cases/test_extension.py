@@ -32,8 +32,8 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.answers import CONFLICT, Cycle
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, answered, answered_allowed
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import Inconclusive, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.trajectory import PrimerTrajectory
 

@@ -6,8 +6,8 @@ from conformance.harness.client import Answer, Malformed
 from conformance.model.verdicts import Level
 from conformance.protocol import Action, Header, Transport, encode, encode_raw, pose_blocks, request
 from conformance.protocol.constants import START_BYTES
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, answered, answered_allowed
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Requirement, case
 
 POSE = request(Action.POSE, pose_blocks([(500.0, 0.0, 300.0, 180.0, 0.0, 90.0)]))

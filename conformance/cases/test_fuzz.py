@@ -21,7 +21,7 @@ from __future__ import annotations
 from conformance.fuzz.campaign import Campaign, CampaignConfig, CampaignResult
 from conformance.model.signature import Signature
 from conformance.model.verdicts import Level
-from conformance.suite.context import CaseContext
+from conformance.suite.case_context import CaseContext
 from conformance.suite.record import Requirement, case
 
 FRAMES_S = 2.0

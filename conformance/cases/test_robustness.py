@@ -14,8 +14,8 @@ from conformance.harness.client import Answer, Closed, TcpConnection
 from conformance.model.verdicts import Level
 from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
 from conformance.protocol.constants import START_BYTES
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import CLOSED, NOT_OK, answered, answered_allowed
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import CLOSED, NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.suite.sequence import DEFAULT_POSE, latency_figures, pieces_of
 

@@ -15,8 +15,8 @@ from typing import Any
 import pytest
 
 from conformance.model.verdicts import Level
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import Skip
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import Skip
 from conformance.suite.record import MARKER, record
 from conformance.suite.sequence import Sequence, SequenceError, load, run_sequence, shipped
 

@@ -10,8 +10,8 @@ from conformance.harness.transcript import Kind
 from conformance.model.verdicts import Level
 from conformance.protocol import Action, ErrorCode, Frame, pose_blocks, request, tolerance_blocks
 from conformance.protocol.answers import CANONICAL_CODES, Cycle
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import CLOSED, answered, answered_allowed
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import CLOSED, answered, answered_allowed
 from conformance.suite.record import Requirement, case
 from conformance.suite.sequence import PoseStream, latency_figures, percentile
 

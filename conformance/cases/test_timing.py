@@ -7,8 +7,8 @@ import time
 from conformance.harness.client import Answer, Outcome
 from conformance.model.verdicts import Level
 from conformance.protocol import Action, Frame, encode, pose_blocks, request, tolerance_blocks
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import answered
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import answered
 from conformance.suite.record import Requirement, case
 from conformance.suite.sequence import DEFAULT_POSE, PoseStream, latency_figures
 

@@ -31,8 +31,8 @@ from conformance.protocol import (
     request,
     tolerance_blocks,
 )
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, answered_allowed
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import Inconclusive, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 
 POSE = (500.0, -20.0, 300.0, 180.0, 0.0, 90.0)

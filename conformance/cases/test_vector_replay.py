@@ -38,8 +38,8 @@ from conformance.protocol import (
 )
 from conformance.protocol.answers import Cycle
 from conformance.protocol.constants import START_BYTES
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import NOT_OK, Skip, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
 from conformance.vectors import REPO_VECTORS, Vector, load_dir
 

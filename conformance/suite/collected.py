@@ -19,7 +19,7 @@ from .. import __version__
 from ..model.signature import DeathKind
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from .rootcause import SessionFacts, find_root_causes
-from .session import SessionState
+from .run_state import SessionState
 from .settings import SuiteSettings
 
 STATE = pytest.StashKey[SessionState]()  # the first box's session (the settings every session shares)

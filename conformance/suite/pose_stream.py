@@ -18,7 +18,7 @@ from ..model.verdicts import Level
 from ..protocol import Action, pose_blocks, request
 from ..stats import percentile
 from ..trajectory import PrimerTrajectory
-from .judge import Expect, answered, check, fail
+from .case_judge import Expect, answered, check, fail
 
 DEFAULT_POSE = PrimerTrajectory().home
 

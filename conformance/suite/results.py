@@ -15,8 +15,8 @@ from ..harness.target import Unreachable
 from ..harness.transcript import Kind, Transcript
 from ..model.signature import Signature
 from ..model.verdicts import CaseResult, Verdict, broken_verdict
-from .context import CaseContext
-from .judge import CaseVerdict
+from .case_context import CaseContext
+from .case_judge import CaseVerdict
 from .record import CaseRecord
 from .settings import SuiteSettings
 from .wirelog import wire_lines

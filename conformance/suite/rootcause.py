@@ -9,7 +9,7 @@ marks every explained case with its root cause's id.
 
 Sources, in this order:
 
-1. session facts (:mod:`.session`): the box never answered a NONE request (A4/T1);
+1. session facts (:mod:`.run_state`): the box never answered a NONE request (A4/T1);
    it serves one connection at a time (S4: explains the non-PASS cases that held two
    connections at once); it stopped accepting connections (S5) or died after a case's
    input (R2: explains that case and every later case left INCONCLUSIVE by it);

@@ -17,7 +17,7 @@ from typing import Any
 from ..harness.client import Answer, Outcome, Silence, TcpConnection
 from ..model.verdicts import Level
 from ..protocol import Action, Frame, pose_blocks, request, tolerance_blocks, value_blocks
-from .judge import Expect, Inconclusive, answered, answered_error, check, fail
+from .case_judge import Expect, Inconclusive, answered, answered_error, check, fail
 from .pose_stream import (
     DEFAULT_POSE,
     PoseStream,

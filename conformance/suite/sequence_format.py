@@ -19,7 +19,7 @@ from typing import Any
 from ..model.verdicts import Level
 from ..protocol import DEFAULT_PROFILE, HEADER_LEN, MAX_FRAME_LEN, Action, codec_for
 from ..vectors import REPO_VECTORS
-from .judge import CLOSED, NOT_OK, SILENCE, Expect
+from .case_judge import CLOSED, NOT_OK, SILENCE, Expect
 from .record import _CLAUSE, CaseRecord, record
 
 FORMAT = "isight-sequence-1"

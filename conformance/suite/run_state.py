@@ -1,4 +1,10 @@
-"""The session: one per run. Settings, the target, the box's health, and the rules between cases.
+"""The run's state for one box (:class:`SessionState`): settings, the target, the box's health, and the rules between cases.
+
+"Session" names three things in this house; here it is the first:
+
+* **the run's state** (this module): one :class:`SessionState` per box under test, for a whole run;
+* **an S1 session**: one TCP connection's life between robot and box (PROTOCOL.md S1), what a case opens;
+* **pytest's session**: pytest's own object for one ``pytest`` invocation, which may hold several boxes' states.
 
 The pytest plugin only forwards to :meth:`SessionState.before_case` and
 :meth:`SessionState.after_case`:
@@ -33,7 +39,7 @@ from ..harness.transcript import Kind, Transcript
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import Verdict
 from ..protocol import Action, Profile
-from .judge import CaseVerdict, Inconclusive
+from .case_judge import CaseVerdict, Inconclusive
 from .quiet import Hangs
 from .settings import SuiteSettings
 
