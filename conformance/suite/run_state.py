@@ -3,7 +3,7 @@
 "Session" names three things in this house; here it is the first:
 
 * **the run's state** (this module): one :class:`SessionState` per box under test, for a whole run;
-* **an S1 session**: one TCP connection's life between robot and box (PROTOCOL.md S1), what a case opens;
+* **an S1 session**: the protocol's canonical run order, configure → connect → poses on → CycleOn → … → disconnect (PROTOCOL.md S1);
 * **pytest's session**: pytest's own object for one ``pytest`` invocation, which may hold several boxes' states.
 
 The pytest plugin only forwards to :meth:`SessionState.before_case` and
