@@ -63,6 +63,23 @@ CTX = pytest.StashKey[CaseContext]()
 CASE_START = pytest.StashKey[float]()
 
 
+#: the catalogue's package: its modules are named by clause family (``frame.py``, ``blocks.py``...), not ``test_*.py``
+CATALOGUE = Path(__file__).resolve().parent / "cases"
+
+
+def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Module | None:
+    """Collect the catalogue's modules whatever ``python_files`` says (``--pyargs conformance.cases``).
+
+    A module pytest collects anyway (named on the command line, or matching ``python_files``) is
+    left to pytest, so no case is collected twice."""
+    if file_path.suffix != ".py" or file_path.name == "__init__.py" or file_path.parent.resolve() != CATALOGUE:
+        return None
+    if parent.session.isinitpath(file_path) or any(
+            fnmatch.fnmatch(file_path.name, pattern) for pattern in parent.config.getini("python_files")):
+        return None
+    return pytest.Module.from_parent(parent, path=file_path)
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("isight", "iSight conformance suite")
     add_suite_options(group.addoption, pytest=True)

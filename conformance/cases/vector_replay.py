@@ -120,7 +120,7 @@ def _prog_idx_expect(value: int, conflict: str) -> Expect:
         if not isinstance(o, Answer) or o.frame.action != Action.PROG_IDX or not o.frame.blocks:
             return False
         got, err = getattr(o.frame.blocks[0], "value", None), o.frame.error_code
-        in_error = conflict == "error-code" and err in (409, 0x0409)  # as test_extension's CONFLICT_ERRORS
+        in_error = conflict == "error-code" and err in (409, 0x0409)  # as extension_e's CONFLICT_ERRORS
         return (got == value and err == 0) or (got == 409 and err in (0, 409)) or in_error
 
     where = "409 in the error field" if conflict == "error-code" else "409"
