@@ -33,6 +33,7 @@ from conformance.protocol.answers import Cycle
 from conformance.suite.case_context import CaseContext
 from conformance.suite.case_judge import NOT_OK, Skip, answered, answered_allowed, reply_signature
 from conformance.suite.record import Expect, Requirement, case
+from conformance.suite.requirements import NOT_ANSWERED
 
 POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
 ON, OFF, NONE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE
@@ -228,7 +229,6 @@ def test_parse_error_codes(isight: CaseContext, action: Action) -> None:
         isight.judge(outcome, "code", sent=bad, what=what, error=ACTION_ERROR[action])
 
 
-NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
 
 
 @case("A3-02", ["A3", "S2"], Level.MUST, "CycleOn is answered 0000 or 0001, CycleOff 0000 or 0002",
@@ -266,7 +266,6 @@ def test_none_answered(isight: CaseContext) -> None:
 
 # -- A5: frames that are not requests -----------------------------------------------------------
 
-_CYCLE_ON = Header(action=ON)
 NOT_REQUESTS: list[tuple[str, dict[str, int], str]] = [
     ("start-fffe", {"start_word": 0xFFFE}, ""),
     ("start-feff", {"start_word": 0xFEFF}, ""),

@@ -9,14 +9,9 @@ from conformance.protocol.constants import START_BYTES
 from conformance.suite.case_context import CaseContext
 from conformance.suite.case_judge import NOT_OK, answered, answered_allowed
 from conformance.suite.record import Requirement, case
+from conformance.suite.requirements import ANSWERED, ANSWERED_0, NOT_0000
 
 POSE = request(Action.POSE, pose_blocks([(500.0, 0.0, 300.0, 180.0, 0.0, 90.0)]))
-#: A1: the request whose answer a case inspects is answered 0000
-ANSWERED_0 = Requirement(("A1",), "a well-formed {action.name} request is answered",
-                         accept=lambda action, **_: answered_allowed(action))
-#: A1: answered (any code)
-ANSWERED = Requirement(("A1",), "a well-formed {action.name} request is answered", accept=lambda action, **_: answered(action))
-NOT_0000 = "MUST NOT be answered 0000"
 
 
 def _answer_bytes(isight: CaseContext, action: Action = Action.NONE) -> tuple[Answer, bytes]:

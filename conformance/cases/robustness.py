@@ -17,6 +17,7 @@ from conformance.protocol.constants import START_BYTES
 from conformance.suite.case_context import CaseContext
 from conformance.suite.case_judge import CLOSED, NOT_OK, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
+from conformance.suite.requirements import NOT_ANSWERED
 from conformance.suite.sequence import DEFAULT_POSE, latency_figures, pieces_of
 
 #: R2: a fresh connection after the input gets NONE answered 0000
@@ -76,7 +77,6 @@ def test_header_then_reset(isight: CaseContext) -> None:
 # -- R3 / R4 ----------------------------------------------------------------------------------------------
 
 
-NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
 #: R3: the reference answer to the whole frame, to compare a split delivery with
 WHOLE = Requirement(("R3",), "the whole {frame.action.name} request is answered, as a reference", inconclusive=NOT_ANSWERED,
                     inconclusive_text="the whole {frame.action.name} request was not answered: nothing to compare the "

@@ -13,12 +13,11 @@ from conformance.protocol.answers import CANONICAL_CODES, Cycle
 from conformance.suite.case_context import CaseContext
 from conformance.suite.case_judge import CLOSED, answered, answered_allowed
 from conformance.suite.record import Requirement, case
+from conformance.suite.requirements import ANSWERED
 from conformance.suite.sequence import PoseStream, latency_figures, percentile
 
 HOME = (800.0, -100.0, 300.0, 180.0, 0.0, 0.0)
 ON, OFF, NONE, POSE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE, Action.POSE
-#: what the session cases judge
-ANSWERED = Requirement(("A1",), "a well-formed {action.name} request is answered", accept=lambda action, **_: answered(action))
 NONE_0 = Requirement(("A1",), "NONE is answered 0000", accept=answered_allowed(NONE))
 CYCLE_ON = Requirement(("S2",), "CycleOn is answered 0000, or 0001 when not ready", accept=answered_allowed(ON, Cycle.IDLE))
 READY = Requirement(("S2",), "the box is ready for a cycle", inconclusive=answered(ON, [ErrorCode.NOT_READY]),
