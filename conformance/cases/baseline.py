@@ -9,13 +9,17 @@ INCONCLUSIVE quickly instead of each waiting out its own time_out.
 from __future__ import annotations
 
 from conformance.harness.client import Answer
-from conformance.model.signature import Signature
-from conformance.model.verdicts import Level
 from conformance.protocol import Action, encode, request
-from conformance.suite.case_context import CaseContext, answers_none
-from conformance.suite.case_judge import answered_allowed
-from conformance.suite.record import Requirement, case
-from conformance.suite.run_state import responsive
+from conformance.suite import (
+    CaseContext,
+    Level,
+    Requirement,
+    Signature,
+    answered_allowed,
+    answers_none,
+    case,
+    responsive,
+)
 
 
 @case("T1-00", ["A4", "T1"], Level.MUST, "Baseline: NONE is answered 0000 on a fresh connection within time_out",

@@ -19,10 +19,7 @@ case's. For longer campaigns use ``isight-conformance fuzz`` (docs/FUZZING.md).
 from __future__ import annotations
 
 from conformance.fuzz.campaign import Campaign, CampaignConfig, CampaignResult
-from conformance.model.signature import Signature
-from conformance.model.verdicts import Level
-from conformance.suite.case_context import CaseContext
-from conformance.suite.record import Requirement, case
+from conformance.suite import CaseContext, Level, Requirement, Signature, case
 
 FRAMES_S = 2.0
 SESSION_S = 1.0

@@ -14,10 +14,7 @@ from typing import Any
 
 import pytest
 
-from conformance.model.verdicts import Level
-from conformance.suite.case_context import CaseContext
-from conformance.suite.case_judge import Skip
-from conformance.suite.record import MARKER, record
+from conformance.suite import MARKER, CaseContext, Level, Skip, record
 from conformance.suite.sequence import Sequence, SequenceError, load, run_sequence, shipped
 
 SHIPPED = shipped()
@@ -33,8 +30,9 @@ def _case_for(seq: Sequence) -> Callable[[CaseContext], None]:
     return test
 
 
-for _seq in SHIPPED:
-    globals()[_case_for(_seq).__name__] = _case_for(_seq)
+for _seq in SHIPPED:  # one case function per shipped file, built once
+    _test = _case_for(_seq)
+    globals()[_test.__name__] = _test
 
 _NONE = record("SEQ-USER", ("S1",), Level.MUST, "Sequence files given with --sequence FILE",
                "as each file says; SKIP when no file is given")

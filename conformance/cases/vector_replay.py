@@ -16,127 +16,31 @@ recorded. ``Extension`` vectors need E (else SKIP; invalid ones stay invalid).
 
 from __future__ import annotations
 
-import socket
-from typing import Any
-
 import pytest
 
-from conformance.harness.client import Answer, Outcome
-from conformance.harness.transcript import Kind
-from conformance.model.verdicts import Level
+from conformance.harness.client import Answer
 from conformance.protocol import (
-    ACTION_ERROR,
-    HEADER_LEN,
     Action,
     ErrorCode,
-    ProtocolError,
-    TransferType,
-    Transport,
-    codec_for,
-    parse_header,
     request,
 )
-from conformance.protocol.answers import Cycle
-from conformance.protocol.constants import START_BYTES
-from conformance.suite.case_context import CaseContext
-from conformance.suite.case_judge import NOT_OK, Skip, answered, answered_allowed
-from conformance.suite.record import Expect, Requirement, case
-from conformance.vectors import REPO_VECTORS, Vector, load_dir
-
-VECTORS_DIR = REPO_VECTORS / "frames"
-
-
-def _load() -> tuple[list[Vector], str]:
-    try:
-        found = load_dir(VECTORS_DIR)
-    except (OSError, ValueError, KeyError) as exc:
-        return [], f"the golden vectors in {VECTORS_DIR} cannot be read: {exc}"
-    mine = [v for v in found if v.transport is Transport.TCP and v.direction is TransferType.ROBOT_TO_BOX]
-    return mine, "" if mine else f"no robot-to-box TCP golden vectors found in {VECTORS_DIR} (not packaged?)"
-
-
-VECTORS, MISSING = _load()
-
-
-def _params(result: str) -> list[Any]:
-    chosen = [pytest.param(v, id=v.name) for v in VECTORS if v.result == result]
-    return chosen or [pytest.param(None, id="no-vectors")]
-
+from conformance.suite import NOT_OK, CaseContext, Expect, Level, Requirement, answered, case
+from conformance.suite.vector_checks import (
+    announced_len,
+    applicable,
+    named_error,
+    params,
+    restore_idle,
+    run_profile_accepts,
+    send_cut_short,
+    valid_expect,
+)
+from conformance.vectors import Vector
 
 # -- applicability ---------------------------------------------------------------------------------
 
 
-def _has_blocks(v: Vector) -> bool:
-    return len(v.data) >= HEADER_LEN and v.data[7] > 0
-
-
-def _applicable(isight: CaseContext, v: Vector | None) -> Vector:
-    """The vector, or Skip with the reason it cannot be judged in this run."""
-    if v is None:
-        raise Skip(MISSING or "no golden vectors of this kind")
-    isight.details["vector"] = {"file": v.file, "tcId": v.tc_id, "comment": v.comment, "clauses": list(v.clauses),
-                                "flags": list(v.flags), "result": v.result, "hex": v.data.hex()}
-    prof = isight.profile
-    if prof.byte_order != "big" or prof.float_byte_order != "big":
-        raise Skip(f"the vectors are big-endian (F4/B4); this run's profile has byte_order={prof.byte_order}, "
-                   f"float_byte_order={prof.float_byte_order}")
-    if v.profile.first_index != prof.first_index and _has_blocks(v):
-        raise Skip(f"vector written for first index {v.profile.first_index} (its group's profile); "
-                   f"this run's profile uses --first-index {prof.first_index}")
-    if "Extension" in v.flags and v.result != "invalid" and not isight.session.detect_extension(isight.transcript):
-        raise Skip(f"extension vector and the box lacks E ({isight.session.extension_how}); A5-02 covers 26/27 then")
-    return v
-
-
-def _run_profile_accepts(isight: CaseContext, v: Vector) -> bool:
-    """Does the run's profile read these bytes as a valid request (e.g. a lenient profile)?"""
-    try:
-        codec_for(isight.profile).parse(v.data, Transport.TCP, TransferType.ROBOT_TO_BOX)
-    except ProtocolError:
-        return False
-    return True
-
-
-def _announced_len(data: bytes) -> int:
-    if len(data) < HEADER_LEN:
-        return HEADER_LEN + 2
-    h = parse_header(data)
-    return HEADER_LEN + h.block_count * h.block_length + 2
-
-
-def _restore_idle(isight: CaseContext, outcome: Outcome, conn: Any) -> None:
-    """A CycleOn the box took (0000) leaves the shared cycle on: switch it off again."""
-    if isinstance(outcome, Answer) and outcome.frame.action == Action.CYCLE_ON and outcome.frame.error_code == 0:
-        target = conn if conn is not None and conn.closed_by_peer is None else isight.connect("cleanup")
-        target.request(request(Action.CYCLE_OFF), "cleanup: CycleOff, so the box is idle again (not judged)")
-
-
 # -- valid -----------------------------------------------------------------------------------------
-
-
-def _prog_idx_expect(value: int, conflict: str) -> Expect:
-    """E2: the same index, or 409: in the block, or (``--progidx-conflict error-code``) in the error field."""
-    def ok(o: Outcome) -> bool:
-        if not isinstance(o, Answer) or o.frame.action != Action.PROG_IDX or not o.frame.blocks:
-            return False
-        got, err = getattr(o.frame.blocks[0], "value", None), o.frame.error_code
-        in_error = conflict == "error-code" and err in (409, 0x0409)  # as extension_e's CONFLICT_ERRORS
-        return (got == value and err == 0) or (got == 409 and err in (0, 409)) or in_error
-
-    where = "409 in the error field" if conflict == "error-code" else "409"
-    return Expect(f"answered PROG_IDX carrying {value} with error 0000, or {where} (E2)", ok)
-
-
-def _valid_expect(v: Vector, action: Action, conflict: str = "block") -> Expect:
-    if action is Action.CYCLE_ON:
-        return answered_allowed(action, Cycle.IDLE)
-    if action is Action.CYCLE_OFF:
-        return answered_allowed(action, Cycle.ON)
-    if action is Action.PROG_IDX:
-        return _prog_idx_expect(v.frame["blocks"][0]["value"] if v.frame else 0, conflict)
-    if action is Action.VISION_RESULT:
-        return answered(action)
-    return answered_allowed(action)
 
 
 @case("A1-10", ["A1", "A4", "B1", "B2", "B3", "B4", "B5"], Level.MUST, "Valid golden vectors are answered 0000",
@@ -150,13 +54,13 @@ def _valid_expect(v: Vector, action: Action, conflict: str = "block") -> Expect:
                                                          lambda o: not (isinstance(o, Answer) and not o.frame.error_code)),
                                      inconclusive_text="S2: could not start a cycle before the CycleOff vector"),
               "": Requirement(("A1",), "the well-formed request of vector {vector.name} is answered 0000",
-                              accept=lambda vector, action, conflict="block", **_: _valid_expect(vector, action,
+                              accept=lambda vector, action, conflict="block", **_: valid_expect(vector, action,
                                                                                                 conflict),
                               inconclusive=lambda action, **_: answered(action, [ErrorCode.NOT_READY]) if action is Action.CYCLE_ON else None,
                               inconclusive_text="S2: CycleOn answered 0001 (box not ready)")})
-@pytest.mark.parametrize("vector", _params("valid"))
+@pytest.mark.parametrize("vector", params("valid"))
 def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
-    v = _applicable(isight, vector)
+    v = applicable(isight, vector)
     action = Action(v.data[5])
     conn = isight.connect()
     if action in (Action.CYCLE_ON, Action.CYCLE_OFF):  # judge from a known state (S3: CycleOn twice MAY fail)
@@ -168,7 +72,7 @@ def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
     outcome = conn.request(v.data, f"golden vector {v.name}: {v.comment[:80]}")
     if isinstance(outcome, Answer):
         isight.latencies_ms.append(outcome.latency_s * 1000)
-    _restore_idle(isight, outcome, conn)  # a CycleOn it took: off again, whatever the verdict
+    restore_idle(isight, outcome, conn)  # a CycleOn it took: off again, whatever the verdict
     isight.judge(outcome, sent=v.data, vector=v, action=action, conflict=isight.profile.progidx_conflict)
     assert isinstance(outcome, Answer)
     code = outcome.frame.error_code
@@ -181,51 +85,22 @@ def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
 # -- invalid ---------------------------------------------------------------------------------------
 
 
-def _named_error(v: Vector) -> int | None:
-    """A3: the error PROTOCOL.md names for this vector's parse error, if any."""
-    d = v.data
-    if len(d) < HEADER_LEN or d[:4] != START_BYTES + b"\x00\x01" or d[4] != 0x01:
-        return None
-    if not v.clauses or v.clauses[0] not in ("B1", "B2", "B3", "B4", "B5"):
-        return None
-    try:
-        return ACTION_ERROR.get(Action(d[5]))
-    except ValueError:
-        return None
-
-
-def _send_cut_short(isight: CaseContext, data: bytes) -> Outcome:
-    """A vector shorter than its header announces: send it, end the stream, see what follows."""
-    isight.needs_liveness = True
-    isight.last_sent = data
-    conn = isight.connect("malformed")
-    if not conn.send(data, "vector cut short: the header announces more bytes than follow"):
-        return conn.closed_by_peer or conn.next_outcome(0)
-    if conn.sock is not None:
-        try:
-            conn.sock.shutdown(socket.SHUT_WR)
-            isight.transcript.add(conn.conn_id, Kind.CLOSE, note="end of stream after the vector (half-close)")
-        except OSError:
-            pass
-    return conn.next_outcome()
-
-
 @case("R1-10", ["R1", "A5", "A3", "B5", "F5"], Level.MUST, "Invalid golden vectors are never answered 0000",
       "not 0000 (MUST: silence, a non-zero error or a close); a B3-B5 parse error of 23/24/25 answered 1001/1002 (SHOULD, A3)",
       checks={"": Requirement(("R1",), "vector {vector.name} breaks {clauses} and MUST NOT be answered 0000", accept=NOT_OK,
                               should=lambda named, action, **_: None if named is None else answered(action, [named]),
                               should_clauses=("A3",), should_text="a parse error under {clause} SHOULD be answered {named:04X}")})
-@pytest.mark.parametrize("vector", _params("invalid"))
+@pytest.mark.parametrize("vector", params("invalid"))
 def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
-    v = _applicable(isight, vector)
-    if len(v.data) < _announced_len(v.data):
-        outcome = _send_cut_short(isight, v.data)
+    v = applicable(isight, vector)
+    if len(v.data) < announced_len(v.data):
+        outcome = send_cut_short(isight, v.data)
         named = None  # the box may be waiting for the rest, then sees the end of the stream (F5)
     else:
         outcome = isight.send_malformed(v.data, f"golden vector {v.name}: {v.comment[:80]}")
-        named = _named_error(v)
-    _restore_idle(isight, outcome, None)
-    if _run_profile_accepts(isight, v):
+        named = named_error(v)
+    restore_idle(isight, outcome, None)
+    if run_profile_accepts(isight, v):
         isight.inform(f"this run's profile ({isight.profile.describe()}) reads vector {v.name} as valid; "
                       f"the box {outcome.describe()}")
         return
@@ -238,11 +113,11 @@ def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
 
 @case("R1-11", ["R1", "B4", "F6", "A3"], Level.MAY, "Acceptable golden vectors: what the box did",
       "recorded: accepting (0000) or rejecting are both allowed (a SHOULD, or a point PROTOCOL.md leaves open)")
-@pytest.mark.parametrize("vector", _params("acceptable"))
+@pytest.mark.parametrize("vector", params("acceptable"))
 def test_acceptable_vector(isight: CaseContext, vector: Vector | None) -> None:
-    v = _applicable(isight, vector)
+    v = applicable(isight, vector)
     outcome = isight.send_malformed(v.data, f"golden vector {v.name} ({', '.join(v.flags)}): {v.comment[:80]}")
-    _restore_idle(isight, outcome, None)
+    restore_idle(isight, outcome, None)
     took = isinstance(outcome, Answer) and outcome.frame.error_code == 0
     isight.details["accepted"] = took
     isight.inform(f"{', '.join(v.flags)}: the box {'accepted' if took else 'did not accept'} vector {v.name} "
