@@ -37,9 +37,6 @@ from conformance.suite.block_requests import (
     with_odd_float,
 )
 
-# -- building blocks from raw float32 bit patterns (exact, in the profile's byte order) ----------
-
-
 # -- B1 / B2: layout and block counts ------------------------------------------------------------
 
 

@@ -23,9 +23,6 @@ that stays silent to the wrong reading costs nothing but the probe's round trip.
 
 from __future__ import annotations
 
-from typing import Any
-
-from conformance.options import profile_flags
 from conformance.protocol import (
     Action,
     Frame,
@@ -37,69 +34,17 @@ from conformance.protocol import (
 )
 from conformance.suite import CaseContext, Inconclusive, Level, Requirement, Sig, Signature, case
 from conformance.suite.profile_discovery import (
-    ORDERS,
     POSE,
-    advice,
     answers_other_order_only,
-    discover_byte_order,
-    discover_crc,
-    discover_first_index,
+    discover_profile,
 )
-
-# -- F4: header byte order ------------------------------------------------------------------
-
-
-# -- B3: first block index ------------------------------------------------------------------
-
-
-# -- F7: UDP CRC ------------------------------------------------------------------------------
 
 
 @case("PROFILE-01", ["B3", "F7", "F4"], Level.MAY, "Profile discovery: first index, UDP CRC, header byte order",
       "INFORMATIONAL: which first block index, UDP CRC algorithm and byte order, and header byte order the box "
       "answers 0000, and the flags to rerun the suite with", needs=("any-profile",))
 def test_profile_discovery(isight: CaseContext) -> None:
-    profile = isight.profile
-    changes: dict[str, Any] = {}
-    #: the readings no answer singled out: the run keeps the profile's (a guess, reported as one)
-    undetermined: list[str] = []
-    orders, order_seen = discover_byte_order(isight)
-    accepted_orders = [o for o in ORDERS if orders[o]]
-    report: dict[str, Any] = {"byte_order": {o: order_seen[o] for o in ORDERS}}
-    if len(accepted_orders) == 1:
-        changes["byte_order"] = accepted_orders[0]
-    else:
-        undetermined.append("header byte order")
-    order_text = (f"header fields {accepted_orders[0]}-endian" if len(accepted_orders) == 1
-                  else "header fields in either byte order" if accepted_orders else
-                  "NONE answered 0000 in neither byte order")
-    box_order = changes.get("byte_order", profile.byte_order)
-    index_text = "first index not discovered (no byte order answered)"
-    good: list[int] = []
-    if accepted_orders:
-        indexes, index_seen = discover_first_index(isight, profile.replace(byte_order=box_order))
-        report["first_index"] = {str(i): index_seen[i] for i in (0, 1)}
-        good = [i for i in (0, 1) if indexes[i]]
-        index_text = (f"first block index {good[0]}" if len(good) == 1 else
-                      "first block index 0 or 1 (both answered 0000)" if good else
-                      "first block index: neither 0 nor 1 answered 0000")
-    if len(good) == 1:
-        changes["first_index"] = good[0]
-    else:
-        undetermined.append("first block index")
-    crc = discover_crc(isight, box_order)
-    report["udp_crc"] = crc["note"]
-    if crc["found"]:
-        changes["crc"], changes["crc_byte_order"] = crc["found"]
-    else:
-        undetermined.append("UDP CRC")
-    found = profile.replace(**changes)
-    flags = profile_flags(found)
-    isight.details.update(report)
-    isight.details["discovered"] = changes
-    isight.details["undetermined"] = undetermined
-    isight.details["suggested_flags"] = flags
-    isight.inform(f"{order_text}; {index_text}; UDP CRC: {crc['note']}; {advice(profile, found, flags, undetermined)}")
+    discover_profile(isight)
 
 
 # -- F4 --------------------------------------------------------------------------------------

@@ -37,9 +37,6 @@ from conformance.suite.vector_checks import (
 )
 from conformance.vectors import Vector
 
-# -- applicability ---------------------------------------------------------------------------------
-
-
 # -- valid -----------------------------------------------------------------------------------------
 
 

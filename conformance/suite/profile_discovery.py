@@ -7,6 +7,7 @@ from typing import Any
 
 from ..harness.client import Closed, Outcome, Silence, TcpConnection, UdpChannel
 from ..harness.target import Unreachable
+from ..options import profile_flags
 from ..protocol import (
     Action,
     Profile,
@@ -241,3 +242,48 @@ def answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
                                      f"0000 (rerun with --byte-order={other} to test the rest)",
                             sent=sent, received=outcome.raw, order=isight.profile.byte_order)
     raise Inconclusive("the box answered NONE in neither byte order: nothing to read (A4/T1 judge the silence)")
+
+
+def discover_profile(isight: CaseContext) -> None:
+    """PROFILE-01: the byte order, first index and UDP CRC the box answers 0000, and the flags to rerun with (INFORMATIONAL)."""
+    profile = isight.profile
+    changes: dict[str, Any] = {}
+    #: the readings no answer singled out: the run keeps the profile's (a guess, reported as one)
+    undetermined: list[str] = []
+    orders, order_seen = discover_byte_order(isight)
+    accepted_orders = [o for o in ORDERS if orders[o]]
+    report: dict[str, Any] = {"byte_order": {o: order_seen[o] for o in ORDERS}}
+    if len(accepted_orders) == 1:
+        changes["byte_order"] = accepted_orders[0]
+    else:
+        undetermined.append("header byte order")
+    order_text = (f"header fields {accepted_orders[0]}-endian" if len(accepted_orders) == 1
+                  else "header fields in either byte order" if accepted_orders else
+                  "NONE answered 0000 in neither byte order")
+    box_order = changes.get("byte_order", profile.byte_order)
+    index_text = "first index not discovered (no byte order answered)"
+    good: list[int] = []
+    if accepted_orders:
+        indexes, index_seen = discover_first_index(isight, profile.replace(byte_order=box_order))
+        report["first_index"] = {str(i): index_seen[i] for i in (0, 1)}
+        good = [i for i in (0, 1) if indexes[i]]
+        index_text = (f"first block index {good[0]}" if len(good) == 1 else
+                      "first block index 0 or 1 (both answered 0000)" if good else
+                      "first block index: neither 0 nor 1 answered 0000")
+    if len(good) == 1:
+        changes["first_index"] = good[0]
+    else:
+        undetermined.append("first block index")
+    crc = discover_crc(isight, box_order)
+    report["udp_crc"] = crc["note"]
+    if crc["found"]:
+        changes["crc"], changes["crc_byte_order"] = crc["found"]
+    else:
+        undetermined.append("UDP CRC")
+    found = profile.replace(**changes)
+    flags = profile_flags(found)
+    isight.details.update(report)
+    isight.details["discovered"] = changes
+    isight.details["undetermined"] = undetermined
+    isight.details["suggested_flags"] = flags
+    isight.inform(f"{order_text}; {index_text}; UDP CRC: {crc['note']}; {advice(profile, found, flags, undetermined)}")
