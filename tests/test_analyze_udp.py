@@ -5,8 +5,8 @@ from __future__ import annotations
 from conformance.analyze.context import AnalyzeConfig, Context
 from conformance.analyze.packets import PacketDecoder
 from conformance.analyze.udp import UdpConversation, crc_reading
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, answer, encode_udp, request
-from conformance.suite.verdicts import Verdict
 from tests.analyze_util import Capture
 
 

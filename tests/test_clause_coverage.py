@@ -24,6 +24,7 @@ import pytest
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
 from conformance.endpoints.loop import BoxThread
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     Action,
     ErrorCode,
@@ -35,7 +36,6 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.clauses import all_clauses
-from conformance.suite.verdicts import Level
 
 from .boxes import ScriptedBox, answering
 

@@ -194,7 +194,7 @@ def test_the_fleet_page_in_chinese_keeps_the_statuses_machines_read(tmp_path: Pa
 def test_diff_in_chinese(tmp_path: Path, capsys):
     from dataclasses import replace
 
-    from conformance.suite.verdicts import Verdict
+    from conformance.model.verdicts import Verdict
 
     cases = sample_cases()
     write_summary(tmp_path / "old.json", sample_suite(), cases)

@@ -113,6 +113,17 @@ def test_the_protocol_package_imports_nothing_of_the_suite() -> None:
                 d for d in deps if d.startswith("conformance.protocol")}, name
 
 
+def test_the_result_model_is_the_bottom_layer() -> None:
+    """conformance/model/ (verdicts, signatures, root causes, exit statuses) sits at the bottom, beside
+    protocol/: it may import only itself and conformance/protocol/, so every room above can use it."""
+    graph = import_graph()
+    assert graph["conformance.model.verdicts"], "the walker found no imports"
+    for name, deps in graph.items():
+        if name.startswith("conformance.model"):
+            assert {d for d in deps if d.startswith("conformance.")
+                    and not d.startswith(("conformance.model", "conformance.protocol"))} == set(), name
+
+
 def test_fuzz_suite_and_cases_import_endpoints_only_to_start_the_bundled_box() -> None:
     graph = import_graph()
     for name, deps in graph.items():
@@ -142,7 +153,7 @@ def test_the_suite_imports_nothing_of_the_fuzzer() -> None:
     """The catalogue and the fuzzer share the exchange engine below them (conformance/harness/):
     no module of conformance/suite/ imports conformance/fuzz/, not even lazily."""
     graph = import_graph()
-    assert graph["conformance.suite.context"], "the walker found no imports"
+    assert graph["conformance.suite.case_context"], "the walker found no imports"
     leaks = {name: sorted(d for d in deps if d.startswith("conformance.fuzz"))
              for name, deps in graph.items() if name.startswith("conformance.suite")}
     assert {name: deps for name, deps in leaks.items() if deps} == {}

@@ -1,4 +1,4 @@
-"""Expectations and verdicts (conformance/suite/judge.py): the ready-made Expects, ``check`` (the level's
+"""Expectations and verdicts (conformance/suite/case_judge.py): the ready-made Expects, ``check`` (the level's
 verdict, or FAIL on format alone for a malformed answer that read leniently would be acceptable),
 ``answer_view``, the signatures, CaseVerdict, and what a verdict becomes downstream: its CaseResult
 (suite/results.py), the clause table (report/summary.by_clause), the overall line of a run cut short and
@@ -11,6 +11,8 @@ import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
 from conformance.model import exit_codes as runner
+from conformance.model.signature import Signature
+from conformance.model.verdicts import CaseResult, Level, SuiteInfo, Verdict, broken_verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -25,7 +27,7 @@ from conformance.protocol import (
     request,
 )
 from conformance.report.summary import by_clause, overall_line, overall_state
-from conformance.suite.judge import (
+from conformance.suite.case_judge import (
     CLOSED,
     NOT_MALFORMED,
     NOT_OK,
@@ -47,8 +49,6 @@ from conformance.suite.judge import (
 )
 from conformance.suite.record import Requirement, record
 from conformance.suite.results import result_of
-from conformance.suite.signature import Signature
-from conformance.suite.verdicts import CaseResult, Level, SuiteInfo, Verdict, broken_verdict
 
 BOX = TransferType.BOX_TO_ROBOT
 SENT = encode_raw(Header(start_word=0xFFFE))  # not a request (A5: a wrong start word)

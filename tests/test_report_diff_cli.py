@@ -12,12 +12,12 @@ import pytest
 from rich.console import Console
 
 from conformance.commands import main
+from conformance.model.verdicts import Verdict
 from conformance.protocol import ErrorCode, answer, encode
 from conformance.report import write_reports
 from conformance.report.baseline import load_baseline, print_comparison
 from conformance.report.load import SummaryError
 from conformance.report.summary import write_summary
-from conformance.suite.verdicts import Verdict
 
 from .boxes import ScriptedBox, answering
 from .test_report_summary import sample_cases, sample_suite

@@ -20,9 +20,9 @@ from __future__ import annotations
 from typing import Any
 
 from ..harness.transcript import Endpoint, Transcript
+from ..model.verdicts import Verdict
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
 from ..protocol import TransferType
-from ..suite.verdicts import Verdict
 from .context import Context
 from .exchanges import ConnJudge
 from .findings import BOX, ROBOT

@@ -25,12 +25,12 @@ from array import array
 from collections import deque
 from typing import Any
 
+from ..model.verdicts import Verdict, broken_verdict
 from ..observed.connections import Exchange
 from ..observed.frames import FrameRecord
 from ..protocol import Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
-from ..suite.verdicts import Verdict, broken_verdict
 from .catalogue import spec_for
 from .context import Context
 from .findings import BOX, ROBOT, Series, frames_text

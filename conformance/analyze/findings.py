@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..model.percentiles import percentile
-from ..suite.verdicts import VERDICT_ORDER, Verdict
+from ..model.verdicts import VERDICT_ORDER, Verdict
 
 __all__ = ["BOX", "ROBOT", "SIDES", "Observation", "Findings", "Series", "Tally", "frames_text"]
 

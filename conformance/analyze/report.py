@@ -1,6 +1,6 @@
 """An analysis as the suite's evidence: CaseResults, SuiteInfo, and the report files.
 
-One :class:`~conformance.suite.verdicts.CaseResult` per (clause, side) of the catalogue
+One :class:`~conformance.model.verdicts.CaseResult` per (clause, side) of the catalogue
 (:mod:`.catalogue`): its verdict is the worst of its findings, PASS when it judged
 something and found nothing, SKIP when the capture had nothing for it to judge. The
 message names the first finding and its frames; ``observed`` lists the findings kept,
@@ -16,9 +16,9 @@ import math
 from pathlib import Path
 
 from .. import __version__
+from ..model.verdicts import VERDICT_ORDER, CaseResult, SuiteInfo, Verdict
 from ..report import write_reports
 from ..suite.record import CaseRecord
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, SuiteInfo, Verdict
 from .catalogue import SPECS, spec_for
 from .engine import Analysis
 from .findings import ROBOT, Series, Tally

@@ -16,6 +16,7 @@ same bytes again within a millisecond) is judged once.
 
 from __future__ import annotations
 
+from ..model.verdicts import Verdict
 from ..protocol import (
     CheckError,
     Frame,
@@ -26,7 +27,6 @@ from ..protocol import (
     crc_function,
     decode_datagram,
 )
-from ..suite.verdicts import Verdict
 from .context import Context
 from .exchanges import ConnJudge
 from .findings import BOX, ROBOT

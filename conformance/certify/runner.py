@@ -20,10 +20,10 @@ from .. import __version__
 from ..evidence.pcap import write_transcript
 from ..harness.transcript import ConnectionInfo, Transcript, WireEvent
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
+from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from ..observed.connections import SessionRecord
 from ..report import write_reports
 from ..suite.rootcause import find_root_causes
-from ..suite.verdicts import CaseResult, RootCause, SuiteInfo
 from .checks import judge
 from .listener import CertifyListener
 from .records import CertifyConfig, RunRecord

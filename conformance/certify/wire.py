@@ -4,11 +4,11 @@ answers), and the few frames a case quotes."""
 from __future__ import annotations
 
 from ..harness.transcript import Kind
+from ..model.verdicts import WireLine
 from ..observed.connections import ConnRecord
 from ..observed.frames import FrameRecord, judge_profile
 from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, decode_datagram
 from ..protocol.constants import Action
-from ..suite.verdicts import WireLine
 
 
 def _chunk_summary(decoder: StreamDecoder, data: bytes) -> tuple[str, bool]:

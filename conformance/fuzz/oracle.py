@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..harness.exchange import seen_of
+from ..model.verdicts import Verdict, broken_verdict
 from ..protocol import (
     HEADER_LEN,
     Frame,
@@ -46,7 +47,6 @@ from ..protocol.answers import (
 from ..protocol.answers import Finding as RawFinding
 from ..protocol.explain import explain, explain_events
 from ..protocol.framings import End, Explanation
-from ..suite.verdicts import Verdict, broken_verdict
 
 __all__ = ["CONFLICT", "NOT_UNDERSTOOD", "Expectation", "Finding", "Judgement", "Rule", "expectations", "judge",
            "request_action", "seen_of"]

@@ -26,8 +26,8 @@ from ..evidence.vectors_file import Vector, load
 from ..harness.liveness import responsive
 from ..harness.target import Target
 from ..harness.transcript import Transcript
+from ..model.verdicts import Verdict
 from ..protocol import HEADER_LEN, Profile, TransferType, Transport
-from ..suite.verdicts import Verdict
 from .evidence import splits_of
 from .executor import Executor
 from .oracle import expectations

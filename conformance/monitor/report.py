@@ -20,9 +20,9 @@ from typing import Any
 
 from ..analyze.engine import Analysis
 from ..analyze.report import build_cases, suite_info
+from ..model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from ..report import write_reports
 from ..report.summary import atomic_write_bytes
-from ..suite.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from .hub import Hub
 from .judge import Cause
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..suite.verdicts import CaseResult, RootCause, SuiteInfo
+from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from .baseline import Baseline
 from .diff import RunDiff
 from .html import render_html, write_html

@@ -15,8 +15,9 @@ from collections.abc import Iterator
 from typing import Any
 
 from ..harness.client import Answer, Outcome, Silence, TcpConnection
+from ..model.verdicts import Level
 from ..protocol import Action, Frame, pose_blocks, request, tolerance_blocks, value_blocks
-from .judge import Expect, Inconclusive, answered, answered_error, check, fail
+from .case_judge import Expect, Inconclusive, answered, answered_error, check, fail
 from .pose_stream import (
     DEFAULT_POSE,
     PoseStream,
@@ -40,7 +41,6 @@ from .sequence_format import (
     shipped,
     verb_of,
 )
-from .verdicts import Level
 
 __all__ = [
     "DEFAULT_POSE", "FORMAT", "SHIPPED_DIR", "STEP_SPEC", "PoseStream", "Sequence", "SequenceError", "SequenceRunner",

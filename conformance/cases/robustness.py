@@ -5,49 +5,29 @@ R1 is covered by the vector replay and R7 (UDP) by the UDP cases.
 
 from __future__ import annotations
 
-import random
 import time
 
 import pytest
 
-from conformance.harness.client import Answer, Closed, TcpConnection
-from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
-from conformance.protocol.constants import START_BYTES
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import CLOSED, NOT_OK, answered, answered_allowed
-from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.sequence import DEFAULT_POSE, latency_figures, pieces_of
-from conformance.suite.verdicts import Level
-
-#: R2: a fresh connection after the input gets NONE answered 0000
-ALIVE = Requirement(("R2",), "whatever bytes one connection sends, the box keeps accepting and answering new connections "
-                    "(after {after})", accept=answered_allowed(Action.NONE))
-
-
-def _frames(isight: CaseContext) -> dict[str, Frame]:
-    first = isight.profile.first_index
-    return {
-        "none": request(Action.NONE),
-        "pose": request(Action.POSE, pose_blocks([DEFAULT_POSE], first)),
-        "tolerance": request(Action.TOLERANCE, tolerance_blocks([1.5, 2.5], first)),
-        "register-pose": request(Action.REGISTER_POSE, pose_blocks([DEFAULT_POSE, (1, 2, 3, 4, 5, 6)], first)),
-    }
-
-
-def _alive(isight: CaseContext, after: str) -> None:
-    isight.judge(isight.check_alive(), "alive", after=after)
-
-
-def _no_fe(data: bytes) -> bytes:
-    return data.replace(b"\xfe", b"\x00")
-
+from conformance.harness.client import Answer
+from conformance.protocol import Action, Header, encode_raw
+from conformance.suite import NOT_OK, CaseContext, Level, Requirement, answered_allowed, case
+from conformance.suite.robustness_probes import (
+    ALIVE,
+    GARBAGE,
+    LIKE_WHOLE,
+    RESYNC_GARBAGE,
+    WHOLE,
+    assert_alive,
+    fresh_answered,
+    hold_connections,
+    like_whole,
+    resynced,
+    valid_frames,
+)
+from conformance.suite.sequence import latency_figures, pieces_of
 
 # -- R2 ---------------------------------------------------------------------------------------------------
-
-GARBAGE = {
-    "random-bytes": _no_fe(random.Random(2024).randbytes(4096)),
-    "64k-of-fe": b"\xfe" * 65536,
-}
 
 
 @case("R2-01", ["R2", "A5"], Level.MUST, "After garbage, new connections are still accepted and answered",
@@ -58,7 +38,7 @@ GARBAGE = {
 def test_garbage_then_fresh_connection(isight: CaseContext, kind: str) -> None:
     bad = GARBAGE[kind]
     isight.judge(isight.send_malformed(bad, f"{kind}: {len(bad)} bytes that are not a frame"), sent=bad[:64])
-    _alive(isight, kind)
+    assert_alive(isight, kind)
 
 
 @case("R2-02", ["R2"], Level.MUST, "A header then a reset leaves the box answering new connections",
@@ -66,30 +46,14 @@ def test_garbage_then_fresh_connection(isight: CaseContext, kind: str) -> None:
       checks={"alive": ALIVE})
 def test_header_then_reset(isight: CaseContext) -> None:
     conn = isight.connect("abuser")
-    header = conn.codec.encode(_frames(isight)["pose"])[:12]
+    header = conn.codec.encode(valid_frames(isight)["pose"])[:12]
     isight.last_sent = header
     conn.send(header, "a pose header, no body")
     conn.abort("reset with the frame unfinished")
-    _alive(isight, "a header then RST")
+    assert_alive(isight, "a header then RST")
 
 
 # -- R3 / R4 ----------------------------------------------------------------------------------------------
-
-
-NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
-#: R3: the reference answer to the whole frame, to compare a split delivery with
-WHOLE = Requirement(("R3",), "the whole {frame.action.name} request is answered, as a reference", inconclusive=NOT_ANSWERED,
-                    inconclusive_text="the whole {frame.action.name} request was not answered: nothing to compare the "
-                                      "split delivery with")
-#: R3: a split delivery is answered like the whole frame
-LIKE_WHOLE = lambda action, code, **_: answered(action, [code])  # noqa: E731
-
-
-def _like_whole(isight: CaseContext, frame: Frame) -> Answer:
-    outcome = isight.exchange(frame, f"{frame.action.name} request, whole (reference)")
-    isight.judge(outcome, "whole", frame=frame)
-    assert isinstance(outcome, Answer)
-    return outcome
 
 
 @case("R3-01", ["R3", "A1"], Level.MUST, "A frame sent one byte per segment is answered like the whole frame",
@@ -98,8 +62,8 @@ def _like_whole(isight: CaseContext, frame: Frame) -> Answer:
                                               "frame", accept=LIKE_WHOLE)})
 @pytest.mark.parametrize("name", ["none", "pose", "tolerance"])
 def test_one_byte_segments(isight: CaseContext, name: str) -> None:
-    frame = _frames(isight)[name]
-    whole = _like_whole(isight, frame)
+    frame = valid_frames(isight)[name]
+    whole = like_whole(isight, frame)
     conn = isight.connect()
     data = conn.codec.encode(frame)
     start = time.monotonic()
@@ -114,8 +78,8 @@ def test_one_byte_segments(isight: CaseContext, name: str) -> None:
                                               accept=LIKE_WHOLE)})
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_random_splits(isight: CaseContext, seed: int) -> None:
-    frames = list(_frames(isight).values())
-    expected = [_like_whole(isight, f).frame.error_code for f in frames]
+    frames = list(valid_frames(isight).values())
+    expected = [like_whole(isight, f).frame.error_code for f in frames]
     conn = isight.connect()
     data = b"".join(conn.codec.encode(f) for f in frames)
     isight.last_sent = data
@@ -130,7 +94,7 @@ def test_random_splits(isight: CaseContext, seed: int) -> None:
       checks={"": Requirement(("R4",), "request {n} of 10 in one segment is answered, in order",
                               accept=lambda action, **_: answered_allowed(action))})
 def test_coalesced(isight: CaseContext) -> None:
-    frames = list(_frames(isight).values())
+    frames = list(valid_frames(isight).values())
     batch = [frames[i % len(frames)] for i in range(10)]
     conn = isight.connect()
     data = b"".join(conn.codec.encode(f) for f in batch)
@@ -147,51 +111,6 @@ def test_coalesced(isight: CaseContext) -> None:
 # -- R5 ---------------------------------------------------------------------------------------------------
 
 
-def _hold(isight: CaseContext, label: str, count: int, data: bytes, deadline: float) -> list[TcpConnection]:
-    """Open up to ``count`` connections (each sends ``data``); stop at the first refusal or the deadline."""
-    out = []
-    for i in range(count):
-        left = deadline - time.monotonic()
-        if left <= 0:
-            break
-        conn = isight.try_connect(f"{label} {i + 1}", time_out_s=min(isight.time_out_s, left))
-        if conn is None:
-            break
-        if data:
-            conn.send(data, f"{label}: {len(data)} bytes, then nothing")
-        out.append(conn)
-    return out
-
-
-def _fresh_answered(isight: CaseContext, when: str) -> None:
-    """A fresh connection gets NONE and a pose answered 0000 within time_out. A box may make room by
-    evicting a stale connection: a fresh connection it resets is retried until time_out has passed."""
-    deadline = time.monotonic() + isight.time_out_s
-    attempts = 0
-    while True:
-        attempts += 1
-        left = deadline - time.monotonic()
-        conn = isight.try_connect(f"fresh ({when}, attempt {attempts})", time_out_s=max(0.05, left))
-        if conn is None:
-            raise isight.broken(expected="a fresh connection is accepted within time_out",
-                                observed=f"connection attempt {attempts} was not accepted", when=when)
-        outcome = conn.request(request(Action.NONE), f"NONE on a fresh connection ({when})", timeout_s=max(0.05, left))
-        if isinstance(outcome, Closed) and time.monotonic() + 0.1 < deadline:
-            conn.close()
-            time.sleep(0.1)
-            continue
-        break
-    isight.details.setdefault("fresh_attempts", {})[when] = attempts
-    for frame in (None, _frames(isight)["pose"]):
-        if frame is not None:
-            outcome = conn.request(frame, f"POSE on a fresh connection ({when})")
-        action = Action.NONE if frame is None else frame.action
-        if isinstance(outcome, Answer):
-            isight.latencies_ms.append(outcome.latency_s * 1000)
-        isight.judge(outcome, sent=conn.codec.encode(frame or request(Action.NONE)), action=action, when=when)
-    conn.close()
-
-
 @case("R5-01", ["R5", "T1"], Level.MUST, "Partial frames, a 255×65535 announcement and 300 idle connections "
       "do not stop the box answering others",
       "while 200 connections hold half a frame, one announces 255×65535 bytes and 300 are idle, a fresh connection "
@@ -204,38 +123,27 @@ def test_bounded_resources(isight: CaseContext) -> None:
     huge = encode_raw(Header(action=Action.POSE, block_type=1, block_count=255, block_length=65535))[:12]
     isight.last_sent = huge
     held = {
-        "partial": _hold(isight, "partial frame", 200, pose[:19], deadline),
-        "huge": _hold(isight, "255×65535 header", 1, huge, deadline),
-        "idle": _hold(isight, "idle", 300, b"", deadline),
+        "partial": hold_connections(isight, "partial frame", 200, pose[:19], deadline),
+        "huge": hold_connections(isight, "255×65535 header", 1, huge, deadline),
+        "idle": hold_connections(isight, "idle", 300, b"", deadline),
     }
     isight.details["opened"] = {k: len(v) for k, v in held.items()}
-    _fresh_answered(isight, "while they are held")
+    fresh_answered(isight, "while they are held")
     for conns in held.values():
         for conn in conns:
             conn.close("release")
-    _fresh_answered(isight, "after they are released")
+    fresh_answered(isight, "after they are released")
     isight.details["latency"] = latency_figures(isight.latencies_ms)
 
 
 # -- R6 ---------------------------------------------------------------------------------------------------
-
-RESYNC_GARBAGE = {
-    "ascii": b"hello iSight\r\n",
-    "zeros": b"\x00" * 32,
-    "bad-start-word": b"\xfe\xff\x00\x01\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00",
-    "bad-version": START_BYTES + b"\x00\x02\x01\x00\x00\x00\x00\x00\x00\x00\x00\x00",
-}
-
-
-def _resynced(action: Action, **_: object) -> Expect:
-    return answered_allowed(action) | CLOSED
 
 
 @case("R6-01", ["R6"], Level.SHOULD, "After garbage the box resynchronises on the next valid frame, or closes",
       "the valid request right after the garbage, on the same connection, is answered 0000, or the connection is "
       "closed; staying silent is NON-STRICT",
       checks={"": Requirement(("R6",), "after garbage the box SHOULD resynchronise on the next valid header or close the "
-                              "connection", accept=_resynced)})
+                              "connection", accept=resynced)})
 @pytest.mark.parametrize("kind", list(RESYNC_GARBAGE))
 def test_resynchronise(isight: CaseContext, kind: str) -> None:
     bad = RESYNC_GARBAGE[kind]

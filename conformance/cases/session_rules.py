@@ -5,75 +5,28 @@ from __future__ import annotations
 import socket
 import time
 
-from conformance.harness.client import Answer, Closed, Outcome, Silence, TcpConnection
+from conformance.harness.client import Answer, Closed, Outcome, Silence
 from conformance.harness.transcript import Kind
-from conformance.protocol import Action, ErrorCode, Frame, pose_blocks, request, tolerance_blocks
+from conformance.protocol import Action, ErrorCode
 from conformance.protocol.answers import CANONICAL_CODES, Cycle
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import CLOSED, answered, answered_allowed
-from conformance.suite.record import Requirement, case
+from conformance.suite import ANSWERED, CLOSED, CaseContext, Level, Requirement, answered, answered_allowed, case
 from conformance.suite.sequence import PoseStream, latency_figures, percentile
-from conformance.suite.verdicts import Level
-
-HOME = (800.0, -100.0, 300.0, 180.0, 0.0, 0.0)
-ON, OFF, NONE, POSE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE, Action.POSE
-#: what the session cases judge
-ANSWERED = Requirement(("A1",), "a well-formed {action.name} request is answered", accept=lambda action, **_: answered(action))
-NONE_0 = Requirement(("A1",), "NONE is answered 0000", accept=answered_allowed(NONE))
-CYCLE_ON = Requirement(("S2",), "CycleOn is answered 0000, or 0001 when not ready", accept=answered_allowed(ON, Cycle.IDLE))
-READY = Requirement(("S2",), "the box is ready for a cycle", inconclusive=answered(ON, [ErrorCode.NOT_READY]),
-                    inconclusive_text="CycleOn answered 0001 (box not ready): the rest of the cycle cannot be judged (S2)")
-POSES_0 = Requirement(("S3",), "poses are answered 0000 whether or not a cycle is on", accept=answered_allowed(POSE))
-
-
-def _frame(isight: CaseContext, action: Action) -> Frame:
-    first = isight.profile.first_index
-    if action in (Action.POSE, Action.REGISTER_POSE):
-        return request(action, pose_blocks([HOME], first))
-    if action is Action.TOLERANCE:
-        return request(action, tolerance_blocks([0.5], first))
-    return request(action)
-
-
-def _ask(isight: CaseContext, conn: TcpConnection, action: Action, check: str = "answered") -> Answer:
-    """One request on ``conn``, judged by the case's requirement ``check``; latency recorded."""
-    frame = _frame(isight, action)
-    sent = conn.codec.encode(frame)
-    outcome = conn.request(sent, f"{action.name} request")
-    if isinstance(outcome, Answer):
-        isight.latencies_ms.append(outcome.latency_s * 1000)
-    isight.judge(outcome, check, sent=sent, action=action)
-    assert isinstance(outcome, Answer)
-    return outcome
-
-
-def _cycle_on(isight: CaseContext, conn: TcpConnection) -> None:
-    """CycleOn: 0000, or 0001 (box not ready) which makes the rest INCONCLUSIVE (S2), after a CycleOff."""
-    outcome = _ask(isight, conn, ON, "cycle-on")
-    if outcome.frame.error_code == 1:
-        _ask(isight, conn, OFF)  # leave the box idle
-    isight.judge(outcome, "ready")
-
-
-def _stream(isight: CaseContext, label: str = "stream") -> TcpConnection:
-    return isight.connect(label, target=isight.session.stream_target())
-
-
-def _p50_latency(isight: CaseContext, conn: TcpConnection, count: int, check: str, gap_s: float = 0.0) -> list[float]:
-    out = []
-    for _ in range(count):
-        out.append(_ask(isight, conn, NONE, check).latency_s * 1000)
-        if gap_s:
-            time.sleep(gap_s)
-    return out
-
-
-def _not_delayed(isight: CaseContext, base: list[float], during: list[float]) -> None:
-    b, d = percentile(base, 50), percentile(during, 50)
-    limit = b + max(100.0, 5 * b)
-    if d > limit:
-        raise isight.broken(expected=f"command p50 ≤ {limit:.1f} ms (baseline p50 {b:.1f} ms + max(100 ms, 5×))",
-                            observed=f"command p50 {d:.1f} ms (max {max(during):.1f} ms)")
+from conformance.suite.session_steps import (
+    CYCLE_ON,
+    NONE,
+    NONE_0,
+    OFF,
+    ON,
+    POSE,
+    POSES_0,
+    READY,
+    ask,
+    cycle_on,
+    not_delayed,
+    open_stream,
+    p50_latency,
+    step_frame,
+)
 
 
 @case("S1-01", ["S1", "S2", "S3", "A1", "T1"], Level.MUST, "The canonical session completes with every answer 0000",
@@ -86,14 +39,14 @@ def _not_delayed(isight: CaseContext, base: list[float], during: list[float]) ->
 def test_canonical_session(isight: CaseContext) -> None:
     command = isight.connect("command")
     for action in (Action.NONE, Action.TOLERANCE, Action.REGISTER_POSE):
-        _ask(isight, command, action, "configure")
-    stream = PoseStream(_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s,
+        ask(isight, command, action, "configure")
+    stream = PoseStream(open_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s,
                         first_index=isight.profile.first_index).start()
     try:
         time.sleep(0.1)
-        _cycle_on(isight, command)
+        cycle_on(isight, command)
         time.sleep(0.5)  # the primer trajectory; poses keep flowing
-        _ask(isight, command, OFF, "cycle-off")
+        ask(isight, command, OFF, "cycle-off")
     finally:
         result = stream.stop()
     isight.latencies_ms.extend(result.latencies_ms)
@@ -111,8 +64,8 @@ def test_canonical_session(isight: CaseContext) -> None:
                                                          "cases are INCONCLUSIVE")})
 def test_cycle_on(isight: CaseContext) -> None:
     conn = isight.connect()
-    _ask(isight, conn, ON, "cycle-on")
-    _ask(isight, conn, OFF)
+    ask(isight, conn, ON, "cycle-on")
+    ask(isight, conn, OFF)
 
 
 @case("S3-01", ["S3"], Level.MUST, "Poses before CycleOn are answered 0000",
@@ -120,9 +73,9 @@ def test_cycle_on(isight: CaseContext) -> None:
       checks={"answered": ANSWERED, "poses": POSES_0})
 def test_poses_before_cycle_on(isight: CaseContext) -> None:
     conn = isight.connect()
-    _ask(isight, conn, OFF)  # no cycle on, whatever the box says
+    ask(isight, conn, OFF)  # no cycle on, whatever the box says
     for _ in range(5):
-        _ask(isight, conn, POSE, "poses")
+        ask(isight, conn, POSE, "poses")
 
 
 @case("S3-02", ["S3"], Level.MUST, "Poses after CycleOff are answered 0000",
@@ -130,10 +83,10 @@ def test_poses_before_cycle_on(isight: CaseContext) -> None:
       checks={"answered": ANSWERED, "cycle-on": CYCLE_ON, "poses": POSES_0})
 def test_poses_after_cycle_off(isight: CaseContext) -> None:
     conn = isight.connect()
-    _ask(isight, conn, ON, "cycle-on")
-    _ask(isight, conn, OFF)
+    ask(isight, conn, ON, "cycle-on")
+    ask(isight, conn, OFF)
     for _ in range(5):
-        _ask(isight, conn, POSE, "poses")
+        ask(isight, conn, POSE, "poses")
 
 
 @case("S3-03", ["S3", "A1"], Level.MUST, "CycleOff without CycleOn is answered (0000 or an error: MAY)",
@@ -144,8 +97,8 @@ def test_poses_after_cycle_off(isight: CaseContext) -> None:
                                    informational_text="CycleOff with no cycle on: the box {outcome}")})
 def test_cycle_off_without_cycle_on(isight: CaseContext) -> None:
     conn = isight.connect()
-    _ask(isight, conn, OFF)
-    _ask(isight, conn, OFF, "again")
+    ask(isight, conn, OFF)
+    ask(isight, conn, OFF, "again")
 
 
 @case("S3-04", ["S3", "A1"], Level.MUST, "CycleOn twice is answered (0000 or an error: MAY)",
@@ -156,9 +109,9 @@ def test_cycle_off_without_cycle_on(isight: CaseContext) -> None:
                                    informational_text="a second CycleOn while a cycle is on: the box {outcome}")})
 def test_cycle_on_twice(isight: CaseContext) -> None:
     conn = isight.connect()
-    _cycle_on(isight, conn)
-    _ask(isight, conn, ON, "again")
-    _ask(isight, conn, OFF)
+    cycle_on(isight, conn)
+    ask(isight, conn, ON, "again")
+    ask(isight, conn, OFF)
 
 
 @case("S4-01", ["S4", "T1"], Level.MUST, "A silent stream connection does not delay command answers",
@@ -170,19 +123,19 @@ def test_cycle_on_twice(isight: CaseContext) -> None:
               "": Requirement(("S4",), "a silent stream connection never delays answers on the command connection")})
 def test_silent_stream(isight: CaseContext) -> None:
     base_conn = isight.connect("command (baseline)")
-    base = _p50_latency(isight, base_conn, 10, "none")
+    base = p50_latency(isight, base_conn, 10, "none")
     base_conn.close()
-    stream = _stream(isight, "stream (stalled)")
-    half = stream.codec.encode(_frame(isight, Action.POSE))[:19]
+    stream = open_stream(isight, "stream (stalled)")
+    half = stream.codec.encode(step_frame(isight, Action.POSE))[:19]
     stream.send(half, "half a pose frame, then nothing")
     try:
         command = isight.connect("command")
-        during = _p50_latency(isight, command, 10, "during")
+        during = p50_latency(isight, command, 10, "during")
     finally:
         stream.abort("release the stalled stream")
         isight.close_all()  # before the liveness check that may follow
     isight.details.update(baseline=latency_figures(base), during_stall=latency_figures(during))
-    _not_delayed(isight, base, during)
+    not_delayed(isight, base, during)
 
 
 @case("S4-02", ["S4", "S6", "T1"], Level.MUST, "A busy stream does not delay command answers",
@@ -195,19 +148,19 @@ def test_silent_stream(isight: CaseContext) -> None:
               "": Requirement(("S4",), "a busy stream never delays answers on the command connection")})
 def test_busy_stream(isight: CaseContext) -> None:
     base_conn = isight.connect("command (baseline)")
-    base = _p50_latency(isight, base_conn, 10, "none")
+    base = p50_latency(isight, base_conn, 10, "none")
     base_conn.close()
-    stream = PoseStream(_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s,
+    stream = PoseStream(open_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s,
                         first_index=isight.profile.first_index).start()
     try:
         command = isight.connect("command")
-        during = _p50_latency(isight, command, 20, "during", 0.02)
+        during = p50_latency(isight, command, 20, "during", 0.02)
     finally:
         result = stream.stop()
         isight.close_all()  # before the liveness check that may follow
     isight.details.update(baseline=latency_figures(base), during_stream=latency_figures(during), stream=result.figures())
     isight.judge_stream(result)
-    _not_delayed(isight, base, during)
+    not_delayed(isight, base, during)
 
 
 @case("S5-01", ["S5", "T1"], Level.MUST, "100 connect/disconnect cycles leave the box as responsive as the first",
@@ -221,7 +174,7 @@ def test_connect_cycles(isight: CaseContext) -> None:
         out = []
         for _ in range(n):
             conn = isight.connect("fresh")
-            out.append(_ask(isight, conn, NONE, "fresh").latency_s * 1000)
+            out.append(ask(isight, conn, NONE, "fresh").latency_s * 1000)
             conn.close()
         return out
 
@@ -232,7 +185,7 @@ def test_connect_cycles(isight: CaseContext) -> None:
             raise isight.broken("freed", expected="100 connections accepted one after another",
                                 observed=f"connect #{i + 1} failed")
         if i % 2:
-            _ask(isight, conn, NONE, "cycle")
+            ask(isight, conn, NONE, "cycle")
         conn.close()
     after = fresh(5)
     b, a = percentile(before, 50), percentile(after, 50)
@@ -249,7 +202,7 @@ def test_connect_cycles(isight: CaseContext) -> None:
                                               accept=CLOSED)})
 def test_box_closes_its_side(isight: CaseContext) -> None:
     conn = isight.connect()
-    _ask(isight, conn, NONE, "none")
+    ask(isight, conn, NONE, "none")
     assert conn.sock is not None
     conn.sock.shutdown(socket.SHUT_WR)
     isight.transcript.add(conn.conn_id, Kind.CLOSE, note="robot closes its side (FIN) and keeps reading (S5)")
@@ -269,10 +222,10 @@ def test_box_closes_its_side(isight: CaseContext) -> None:
       checks={"": Requirement(("S6", "A1"), "request {n} of 200 pipelined is answered, in request order",
                               accept=lambda action, **_: answered_allowed(action))})
 def test_pipelined(isight: CaseContext) -> None:
-    conn = _stream(isight)
+    conn = open_stream(isight)
     actions = [Action.REGISTER_POSE if i % 10 == 9 else Action.TOLERANCE if i % 25 == 12 else Action.POSE
                for i in range(200)]
-    frames = [conn.codec.encode(_frame(isight, a)) for a in actions]
+    frames = [conn.codec.encode(step_frame(isight, a)) for a in actions]
     start = time.monotonic()
     for i, data in enumerate(frames):
         if not conn.send(data, f"request {i + 1}/200 ({actions[i].name}), not waiting"):

@@ -13,69 +13,28 @@ all costs a full time_out (and its R7 cases end INCONCLUSIVE: F7-01 judges it).
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
-from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, UdpChannel
+from conformance.harness.client import Answer, Closed, Malformed, Silence
 from conformance.protocol import (
     Action,
-    Frame,
-    Profile,
-    Transport,
-    crc16_names,
-    crc_function,
-    encode,
-    pose_blocks,
     request,
     tolerance_blocks,
 )
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive, answered_allowed
-from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level
-
-POSE = (500.0, -20.0, 300.0, 180.0, 0.0, 90.0)
-#: sessions whose UDP target answered no valid datagram (R7 cases end at once)
-_UDP_MUTE: dict[int, str] = {}
-
-
-def udp_bytes(isight: CaseContext, frame: Frame) -> bytes:
-    return encode(frame, isight.profile, Transport.UDP)
-
-
-def pose_request(isight: CaseContext, action: Action = Action.POSE) -> Frame:
-    return request(action, pose_blocks([POSE], isight.profile.first_index))
-
-
-def header_field(data: bytes, offset: int, profile: Profile) -> int | None:
-    """A 2-byte header field of a datagram, read in the profile's byte order (None if too short)."""
-    if len(data) < offset + 2:
-        return None
-    return int.from_bytes(data[offset:offset + 2], profile.byte_order)  # type: ignore[arg-type]
-
-
-def action_of(outcome: Outcome) -> int | None:
-    raw = outcome.raw
-    return raw[5] if len(raw) >= 6 else None
-
-
-def crc_matches(body: bytes, check: bytes) -> list[str]:
-    """Every (crcmod algorithm, byte order) whose CRC of ``body`` is ``check``."""
-    out = []
-    for name in crc16_names():
-        value = crc_function(name)(body)
-        for order in ("big", "little"):
-            if value.to_bytes(2, order) == check:
-                out.append(f"--crc={name} --crc-byte-order={order}")
-    return out
-
+from conformance.suite import CaseContext, Expect, Inconclusive, Level, Requirement, answered_allowed, case
+from conformance.suite.datagram_checks import (
+    await_probe,
+    bad_datagram,
+    crc_matches,
+    header_field,
+    pose_request,
+    require_udp_answers,
+    send_datagram,
+    udp_bytes,
+    valid_requests,
+)
 
 # -- F7 ------------------------------------------------------------------------------------
-
-
-def _valid_requests(isight: CaseContext) -> list[tuple[str, Frame]]:
-    return [("NONE", request(Action.NONE)), ("POSE", pose_request(isight))]
 
 
 @case("F7-01", ["F7", "A1"], Level.MUST, "A UDP request with the correct CRC is answered",
@@ -87,7 +46,7 @@ def _valid_requests(isight: CaseContext) -> list[tuple[str, Frame]]:
                               inconclusive_text="the UDP target refused the datagram (ICMP port unreachable)")})
 def test_udp_request_answered(isight: CaseContext) -> None:
     ch = isight.udp()
-    for name, frame in _valid_requests(isight):
+    for name, frame in valid_requests(isight):
         data = udp_bytes(isight, frame)
         outcome = ch.request(data, f"{name} datagram with {isight.profile.crc} CRC ({isight.profile.crc_byte_order})")
         isight.judge(outcome, sent=data)
@@ -105,7 +64,7 @@ def test_udp_answer_crc(isight: CaseContext) -> None:
     ch = isight.udp()
     profile = isight.profile
     judged = 0
-    for name, frame in _valid_requests(isight):
+    for name, frame in valid_requests(isight):
         data = udp_bytes(isight, frame)
         outcome = ch.request(data, f"{name} datagram")
         raw = outcome.raw
@@ -159,69 +118,6 @@ def test_udp_pose_answers(isight: CaseContext) -> None:
 # -- R7 ------------------------------------------------------------------------------------
 
 
-def _bad_datagram(isight: CaseContext, kind: str) -> bytes:
-    good = udp_bytes(isight, pose_request(isight))
-    if kind == "wrong-crc":
-        return good[:-2] + bytes([good[-2] ^ 0x5A, good[-1] ^ 0xA5])
-    if kind == "truncated":
-        return good[:-6]
-    if kind == "trailing-bytes":
-        return good + b"\x00\x00"
-    if kind == "two-frames":
-        return good + udp_bytes(isight, pose_request(isight, Action.REGISTER_POSE))
-    raise ValueError(kind)
-
-
-def _is_probe(outcome: Outcome) -> bool:
-    return isinstance(outcome, (Answer, Malformed)) and action_of(outcome) == Action.NONE
-
-
-def _await_probe(isight: CaseContext, ch: UdpChannel, start: float) -> tuple[list[Outcome], Outcome | None]:
-    """Datagrams received until the probe's answer (bounded by time_out), then ``settle`` for late extras."""
-    extras: list[Outcome] = []
-    probe: Outcome | None = None
-    deadline = start + isight.time_out_s
-    while probe is None:
-        remaining = deadline - time.monotonic()
-        outcome = ch.next_outcome(max(0.0, remaining), since=start)
-        if isinstance(outcome, Silence):
-            break
-        if isinstance(outcome, Closed):
-            raise Inconclusive(f"the UDP target {ch.target} refused datagrams (ICMP port unreachable)")
-        if _is_probe(outcome):
-            probe = outcome
-        else:
-            extras.append(outcome)
-    if probe is not None:
-        while True:
-            outcome = ch.next_outcome(isight.settings.settle_s)
-            if isinstance(outcome, (Silence, Closed)):
-                break
-            extras.append(outcome)
-    return extras, probe
-
-
-def _require_udp_answers(isight: CaseContext, ch: UdpChannel) -> bytes:
-    """A valid NONE datagram is answered (else R7 cannot be judged); returns the probe bytes."""
-    probe = udp_bytes(isight, request(Action.NONE))
-    mute = _UDP_MUTE.get(id(isight.session))
-    if mute:
-        raise Inconclusive(mute)
-    _extras, answer = _await_probe(isight, ch, _send(ch, probe, "NONE datagram: the box answers valid datagrams?"))
-    if answer is None:
-        _UDP_MUTE[id(isight.session)] = reason = (
-            f"the box answered no valid NONE datagram within time_out ({isight.time_out_s * 1000:.0f} ms): R7 cannot "
-            "be judged (F7-01 judges the silence)")
-        raise Inconclusive(reason)
-    return probe
-
-
-def _send(ch: UdpChannel, data: bytes, note: str) -> float:
-    start = time.monotonic()
-    ch.send(data, note)
-    return start
-
-
 @pytest.mark.parametrize("kind", ["wrong-crc", "truncated", "trailing-bytes", "two-frames"])
 @case("R7-01", ["R7", "R1", "F7"], Level.MUST, "A bad datagram is never answered 0000 and is dropped silently",
       "a datagram with a wrong CRC or not exactly one frame long is never answered 0000 (MUST) and gets no "
@@ -231,12 +127,12 @@ def _send(ch: UdpChannel, data: bytes, note: str) -> float:
                                      "silently", level=Level.SHOULD)})
 def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
     ch = isight.udp()
-    probe = _require_udp_answers(isight, ch)
-    bad = _bad_datagram(isight, kind)
+    probe = require_udp_answers(isight, ch)
+    bad = bad_datagram(isight, kind)
     isight.last_sent = bad
-    start = _send(ch, bad, f"bad datagram: pose {kind}")
+    start = send_datagram(ch, bad, f"bad datagram: pose {kind}")
     ch.send(probe, "probe: a valid NONE datagram; its answer bounds the wait")
-    extras, answer = _await_probe(isight, ch, start)
+    extras, answer = await_probe(isight, ch, start)
     replies = [o for o in extras if isinstance(o, (Answer, Malformed))]
     isight.details["replies_to_bad"] = [o.raw.hex(" ") for o in replies]
     if answer is None:

@@ -1,4 +1,10 @@
-"""The session: one per run. Settings, the target, the box's health, and the rules between cases.
+"""The run's state for one box (:class:`SessionState`): settings, the target, the box's health, and the rules between cases.
+
+"Session" names three things in this house; here it is the first:
+
+* **the run's state** (this module): one :class:`SessionState` per box under test, for a whole run;
+* **an S1 session**: the protocol's canonical run order, configure → connect → poses on → CycleOn → … → disconnect (PROTOCOL.md S1);
+* **pytest's session**: pytest's own object for one ``pytest`` invocation, which may hold several boxes' states.
 
 The pytest plugin only forwards to :meth:`SessionState.before_case` and
 :meth:`SessionState.after_case`:
@@ -31,12 +37,12 @@ from ..harness.client import Answer, Outcome, TcpConnection
 from ..harness.liveness import PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
+from ..model.signature import Death, DeathKind, Sig, Signature
+from ..model.verdicts import Verdict
 from ..protocol import Action, Profile
-from .judge import CaseVerdict, Inconclusive
+from .case_judge import CaseVerdict, Inconclusive
 from .quiet import Hangs
 from .settings import SuiteSettings
-from .signature import Death, DeathKind, Sig, Signature
-from .verdicts import Verdict
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
 RECHECK_S = 10.0

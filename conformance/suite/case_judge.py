@@ -12,6 +12,8 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
+from ..model.signature import Reply, Sig, Signature
+from ..model.verdicts import Level, Verdict, broken_verdict
 from ..protocol import (
     DEFAULT_PROFILE,
     Action,
@@ -26,8 +28,6 @@ from ..protocol import (
 from ..protocol.answers import Cycle, allowed_codes, allowed_values
 from ..protocol.constants import START_WORD
 from .record import Expect, ExpectSpec, Requirement
-from .signature import Reply, Sig, Signature
-from .verdicts import Level, Verdict, broken_verdict
 
 
 class CaseVerdict(Exception):

@@ -5,31 +5,28 @@ from __future__ import annotations
 from conformance.harness.client import Answer, Malformed
 from conformance.protocol import Action, Header, Transport, encode, encode_raw, pose_blocks, request
 from conformance.protocol.constants import START_BYTES
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, answered, answered_allowed
-from conformance.suite.record import Requirement, case
-from conformance.suite.verdicts import Level
-
-POSE = request(Action.POSE, pose_blocks([(500.0, 0.0, 300.0, 180.0, 0.0, 90.0)]))
-#: A1: the request whose answer a case inspects is answered 0000
-ANSWERED_0 = Requirement(("A1",), "a well-formed {action.name} request is answered",
-                         accept=lambda action, **_: answered_allowed(action))
-#: A1: answered (any code)
-ANSWERED = Requirement(("A1",), "a well-formed {action.name} request is answered", accept=lambda action, **_: answered(action))
-NOT_0000 = "MUST NOT be answered 0000"
-
-
-def _answer_bytes(isight: CaseContext, action: Action = Action.NONE) -> tuple[Answer, bytes]:
-    outcome = isight.exchange(request(action), f"{action.name} request")
-    isight.judge(outcome, "answered", sent=b"", action=action)
-    assert isinstance(outcome, Answer)
-    return outcome, outcome.raw
+from conformance.suite import (
+    ANSWERED,
+    ANSWERED_0,
+    NOT_0000,
+    NOT_OK,
+    CaseContext,
+    Level,
+    Requirement,
+    answered,
+    answered_allowed,
+    case,
+)
+from conformance.suite.frame_checks import (
+    POSE,
+    answer_bytes,
+)
 
 
 @case("F1-01", ["F1"], Level.MUST, "Answers start with FE FE", "every answer's first two bytes are fe fe",
       checks={"answered": ANSWERED_0, "": Requirement(("F1",), "the start word is FE FE")})
 def test_answer_start_word(isight: CaseContext) -> None:
-    _, raw = _answer_bytes(isight)
+    _, raw = answer_bytes(isight)
     if raw[:2] != START_BYTES:
         raise isight.broken(expected="fe fe", observed=raw[:2].hex(" "), received=raw)
 
@@ -46,7 +43,7 @@ def test_wrong_start_word(isight: CaseContext) -> None:
 @case("F2-01", ["F2"], Level.MUST, "Answers carry version 00 01", "bytes 2-3 of every answer are 00 01",
       checks={"answered": ANSWERED_0, "": Requirement(("F2",), "the version is 00 01")})
 def test_answer_version(isight: CaseContext) -> None:
-    _, raw = _answer_bytes(isight)
+    _, raw = answer_bytes(isight)
     if raw[2:4] != b"\x00\x01":
         raise isight.broken(expected="00 01", observed=raw[2:4].hex(" "), received=raw)
 

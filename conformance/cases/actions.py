@@ -12,15 +12,13 @@ import time
 
 import pytest
 
-from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
 from conformance.protocol import (
     ACTION_ERROR,
     Action,
     Block,
     ErrorCode,
-    Frame,
     Header,
-    Profile,
     encode,
     encode_raw,
     pose_blocks,
@@ -29,62 +27,36 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.answers import Cycle
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed, reply_signature
-from conformance.suite.record import Expect, Requirement, case
-from conformance.suite.verdicts import Level
-
-POSE, REG, TOL = Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE
-ON, OFF, NONE = Action.CYCLE_ON, Action.CYCLE_OFF, Action.NONE
-#: A1-01/A1-02: what a sequence of requests is judged by
-SEQUENCE = {
-    "order": Requirement(("A1",), "every well-formed request is answered with exactly one frame, in request order"),
-    "once": Requirement(("A1",), "exactly one answer per request"),
-    "taken": Requirement(("A1",), "the box answers every request"),
-}
-
-
-def _requests(first: int) -> list[Frame]:
-    """20 mixed requests, no two neighbours with the same action (a duplicate shows)."""
-    p = lambda n: request(POSE, pose_blocks([(1.0 + i, 2.0, 3.0, 4.0, 5.0, 6.0) for i in range(n)], first))  # noqa: E731
-    r = request(REG, pose_blocks([(10.0, 20.0, 30.0, 0.0, 90.0, 180.0)], first))
-    t = lambda n: request(TOL, tolerance_blocks([0.5 * (i + 1) for i in range(n)], first))  # noqa: E731
-    n = request(NONE)
-    return [n, p(1), t(1), r, n, request(ON), p(1), t(1), p(3), n,
-            r, p(1), t(2), n, p(1), request(OFF), p(2), n, t(1), n]
-
-
-def action_of(outcome: Outcome) -> int | None:
-    """The action byte of what the box sent (an answer, or malformed bytes with a readable header)."""
-    if isinstance(outcome, Answer):
-        return int(outcome.frame.action)
-    if isinstance(outcome, Malformed) and outcome.error.header is not None:
-        return outcome.error.header.action
-    return None
-
-
-def _name(action: int | None) -> str:
-    try:
-        return Action(action).name if action is not None else "nothing"
-    except ValueError:
-        return f"0x{action:02X}"
-
-
-def _judge_sequence(isight: CaseContext, conn: TcpConnection, frames: list[Frame], outcomes: list[Outcome], sent: bytes) -> None:
-    for i, (frame, outcome) in enumerate(zip(frames, outcomes)):
-        got = action_of(outcome)
-        if got != frame.action:
-            before = ", ".join(_name(action_of(o)) for o in outcomes[max(0, i - 2): i + 1])
-            raise isight.broken("order", expected=f"answer {i + 1} of {len(frames)} echoes {frame.action.name}",
-                                observed=f"{outcome.describe()} (answers {max(1, i - 1)}..{i + 1}: {before})",
-                                sent=sent, received=isight.transcript.received(conn.conn_id),
-                                signature=reply_signature(outcome, frame.action))
-    extra = conn.drain(isight.settings.settle_s)
-    if any(not isinstance(o, Closed) for o in extra):
-        raise isight.broken("once", expected=f"{len(frames)} answers and nothing more",
-                            observed="after them: " + "; ".join(o.describe() for o in extra),
-                            sent=sent, received=isight.transcript.received(conn.conn_id))
-
+from conformance.suite import (
+    NOT_ANSWERED,
+    NOT_OK,
+    CaseContext,
+    Level,
+    Requirement,
+    Skip,
+    answered,
+    answered_allowed,
+    case,
+    reply_signature,
+)
+from conformance.suite.action_checks import (
+    A2_ACTIONS,
+    NONE,
+    NOT_REQUESTS,
+    OFF,
+    ON,
+    POSE,
+    REG,
+    SEQUENCE,
+    TOL,
+    action_of,
+    judge_sequence,
+    malformed_set,
+    mixed_requests,
+    not_request,
+    shape_problems,
+    type03_answer,
+)
 
 # -- A1: one answer per request, in order ------------------------------------------------------
 
@@ -92,7 +64,7 @@ def _judge_sequence(isight: CaseContext, conn: TcpConnection, frames: list[Frame
 @case("A1-01", ["A1", "S6", "R4"], Level.MUST, "20 pipelined mixed requests are answered once each, in order",
       "20 answers whose actions follow the requests' order, and nothing after them", checks=SEQUENCE)
 def test_pipelined_order(isight: CaseContext) -> None:
-    frames = _requests(isight.profile.first_index)
+    frames = mixed_requests(isight.profile.first_index)
     data = b"".join(encode(f, isight.profile) for f in frames)
     conn = isight.connect()
     start = time.monotonic()
@@ -107,13 +79,13 @@ def test_pipelined_order(isight: CaseContext) -> None:
             break
         isight.latencies_ms.append(outcome.latency_s * 1000)
     outcomes += [Silence(0.0)] * (len(frames) - len(outcomes))
-    _judge_sequence(isight, conn, frames, outcomes, data)
+    judge_sequence(isight, conn, frames, outcomes, data)
 
 
 @case("A1-02", ["A1"], Level.MUST, "Requests sent one at a time are answered once each",
       "each request's next frame is its own answer; nothing follows the last one", checks=SEQUENCE)
 def test_lockstep_once(isight: CaseContext) -> None:
-    frames = _requests(isight.profile.first_index)
+    frames = mixed_requests(isight.profile.first_index)
     conn = isight.connect()
     outcomes: list[Outcome] = []
     for frame in frames:
@@ -124,29 +96,10 @@ def test_lockstep_once(isight: CaseContext) -> None:
         if action_of(outcome) != frame.action:
             break
     outcomes += [Silence(0.0)] * (len(frames) - len(outcomes))
-    _judge_sequence(isight, conn, frames, outcomes, isight.transcript.sent(conn.conn_id))
+    judge_sequence(isight, conn, frames, outcomes, isight.transcript.sent(conn.conn_id))
 
 
 # -- A2: the shape of an answer -----------------------------------------------------------------
-
-
-def _shape_problems(raw: bytes, action: int) -> list[str]:
-    problems = []
-    if raw[4:5] != b"\x10":
-        problems.append(f"transfer type {raw[4]:02x}, expected 10 (F3)")
-    if raw[5] != action:
-        problems.append(f"action {raw[5]:02x}, expected the request's {action:02x}")
-    if raw[6:10] != b"\x00\x00\x00\x00":
-        problems.append(f"block type/N/L {raw[6:10].hex(' ')}, expected 00 00 00 00")
-    if len(raw) != 14:
-        problems.append(f"{len(raw)} bytes, expected 14")
-    return problems
-
-
-A2_ACTIONS = [
-    ("none", [NONE]), ("cycle-on-off", [OFF, ON, OFF]), ("pose", [POSE]), ("register-pose", [REG]),
-    ("tolerance", [TOL]), ("malformed-pose", [None]),
-]
 
 
 @case("A2-01", ["A2", "F3"], Level.MUST, "Answers carry transfer type 10, echo the action and carry no blocks",
@@ -176,7 +129,7 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
         sent = isight.transcript.sent(conn.conn_id)
         if isinstance(outcome, Malformed):
             raw = outcome.error.raw
-            problems = _shape_problems(raw, action) if len(raw) >= 12 else ["not a frame"]
+            problems = shape_problems(raw, action) if len(raw) >= 12 else ["not a frame"]
             if not problems:  # the shape is right; what is wrong (e.g. A4) is judged elsewhere
                 continue
             raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00",
@@ -184,28 +137,13 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
                                 signature=reply_signature(outcome, action))
         isight.judge(outcome, "answered", sent=sent, action=action)
         assert isinstance(outcome, Answer)
-        problems = _shape_problems(outcome.raw, action)
+        problems = shape_problems(outcome.raw, action)
         if problems:
             raise isight.broken("shape", expected="10 | action | 00 | 00 | 00 00 (14 bytes)", observed="; ".join(problems),
                                 sent=sent, received=outcome.raw, signature=reply_signature(outcome, action))
 
 
 # -- A3: error codes ----------------------------------------------------------------------------
-
-
-def _malformed_set(action: Action, first: int, profile: Profile) -> list[tuple[str, bytes]]:
-    """Three parse errors (B3, B5 length, B5 count) for a 23/24/25 request."""
-    pose = action in (POSE, REG)
-    btype, blen = (1, 25) if pose else (2, 5)
-    block = lambda i: bytes([i]) + bytes(blen - 1)  # noqa: E731
-    return [
-        ("indexes with a gap", encode_raw(Header(action=action, block_type=btype, block_count=2, block_length=blen),
-                                          block(first) + block(first + 2), profile=profile)),
-        (f"block length {blen - 1}", encode_raw(Header(action=action, block_type=btype, block_count=1, block_length=blen - 1),
-                                                block(first)[:-1], profile=profile)),
-        ("no blocks (N=0)", encode_raw(Header(action=action, block_type=btype, block_count=0, block_length=blen),
-                                       profile=profile)),
-    ]
 
 
 @case("A3-01", ["A3", "B3", "B5"], Level.MUST, "Malformed 23/24/25 requests get the action's error, never 0000",
@@ -218,7 +156,7 @@ def _malformed_set(action: Action, first: int, profile: Profile) -> list[tuple[s
 def test_parse_error_codes(isight: CaseContext, action: Action) -> None:
     conn = isight.connect("malformed")
     results: list[tuple[str, bytes, Outcome]] = []
-    for what, bad in _malformed_set(action, isight.profile.first_index, isight.profile):
+    for what, bad in malformed_set(action, isight.profile.first_index, isight.profile):
         if conn.closed_by_peer is not None:
             conn = isight.connect("malformed (reconnected after the box closed)")
         results.append((what, bad, isight.send_malformed(bad, f"{action.name} request with {what}", conn=conn)))
@@ -226,9 +164,6 @@ def test_parse_error_codes(isight: CaseContext, action: Action) -> None:
         isight.judge(outcome, "no-0000", sent=bad, what=what)
     for what, bad, outcome in results:  # the SHOULDs after every MUST
         isight.judge(outcome, "code", sent=bad, what=what, error=ACTION_ERROR[action])
-
-
-NOT_ANSWERED = Expect("not answered", lambda o: not isinstance(o, Answer))
 
 
 @case("A3-02", ["A3", "S2"], Level.MUST, "CycleOn is answered 0000 or 0001, CycleOff 0000 or 0002",
@@ -266,39 +201,6 @@ def test_none_answered(isight: CaseContext) -> None:
 
 # -- A5: frames that are not requests -----------------------------------------------------------
 
-_CYCLE_ON = Header(action=ON)
-NOT_REQUESTS: list[tuple[str, dict[str, int], str]] = [
-    ("start-fffe", {"start_word": 0xFFFE}, ""),
-    ("start-feff", {"start_word": 0xFEFF}, ""),
-    ("start-0000-pose", {"start_word": 0x0000}, "pose"),
-    ("version-0000", {"version": 0x0000}, ""),
-    ("version-0002", {"version": 0x0002}, ""),
-    ("version-0100", {"version": 0x0100}, ""),
-    ("version-ffff-pose", {"version": 0xFFFF}, "pose"),
-    ("transfer-00", {"transfer_type": 0x00}, ""),
-    ("transfer-02", {"transfer_type": 0x02}, ""),
-    ("transfer-10", {"transfer_type": 0x10}, ""),
-    ("transfer-11-pose", {"transfer_type": 0x11}, "pose"),
-    ("transfer-ff", {"transfer_type": 0xFF}, ""),
-    ("action-03", {"action": 0x03}, ""),
-    ("action-04", {"action": 0x04}, ""),
-    ("action-10-pose", {"action": 0x10}, "pose"),
-    ("action-22", {"action": 0x22}, ""),
-    ("action-28", {"action": 0x28}, ""),
-    ("action-80", {"action": 0x80}, ""),
-    ("action-ff", {"action": 0xFF}, ""),
-]
-
-
-def not_request(fields: dict[str, int], body: str, isight: CaseContext) -> bytes:
-    base: dict[str, int] = {"action": ON}
-    if body == "pose":
-        block = encode(request(POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)], isight.profile.first_index)),
-                       isight.profile)[12:-2]
-        base = {"action": POSE, "block_type": 1, "block_count": 1, "block_length": 25}
-        return encode_raw(Header(**{**base, **fields}), block, profile=isight.profile)
-    return encode_raw(Header(**{**base, **fields}), profile=isight.profile)
-
 
 @case("A5-01", ["A5", "R1", "F1", "F2", "F3"], Level.MUST, "A frame that is not a request is never answered 0000",
       "silence, a non-zero error, or a close; never 0000",
@@ -309,18 +211,10 @@ def test_not_a_request(isight: CaseContext, fields: dict[str, int], body: str) -
     isight.judge(isight.send_malformed(bad, "not a request: " + ", ".join(f"{k}={v:#x}" for k, v in fields.items())))
 
 
-def _type03_answer(action: Action, **_: object) -> Expect:
-    def seems_e(o: Outcome) -> bool:
-        header = o.error.header if isinstance(o, Malformed) else None
-        return header is not None and header.action == action and header.block_type == 0x03
-
-    return Expect("a type-03 block answer that does not parse", seems_e)
-
-
 @case("A5-02", ["A5", "R1", "E2", "E3"], Level.MUST, "Without extension E, actions 26 and 27 are unknown and never answered 0000",
       "SKIP when the box implements E; else silence, a non-zero error, or a close to 26 and 27; never 0000",
       checks={"": Requirement(("A5",), "without E, action {action:02x} is unknown and MUST NOT be answered 0000", accept=NOT_OK,
-                              inconclusive=_type03_answer,
+                              inconclusive=type03_answer,
                               inconclusive_text="the box answers {action:02x} with a type-03 block (it seems to implement "
                                                 "E), but the answer does not parse under this run's profile; check the "
                                                 "profile, e.g. --first-index")})

@@ -10,12 +10,16 @@ from __future__ import annotations
 
 from conformance.harness.client import Answer
 from conformance.protocol import Action, encode, request
-from conformance.suite.context import CaseContext, answers_none
-from conformance.suite.judge import answered_allowed
-from conformance.suite.record import Requirement, case
-from conformance.suite.session import responsive
-from conformance.suite.signature import Signature
-from conformance.suite.verdicts import Level
+from conformance.suite import (
+    CaseContext,
+    Level,
+    Requirement,
+    Signature,
+    answered_allowed,
+    answers_none,
+    case,
+    responsive,
+)
 
 
 @case("T1-00", ["A4", "T1"], Level.MUST, "Baseline: NONE is answered 0000 on a fresh connection within time_out",

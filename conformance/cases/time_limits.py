@@ -4,34 +4,13 @@ from __future__ import annotations
 
 import time
 
-from conformance.harness.client import Answer, Outcome
-from conformance.protocol import Action, Frame, encode, pose_blocks, request, tolerance_blocks
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import answered
-from conformance.suite.record import Requirement, case
-from conformance.suite.sequence import DEFAULT_POSE, PoseStream, latency_figures
-from conformance.suite.verdicts import Level
-
-
-def _requests(isight: CaseContext) -> list[Frame]:
-    first = isight.profile.first_index
-    pose = request(Action.POSE, pose_blocks([DEFAULT_POSE], first))
-    return [
-        request(Action.NONE),
-        request(Action.TOLERANCE, tolerance_blocks([0.5], first)),
-        request(Action.REGISTER_POSE, pose_blocks([DEFAULT_POSE], first)),
-        request(Action.CYCLE_ON),
-        *[pose] * 20,
-        request(Action.CYCLE_OFF),
-        request(Action.POSE, pose_blocks([DEFAULT_POSE] * 255, first)),  # the largest legal frame
-    ]
-
-
-def _within(isight: CaseContext, outcome: Outcome, frame: Frame, where: str) -> None:
-    if isinstance(outcome, Answer):
-        isight.latencies_ms.append(outcome.latency_s * 1000)
-    isight.judge(outcome, sent=encode(frame, isight.profile), action=frame.action, where=where,
-                 time_out_ms=isight.time_out_s * 1000)
+from conformance.protocol import Action, request
+from conformance.suite import CaseContext, Level, Requirement, answered, case
+from conformance.suite.sequence import PoseStream, latency_figures
+from conformance.suite.time_limit_checks import (
+    judge_within_time_out,
+    timed_requests,
+)
 
 
 @case("T1-01", ["T1", "A1"], Level.MUST, "Every answer arrives within time_out",
@@ -41,9 +20,9 @@ def _within(isight: CaseContext, outcome: Outcome, frame: Frame, where: str) -> 
                               accept=lambda action, **_: answered(action))})
 def test_every_answer_within_time_out(isight: CaseContext) -> None:
     conn = isight.connect()
-    for i, frame in enumerate(_requests(isight)):
+    for i, frame in enumerate(timed_requests(isight)):
         outcome = conn.request(frame, f"{frame.action.name} request")
-        _within(isight, outcome, frame, f"request {i + 1} on one connection")
+        judge_within_time_out(isight, outcome, frame, f"request {i + 1} on one connection")
     conn.close()
     connects = []
     for i in range(5):
@@ -51,7 +30,7 @@ def test_every_answer_within_time_out(isight: CaseContext) -> None:
         fresh = isight.connect("fresh")
         connects.append((time.monotonic() - start) * 1000)
         frame = request(Action.NONE)
-        _within(isight, fresh.request(frame, "NONE request"), frame, f"fresh connection {i + 1}")
+        judge_within_time_out(isight, fresh.request(frame, "NONE request"), frame, f"fresh connection {i + 1}")
         fresh.close()
     isight.details.update(latency=latency_figures(isight.latencies_ms), connect=latency_figures(connects),
                           time_out_ms=isight.profile.time_out_ms)

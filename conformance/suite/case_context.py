@@ -6,7 +6,7 @@ wait without sleeping). What the box did is attributed with every legal framing 
 the bytes (:mod:`conformance.protocol.explain`): an answer belongs to the bytes some
 legal framing makes it answer, so an answer to a valid frame embedded in bad bytes, or
 the probe's own (even malformed) answer, is never taken for an answer to the bad bytes.
-The session (:mod:`.session`) holds what lasts between cases: health, liveness (R2),
+The session (:mod:`.run_state`) holds what lasts between cases: health, liveness (R2),
 the witness, extension support.
 """
 
@@ -21,15 +21,15 @@ from ..harness.exchange import Collected, Settle, attribute, choose_probe, colle
 from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
+from ..model.signature import Sig, Signature
+from ..model.verdicts import Level
 from ..protocol import Action, Frame, encode
 from ..protocol.constants import START_BYTES
 from ..protocol.framings import Explanation
-from .judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
+from .case_judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
 from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, broken_besides_hang, hung, pattern_key
 from .record import CaseRecord
-from .session import UNREACHABLE_AT_CONNECT, SessionState
-from .signature import Sig, Signature
-from .verdicts import Level
+from .run_state import UNREACHABLE_AT_CONNECT, SessionState
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
 #: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).
