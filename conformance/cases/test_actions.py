@@ -23,6 +23,7 @@ from conformance.protocol import (
     Profile,
     encode,
     encode_raw,
+    peek_header,
     pose_blocks,
     request,
     tolerance_blocks,
@@ -132,12 +133,16 @@ def test_lockstep_once(isight: CaseContext) -> None:
 
 def _shape_problems(raw: bytes, action: int) -> list[str]:
     problems = []
-    if raw[4:5] != b"\x10":
-        problems.append(f"transfer type {raw[4]:02x}, expected 10 (F3)")
-    if raw[5] != action:
-        problems.append(f"action {raw[5]:02x}, expected the request's {action:02x}")
-    if raw[6:10] != b"\x00\x00\x00\x00":
-        problems.append(f"block type/N/L {raw[6:10].hex(' ')}, expected 00 00 00 00")
+    head = peek_header(raw)
+    if head is None:
+        return [f"{len(raw)} bytes, expected 14"]
+    if not head.is_answer:
+        problems.append(f"transfer type {head.transfer_type:02x}, expected 10 (F3)")
+    if head.action != action:
+        problems.append(f"action {head.action:02x}, expected the request's {action:02x}")
+    if (head.block_type, head.block_count, head.block_length) != (0, 0, 0):
+        problems.append(f"block type/N/L {head.block_type:02x} {head.block_count:02x} {head.block_length:04x}, "
+                        "expected 00 00 0000")
     if len(raw) != 14:
         problems.append(f"{len(raw)} bytes, expected 14")
     return problems

@@ -31,6 +31,7 @@ from conformance.harness.target import Unreachable
 from conformance.options import profile_flags
 from conformance.protocol import (
     Action,
+    BlockType,
     Frame,
     PoseBlock,
     Profile,
@@ -39,11 +40,12 @@ from conformance.protocol import (
     crc_function,
     encode,
     encode_body,
+    header_field_bytes,
+    peek_header,
     pose_blocks,
     request,
     value_blocks,
 )
-from conformance.protocol.constants import START_BYTES
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, Skip
 from conformance.suite.record import Requirement, case
@@ -61,12 +63,12 @@ CONFIRM_WAIT_S = 1.0
 
 def fields(outcome: Outcome) -> tuple[str, int, int] | None:
     """(byte order, action, error code) of an answer, read in the order in which its version is 1."""
-    raw = outcome.raw
-    if len(raw) < 12 or raw[:2] != START_BYTES:
-        return None
     for order in ORDERS:
-        if int.from_bytes(raw[2:4], order) == 1:  # type: ignore[arg-type]
-            return order, raw[5], int.from_bytes(raw[10:12], order)  # type: ignore[arg-type]
+        head = peek_header(outcome.raw, 0, order)
+        if head is None or not head.start_ok:
+            return None
+        if head.version_ok:
+            return order, head.action, head.error_code
     return None
 
 
@@ -321,7 +323,7 @@ def _answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
                                     "one got no answer)")
     if _ok(outcome, Action.NONE):
         raise isight.broken("header-order", expected=f"NONE with {isight.profile.byte_order}-endian fields answered 0000",
-                            observed=f"only NONE with {other}-endian fields (version {data[2:4].hex(' ')}) is answered "
+                            observed=f"only NONE with {other}-endian fields (version {header_field_bytes(data, 'version').hex(' ')}) is answered "
                                      f"0000 (rerun with --byte-order={other} to test the rest)",
                             sent=sent, received=outcome.raw, order=isight.profile.byte_order)
     raise Inconclusive("the box answered NONE in neither byte order: nothing to read (A4/T1 judge the silence)")
@@ -336,9 +338,9 @@ def test_answer_byte_order(isight: CaseContext) -> None:
     order = isight.profile.byte_order
     judged: list[str] = []
 
-    def expect(raw: bytes, offset: int, value: int, what: str, sent: bytes) -> None:
+    def expect(raw: bytes, field: str, value: int, what: str, sent: bytes) -> None:
         want = value.to_bytes(2, order)  # type: ignore[arg-type]
-        got = raw[offset:offset + 2]
+        got = header_field_bytes(raw, field)
         if got == want:
             judged.append(what)
             return
@@ -346,8 +348,8 @@ def test_answer_byte_order(isight: CaseContext) -> None:
             isight.details.setdefault("not_judged", []).append(f"{what}: read {got.hex(' ')} (not F4's business)")
             return
         # the same defect as every other case sees in those answers: group them under one root cause
-        signature = {2: Signature(Sig.ANSWER, clause="F2", field="version", value=got.hex()),
-                     10: Signature(Sig.SWAPPED, "error-code")}.get(offset)
+        signature = {"version": Signature(Sig.ANSWER, clause="F2", field="version", value=got.hex()),
+                     "error_code": Signature(Sig.SWAPPED, "error-code")}.get(field)
         raise isight.broken(expected=want.hex(" "), observed=f"{got.hex(' ')}: {what} in the other byte order",
                             sent=sent, received=raw, signature=signature, order=order, what=what)
 
@@ -356,20 +358,20 @@ def test_answer_byte_order(isight: CaseContext) -> None:
     raw = conn.request(sent, "NONE request").raw
     if len(raw) < 12:
         _answers_other_order_only(isight, sent)
-    expect(raw, 2, 1, "version 00 01", sent)
+    expect(raw, "version", 1, "version 00 01", sent)
     first = isight.profile.first_index
     gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(first, POSE), PoseBlock(first + 2, POSE)))
     bad = encode(gap, isight.profile)
     raw = isight.send_malformed(bad, "two poses with indexes first, first+2 (B3 gap): answered 1001?").raw
-    if len(raw) >= 12 and raw[10:12] in (b"\x10\x01", b"\x01\x10"):
-        expect(raw, 10, 0x1001, "error code 1001", bad)
+    if header_field_bytes(raw, "error_code") in (b"\x10\x01", b"\x01\x10"):
+        expect(raw, "error_code", 0x1001, "error code 1001", bad)
     if isight.session.detect_extension(isight.transcript):
         sent = encode(request(Action.PROG_IDX, value_blocks([5], first)), isight.profile)
         conn = isight.connect()
         conn.request(sent, "ProgIdx 5: block length reads 5?")
         raw = isight.transcript.received(conn.conn_id)  # the wire bytes: a swapped L would derail the decoder
-        if len(raw) >= 12 and raw[6] == 0x03:
-            expect(raw, 8, 5, "block length 5", sent)
+        if getattr(peek_header(raw), "block_type", None) == BlockType.VALUE:
+            expect(raw, "block_length", 5, "block length 5", sent)
     isight.details["checked"] = judged
     if not judged:
         raise Inconclusive("the box sent no answer whose multi-byte fields could be read")

@@ -21,15 +21,17 @@ from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silen
 from conformance.protocol import (
     Action,
     Frame,
-    Profile,
     Transport,
     crc16_names,
     crc_function,
     encode,
+    peek_action,
+    peek_header,
     pose_blocks,
     request,
     tolerance_blocks,
 )
+from conformance.protocol.constants import CHECK_LEN
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import Inconclusive, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
@@ -48,16 +50,9 @@ def pose_request(isight: CaseContext, action: Action = Action.POSE) -> Frame:
     return request(action, pose_blocks([POSE], isight.profile.first_index))
 
 
-def header_field(data: bytes, offset: int, profile: Profile) -> int | None:
-    """A 2-byte header field of a datagram, read in the profile's byte order (None if too short)."""
-    if len(data) < offset + 2:
-        return None
-    return int.from_bytes(data[offset:offset + 2], profile.byte_order)  # type: ignore[arg-type]
-
-
 def action_of(outcome: Outcome) -> int | None:
     raw = outcome.raw
-    return raw[5] if len(raw) >= 6 else None
+    return peek_action(raw)
 
 
 def crc_matches(body: bytes, check: bytes) -> list[str]:
@@ -112,13 +107,13 @@ def test_udp_answer_crc(isight: CaseContext) -> None:
         if not raw:
             continue
         judged += 1
-        count, length = (raw[7], header_field(raw, 8, profile)) if len(raw) >= 12 else (0, None)
-        if length is None:
+        head = peek_header(raw, 0, profile.byte_order)
+        if head is None:
             raise isight.broken("header", expected="at least a 12-byte header", observed=f"{len(raw)} bytes", sent=data,
                                 received=raw)
-        end = 12 + count * length
+        end = head.frame_length - CHECK_LEN
         if len(raw) != end + 2:
-            raise isight.broken("length", expected=f"{end + 2} bytes (N={count}, L={length})",
+            raise isight.broken("length", expected=f"{end + 2} bytes (N={head.block_count}, L={head.block_length})",
                                 observed=f"{len(raw)} bytes", sent=data, received=raw)
         want = profile.check_bytes(raw[:end])
         if raw[end:] != want:
@@ -241,7 +236,7 @@ def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
     isight.details["replies_to_bad"] = [o.raw.hex(" ") for o in replies]
     if answer is None:
         isight.details["probe"] = "not answered within time_out"
-    ok = [o for o in replies if header_field(o.raw, 10, isight.profile) == 0]
+    ok = [o for o in replies if getattr(peek_header(o.raw, 0, isight.profile.byte_order), "error_code", None) == 0]
     if ok:
         raise isight.broken("no-0000", expected="silence (or a non-zero error)",
                             observed=f"{len(replies)} answer(s), {ok[0].describe()}", sent=bad, received=ok[0].raw)

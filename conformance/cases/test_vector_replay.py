@@ -32,11 +32,12 @@ from conformance.protocol import (
     TransferType,
     Transport,
     codec_for,
-    parse_header,
+    peek_action,
+    peek_header,
     request,
 )
 from conformance.protocol.answers import Cycle
-from conformance.protocol.constants import START_BYTES
+from conformance.protocol.constants import CHECK_LEN
 from conformance.suite.context import CaseContext
 from conformance.suite.judge import NOT_OK, Skip, answered, answered_allowed
 from conformance.suite.record import Expect, Requirement, case
@@ -67,7 +68,8 @@ def _params(result: str) -> list[Any]:
 
 
 def _has_blocks(v: Vector) -> bool:
-    return len(v.data) >= HEADER_LEN and v.data[7] > 0
+    head = peek_header(v.data)
+    return head is not None and head.block_count > 0
 
 
 def _applicable(isight: CaseContext, v: Vector | None) -> Vector:
@@ -98,10 +100,8 @@ def _run_profile_accepts(isight: CaseContext, v: Vector) -> bool:
 
 
 def _announced_len(data: bytes) -> int:
-    if len(data) < HEADER_LEN:
-        return HEADER_LEN + 2
-    h = parse_header(data)
-    return HEADER_LEN + h.block_count * h.block_length + 2
+    head = peek_header(data)
+    return HEADER_LEN + CHECK_LEN if head is None else head.frame_length
 
 
 def _restore_idle(isight: CaseContext, outcome: Outcome, conn: Any) -> None:
@@ -157,7 +157,9 @@ def _valid_expect(v: Vector, action: Action, conflict: str = "block") -> Expect:
 @pytest.mark.parametrize("vector", _params("valid"))
 def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = _applicable(isight, vector)
-    action = Action(v.data[5])
+    head = peek_header(v.data)
+    assert head is not None  # a valid vector is a whole frame
+    action = Action(head.action)
     conn = isight.connect()
     if action in (Action.CYCLE_ON, Action.CYCLE_OFF):  # judge from a known state (S3: CycleOn twice MAY fail)
         prep = Action.CYCLE_OFF if action is Action.CYCLE_ON else Action.CYCLE_ON
@@ -183,13 +185,13 @@ def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
 
 def _named_error(v: Vector) -> int | None:
     """A3: the error PROTOCOL.md names for this vector's parse error, if any."""
-    d = v.data
-    if len(d) < HEADER_LEN or d[:4] != START_BYTES + b"\x00\x01" or d[4] != 0x01:
+    head = peek_header(v.data)
+    if head is None or not (head.start_ok and head.version_ok and head.is_request):
         return None
     if not v.clauses or v.clauses[0] not in ("B1", "B2", "B3", "B4", "B5"):
         return None
     try:
-        return ACTION_ERROR.get(Action(d[5]))
+        return ACTION_ERROR.get(Action(head.action))
     except ValueError:
         return None
 
@@ -230,7 +232,7 @@ def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
                       f"the box {outcome.describe()}")
         return
     isight.judge(outcome, sent=v.data, vector=v, clauses=", ".join(v.clauses), clause=v.clauses[0], named=named,
-                 action=v.data[5] if len(v.data) > 5 else None)
+                 action=peek_action(v.data))
 
 
 # -- acceptable ------------------------------------------------------------------------------------

@@ -68,6 +68,7 @@ from .splitter import (
     find_plausible_header,
     frame_span,
     frame_spanner,
+    header_field_bytes,
     peek_action,
     peek_header,
     peek_transfer_type,
@@ -86,5 +87,5 @@ __all__ = [
     "encode_body", "encode_header", "encode_raw", "encode_tcp", "encode_udp", "parse_frame",
     "parse_header", "pose_blocks", "request", "tolerance_blocks", "value_blocks",
     "HeaderPeek", "Piece", "PieceKind", "Splitter", "find_plausible_header", "frame_span", "frame_spanner",
-    "peek_action", "peek_header", "peek_transfer_type", "split_bytes",
+    "header_field_bytes", "peek_action", "peek_header", "peek_transfer_type", "split_bytes",
 ]

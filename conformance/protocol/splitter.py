@@ -19,13 +19,14 @@ from __future__ import annotations
 
 import enum
 import struct
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
 
 from .constants import (
     CHECK_LEN,
+    HEADER_FIELDS,
     HEADER_LEN,
     MAX_FRAME_LEN,
     START_BYTES,
@@ -37,11 +38,12 @@ from .constants import (
 
 __all__ = [
     "NEED_MORE", "NOT_A_FRAME", "HeaderPeek", "Piece", "PieceKind", "Splitter", "find_plausible_header", "frame_span",
+    "header_field_bytes",
     "frame_spanner", "peek_action",
     "peek_header", "peek_transfer_type", "split_bytes",
 ]
 
-_ACTION_AT, _TRANSFER_AT = 5, 4
+_ACTION_AT, _TRANSFER_AT = HEADER_FIELDS["action"][0], HEADER_FIELDS["transfer_type"][0]
 _ACTIONS = frozenset(int(a) for a in Action)
 _TRANSFERS = frozenset(int(t) for t in TransferType)
 #: frame_span(): the bytes before here do not hold enough to decide
@@ -135,6 +137,13 @@ def peek_header(data: bytes | bytearray | memoryview, at: int = 0, byte_order: s
     if len(data) - at < HEADER_LEN or at < 0:
         return None
     return HeaderPeek(*_layout(byte_order).header(data, at))
+
+
+def header_field_bytes(data: bytes | bytearray, name: str, at: int = 0) -> bytes:
+    """One header field's bytes as on the wire (:data:`~.constants.HEADER_FIELDS` names it), as many of
+    them as ``data`` holds (b"" past its end)."""
+    offset, width = HEADER_FIELDS[name]
+    return bytes(data[at + offset : at + offset + width])
 
 
 def peek_action(data: bytes | bytearray | memoryview, at: int = 0) -> int | None:
