@@ -16,9 +16,9 @@ from typing import TYPE_CHECKING
 
 from ..i18n import _
 from ..options import add_profile_options, profile_from_options
-from .context import AnalyzeConfig
+from .analysis_context import AnalyzeConfig
+from .analysis_report import write_analysis
 from .engine import CaptureError, analyze
-from .report import write_analysis
 
 if TYPE_CHECKING:
     from ..options import Subparsers

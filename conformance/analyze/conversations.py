@@ -23,14 +23,14 @@ from ..harness.transcript import Endpoint, Transcript
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
 from ..protocol import TransferType, peek_transfer_type
 from ..suite.verdicts import Verdict
-from .context import Context
+from .analysis_context import Context
 from .exchanges import ConnJudge
 from .findings import BOX, ROBOT
 from .framing import FrameReader, plausible_header
 from .packets import ACK, SYN, endpoints, format_endpoint, reverse_key
 from .reassembly import RESTART, TcpStream
 from .sessions import ConnOutcome, SessionTracker
-from .udp import UdpConversation
+from .udp_conversation import UdpConversation
 
 __all__ = ["Conversations", "TcpConversation"]
 

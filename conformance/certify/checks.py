@@ -39,7 +39,7 @@ from ..suite.record import CaseRecord
 from ..suite.signature import Sig, Signature
 from ..suite.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from .records import RunRecord
-from .wire import frame_wire, session_wire
+from .wire_log import frame_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
 HISTOGRAM_BINS = 40

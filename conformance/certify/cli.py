@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING
 from ..i18n import _
 from ..options import add_profile_options, profile_from_options
 from ..rundirs import default_run_dirs, drop_if_empty
+from .certification import EXIT_USAGE, CertifyOutcome, ListenError, certify
 from .records import INJECTIONS, CertifyConfig
-from .runner import EXIT_USAGE, CertifyOutcome, ListenError, certify
 
 if TYPE_CHECKING:
     from ..options import Subparsers

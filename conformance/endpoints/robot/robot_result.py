@@ -10,9 +10,9 @@ import math
 import statistics
 from dataclasses import dataclass, field
 
-from ..protocol import Frame, ResultCode, TransferType
-from ..protocol.frames import PoseBlock, ValueBlock
-from ..stats import percentile
+from ...protocol import Frame, ResultCode, TransferType
+from ...protocol.frames import PoseBlock, ValueBlock
+from ...stats import percentile
 
 EXIT_OK = 0
 EXIT_MISBEHAVED = 1  # the box broke the protocol (wrong code, action, malformed answer, ...)

@@ -23,8 +23,8 @@ import time
 from collections import deque
 from collections.abc import Awaitable, Callable, Sequence
 
-from ..harness.target import Target
-from ..protocol import (
+from ...harness.target import Target
+from ...protocol import (
     DEFAULT_PORT,
     DEFAULT_PROFILE,
     Action,
@@ -35,8 +35,8 @@ from ..protocol import (
     request,
     value_blocks,
 )
-from ..trajectory import Pose, PrimerTrajectory
-from .loop import run_loop
+from ...trajectory import Pose, PrimerTrajectory
+from ..loop import run_loop
 from .robot_io import SessionIO, Stop
 from .robot_result import (
     EXIT_CONNECTION,
