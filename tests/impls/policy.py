@@ -14,7 +14,7 @@ import random
 import threading
 from dataclasses import dataclass, fields, replace
 
-from . import wire
+from . import wire_format as wire
 from .framers import Close, Event, Frame, Framing, Garbage, Rejected
 from .wire_format import Check, Header
 

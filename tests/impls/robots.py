@@ -22,7 +22,7 @@ import threading
 import time
 from dataclasses import dataclass, replace
 
-from . import wire
+from . import wire_format as wire
 from .wire_format import Answer, encode_request, split_answers
 
 HOME = (800.0, 0.0, 500.0, 180.0, 0.0, 0.0)
