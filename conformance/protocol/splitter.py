@@ -231,7 +231,7 @@ class Splitter:
         buf = self._buf
         buf += data
         out: list[Piece] = []
-        start, u16, base = self._start, self._u16, self._base
+        start, u16, base, new = self._start, self._u16, self._base, tuple.__new__  # Piece without its slow __new__
         pos, size = 0, len(buf)
         while pos < size:
             avail = size - pos
@@ -241,7 +241,7 @@ class Splitter:
                     if total <= MAX_FRAME_LEN:
                         if avail < total:
                             break
-                        out.append(Piece(bytes(buf[pos : pos + total]), _FRAME, base + pos, buf[pos + _ACTION_AT]))
+                        out.append(new(Piece, (bytes(buf[pos : pos + total]), _FRAME, base + pos, buf[pos + _ACTION_AT])))
                         pos += total
                         continue
             elif start.startswith(buf[pos : pos + 4]):
