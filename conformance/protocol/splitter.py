@@ -10,7 +10,8 @@ Framing rule (the one :class:`~.stream.StreamDecoder` applies): a header is trus
 it starts with the start word (F1), carries version 1 in the byte order (F2) and
 announces at most the largest legal frame (F5). A trusted header's frame is taken whole
 (header + N × L + check), legal or not: judging it is the codec's work. Any other bytes
-form a garbage run up to the next FE FE. Joining the pieces gives the input back
+form a garbage run up to the next FE FE (past the start word of a header that is not
+trusted, as the decoder resynchronises). Joining the pieces gives the input back
 exactly; :meth:`Splitter.flush` returns the incomplete tail. The splitter holds at most
 one frame's bytes (:data:`~.constants.MAX_FRAME_LEN`) plus what one ``feed`` brought.
 """
@@ -246,7 +247,8 @@ class Splitter:
                         continue
             elif start.startswith(buf[pos : pos + 4]):
                 break  # a header may still come
-            nxt = buf.find(START_BYTES, pos + 1)
+            # past a start word whose header is not trusted, as the stream decoder resynchronises (R6)
+            nxt = buf.find(START_BYTES, pos + (2 if buf[pos] == 0xFE and buf[pos + 1 : pos + 2] == b"\xfe" else 1))
             if nxt < 0:
                 nxt = size - 1 if buf[-1] == 0xFE else size  # a trailing FE may start a frame
                 if nxt <= pos:

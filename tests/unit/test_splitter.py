@@ -116,6 +116,24 @@ def test_the_splitter_frames_as_the_stream_decoder_does() -> None:
     assert [codec_for().encode(e) for e in events if not isinstance(e, Exception)] == frames
 
 
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_chunk, max_size=12))
+def test_the_splitter_cuts_where_the_stream_decoder_cuts(chunks: list[bytes]) -> None:
+    """The frames the splitter cuts are the frames the decoder takes whole (judged or not); the rest (garbage
+    runs, a tail) the decoder reports as errors, cut there or not."""
+    data = b"".join(chunks)
+    decoder, spans = StreamDecoder(expect=None), []
+    decoder.receive_data(data) if data else None
+    decoder.receive_data(b"")
+    while True:
+        start = decoder.offset
+        if not isinstance(decoder.next_event(), (Exception, type(request(Action.NONE)))):
+            break
+        spans.append((start, decoder.offset - start))
+    taken = [(at, n) for at, n in spans if frame_span(data[at : at + n]) == n]
+    assert [(p.offset, len(p.raw)) for p in split_bytes(data) if p.is_frame] == taken
+
+
 def test_little_endian_headers() -> None:
     little = DEFAULT_PROFILE.replace(byte_order="little")
     data = encode(request(Action.POSE, pose_blocks([(1, 2, 3, 4, 5, 6)])), little)
