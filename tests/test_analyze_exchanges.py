@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.analyze.context import AnalyzeConfig, Context
+from conformance.analyze.analysis_context import AnalyzeConfig, Context
 from conformance.analyze.exchanges import ConnJudge
 from conformance.model.verdicts import Verdict
 from conformance.protocol import (

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.analyze.context import AnalyzeConfig, Context
+from conformance.analyze.analysis_context import AnalyzeConfig, Context
 from conformance.analyze.exchanges import ConnJudge
 from conformance.analyze.judging import Cycles, count_frames, expect, judge_pair
 from conformance.model.verdicts import Verdict

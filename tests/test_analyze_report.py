@@ -1,4 +1,4 @@
-"""An analysis as the suite's evidence (conformance/analyze/report.py): one case per
+"""An analysis as the suite's evidence (conformance/analyze/analysis_report.py): one case per
 (clause, side), frame numbers in the message, the bytes of both sides, the plots."""
 
 from __future__ import annotations

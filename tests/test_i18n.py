@@ -218,7 +218,7 @@ def test_wrapped_chinese_keeps_its_punctuation_with_its_neighbour():
 
 
 def test_monitor_help_and_status_line_in_chinese(capsys, monkeypatch):
-    from conformance.analyze.context import AnalyzeConfig
+    from conformance.analyze.analysis_context import AnalyzeConfig
     from conformance.monitor.hub import Hub, MonitorSettings
     from conformance.monitor.view import View
 

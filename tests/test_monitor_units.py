@@ -150,7 +150,7 @@ def test_the_ring_refuses_nonsense() -> None:
 def test_without_a_terminal_a_status_line_every_minute(tmp_path: Path) -> None:
     import io
 
-    from conformance.analyze.context import AnalyzeConfig
+    from conformance.analyze.analysis_context import AnalyzeConfig
     from conformance.monitor.hub import Hub, MonitorSettings
     from conformance.monitor.view import STATUS_EVERY_S, View
 

@@ -31,8 +31,8 @@ from ..observed.frames import FrameRecord
 from ..protocol import Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
+from .analysis_context import Context
 from .catalogue import spec_for
-from .context import Context
 from .findings import BOX, ROBOT, Series, frames_text
 from .judging import (
     BAD_DATAGRAM,

@@ -25,7 +25,7 @@ from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord,
 from ..observed.frames import FrameRecord
 from ..observed.session import Cut, SessionView, awaited, build_view, judge_order
 from ..protocol import Action, action_name
-from .context import Context
+from .analysis_context import Context
 from .findings import ROBOT
 from .timing import StreamJudgement
 

@@ -18,15 +18,16 @@ import pytest
 from conformance.harness.client import Answer, Closed, Malformed, Silence
 from conformance.protocol import (
     Action,
+    peek_header,
     request,
     tolerance_blocks,
 )
+from conformance.protocol.constants import CHECK_LEN
 from conformance.suite import CaseContext, Expect, Inconclusive, Level, Requirement, answered_allowed, case
 from conformance.suite.datagram_checks import (
     await_probe,
     bad_datagram,
     crc_matches,
-    header_field,
     pose_request,
     require_udp_answers,
     send_datagram,
@@ -71,13 +72,13 @@ def test_udp_answer_crc(isight: CaseContext) -> None:
         if not raw:
             continue
         judged += 1
-        count, length = (raw[7], header_field(raw, 8, profile)) if len(raw) >= 12 else (0, None)
-        if length is None:
+        head = peek_header(raw, 0, profile.byte_order)
+        if head is None:
             raise isight.broken("header", expected="at least a 12-byte header", observed=f"{len(raw)} bytes", sent=data,
                                 received=raw)
-        end = 12 + count * length
+        end = head.frame_length - CHECK_LEN
         if len(raw) != end + 2:
-            raise isight.broken("length", expected=f"{end + 2} bytes (N={count}, L={length})",
+            raise isight.broken("length", expected=f"{end + 2} bytes (N={head.block_count}, L={head.block_length})",
                                 observed=f"{len(raw)} bytes", sent=data, received=raw)
         want = profile.check_bytes(raw[:end])
         if raw[end:] != want:
@@ -137,7 +138,7 @@ def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
     isight.details["replies_to_bad"] = [o.raw.hex(" ") for o in replies]
     if answer is None:
         isight.details["probe"] = "not answered within time_out"
-    ok = [o for o in replies if header_field(o.raw, 10, isight.profile) == 0]
+    ok = [o for o in replies if getattr(peek_header(o.raw, 0, isight.profile.byte_order), "error_code", None) == 0]
     if ok:
         raise isight.broken("no-0000", expected="silence (or a non-zero error)",
                             observed=f"{len(replies)} answer(s), {ok[0].describe()}", sent=bad, received=ok[0].raw)

@@ -15,10 +15,10 @@ view, the stream's rate and jitter, the case catalogue) is the shared model of o
 traffic, :mod:`conformance.observed`, which ``analyze`` builds on too.
 """
 
+from .certification import CertifyOutcome, certify
 from .checks import catalogue, judge
 from .listener import CertifyListener
 from .records import INJECTIONS, CertifyConfig, RunRecord
-from .runner import CertifyOutcome, certify
 
 __all__ = ["INJECTIONS", "CertifyConfig", "CertifyListener", "CertifyOutcome", "RunRecord", "catalogue", "certify",
            "judge"]

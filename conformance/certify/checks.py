@@ -39,7 +39,7 @@ from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
 from .records import RunRecord
-from .wire import frame_wire, session_wire
+from .wire_log import frame_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
 HISTOGRAM_BINS = 40

@@ -13,9 +13,9 @@ import shlex
 import sys
 from pathlib import Path
 
-from ..analyze.context import AnalyzeConfig
+from ..analyze.analysis_context import AnalyzeConfig
+from ..analyze.analysis_report import write_analysis
 from ..analyze.engine import CaptureError, analyze
-from ..analyze.report import write_analysis
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..suite.profile_options import profile_from_options

@@ -18,8 +18,8 @@ import signal
 import sys
 from pathlib import Path
 
+from ..certify.certification import CertifyOutcome, ListenError, certify
 from ..certify.records import INJECTIONS, CertifyConfig
-from ..certify.runner import CertifyOutcome, ListenError, certify
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_USAGE
 from ..report.rundirs import default_run_dirs, drop_if_empty

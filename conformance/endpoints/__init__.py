@@ -24,12 +24,12 @@ The primer trajectory the simulated robot streams is :mod:`conformance.harness.t
 
 from ..harness.trajectory import PrimerTrajectory, RoundedRectangle
 from .behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
-from .connection import BoxConnection
+from .box_connection import BoxConnection
 from .framelog import FrameLog
 from .loop import BoxThread
 from .robot import RobotSession, parse_target, run_robot
-from .robot_result import RobotResult, TimelineEntry
-from .robot_steps import RobotFaults
+from .robot.robot_result import RobotResult, TimelineEntry
+from .robot.robot_steps import RobotFaults
 from .server import ReferenceBox
 
 __all__ = [

@@ -34,6 +34,7 @@ from ..protocol import (
     TransferType,
     Transport,
     decode_datagram,
+    peek_header,
 )
 from ..protocol.answers import (
     CONFLICT,
@@ -91,10 +92,9 @@ def _completion(decoder: StreamDecoder) -> int:
     buffered = decoder.buffered
     if buffered < HEADER_LEN:
         return HEADER_LEN - buffered
-    tail = decoder._buf[decoder._pos : decoder._pos + HEADER_LEN]  # noqa: SLF001 - the header it waits on
-    order = "big" if decoder.profile.byte_order == "big" else "little"
-    total = HEADER_LEN + tail[7] * int.from_bytes(tail[8:10], order) + 2  # type: ignore[arg-type]
-    return max(1, total - buffered)
+    head = peek_header(decoder._buf, decoder._pos, decoder.profile.byte_order)  # noqa: SLF001 - the header it waits on
+    assert head is not None  # at least HEADER_LEN bytes are buffered
+    return max(1, head.frame_length - buffered)
 
 
 def expectations(

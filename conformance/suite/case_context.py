@@ -23,8 +23,7 @@ from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..model.signature import Sig, Signature
 from ..model.verdicts import Level
-from ..protocol import Action, Frame, encode
-from ..protocol.constants import START_BYTES
+from ..protocol import Action, Frame, encode, peek_header
 from ..protocol.framings import Explanation
 from .case_judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
 from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, broken_besides_hang, hung, pattern_key
@@ -214,10 +213,11 @@ class CaseContext:
 
     def _not_known_late(self, data: bytes) -> None:
         """Bounded time: a request the box is known not to answer within time_out ends the case at once."""
-        if len(data) < 12 or data[:2] != START_BYTES or not self.session.late:
+        head = peek_header(data)
+        if head is None or not head.start_ok or not self.session.late:
             return
         try:
-            name = Action(data[5]).name
+            name = Action(head.action).name
         except ValueError:
             return
         cases = self.session.known_late(name)

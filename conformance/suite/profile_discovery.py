@@ -14,10 +14,10 @@ from ..protocol import (
     crc_function,
     encode,
     encode_body,
+    peek_header,
     pose_blocks,
     request,
 )
-from ..protocol.constants import START_BYTES
 from .case_context import CaseContext
 from .case_judge import Inconclusive, Skip
 from .profile_options import profile_flags
@@ -37,12 +37,12 @@ CONFIRM_WAIT_S = 1.0
 
 def fields(outcome: Outcome) -> tuple[str, int, int] | None:
     """(byte order, action, error code) of an answer, read in the order in which its version is 1."""
-    raw = outcome.raw
-    if len(raw) < 12 or raw[:2] != START_BYTES:
-        return None
     for order in ORDERS:
-        if int.from_bytes(raw[2:4], order) == 1:  # type: ignore[arg-type]
-            return order, raw[5], int.from_bytes(raw[10:12], order)  # type: ignore[arg-type]
+        head = peek_header(outcome.raw, 0, order)
+        if head is None or not head.start_ok:
+            return None
+        if head.version_ok:
+            return order, head.action, head.error_code
     return None
 
 

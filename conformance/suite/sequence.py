@@ -16,7 +16,7 @@ from typing import Any
 
 from ..harness.client import Answer, Outcome, Silence, TcpConnection
 from ..model.verdicts import Level
-from ..protocol import Action, Frame, pose_blocks, request, tolerance_blocks, value_blocks
+from ..protocol import Action, Frame, peek_action, pose_blocks, request, tolerance_blocks, value_blocks
 from .case_judge import Expect, Inconclusive, answered, answered_error, check, fail
 from .pose_stream import (
     DEFAULT_POSE,
@@ -314,7 +314,8 @@ class SequenceRunner:
 
 def _action_byte(data: bytes) -> Action | None:
     try:
-        return Action(data[5]) if len(data) > 5 else None
+        action = peek_action(data)
+        return None if action is None else Action(action)
     except ValueError:
         return None
 

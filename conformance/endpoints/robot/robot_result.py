@@ -10,10 +10,10 @@ import math
 import statistics
 from dataclasses import dataclass, field
 
-from ..model.exit_codes import EXIT_CONNECTION, EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, EXIT_TIMEOUT
-from ..model.percentiles import percentile
-from ..protocol import Frame, ResultCode, TransferType
-from ..protocol.frames import PoseBlock, ValueBlock
+from ...model.exit_codes import EXIT_CONNECTION, EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, EXIT_TIMEOUT
+from ...model.percentiles import percentile
+from ...protocol import Frame, ResultCode, TransferType
+from ...protocol.frames import PoseBlock, ValueBlock
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """One robot connection as the suite sees it: an asyncio protocol that records the bytes
 in the connection's transcript, answers through the reference box's
-:class:`~conformance.endpoints.connection.BoxConnection` (its trace says what the box
+:class:`~conformance.endpoints.box_connection.BoxConnection` (its trace says what the box
 decided for each request, which becomes an :class:`~.records.Exchange`), holds answers
 back (``--inject slow``), closes mid-cycle (``--inject close-mid-cycle``) and records who
 closed the connection. Session bookkeeping is the listener's (:mod:`.listener`); this
@@ -17,7 +17,7 @@ from contextlib import AbstractContextManager
 from typing import Any, Protocol, cast
 
 from ..endpoints.behaviour import BoxBehaviour, Decision, Reaction
-from ..endpoints.connection import BoxConnection
+from ..endpoints.box_connection import BoxConnection
 from ..harness.transcript import Endpoint, Kind
 from ..observed.connections import (
     BY_BOX,

@@ -22,9 +22,9 @@ import enum
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from ..protocol import Action, ErrorCode, Frame, ProtocolError, ResultCode
-from ..protocol.answers import SENDABLE_RESULTS
-from ..protocol.frames import ValueBlock
+from ...protocol import Action, ErrorCode, Frame, ProtocolError, ResultCode
+from ...protocol.answers import SENDABLE_RESULTS
+from ...protocol.frames import ValueBlock
 from .robot_result import EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, RobotResult
 
 

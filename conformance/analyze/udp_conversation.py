@@ -27,7 +27,7 @@ from ..protocol import (
     crc_function,
     decode_datagram,
 )
-from .context import Context
+from .analysis_context import Context
 from .exchanges import ConnJudge
 from .findings import BOX, ROBOT
 from .packets import endpoints, format_endpoint

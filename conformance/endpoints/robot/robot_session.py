@@ -23,9 +23,9 @@ import time
 from collections import deque
 from collections.abc import Awaitable, Callable, Sequence
 
-from ..harness.target import Target
-from ..harness.trajectory import Pose, PrimerTrajectory
-from ..protocol import (
+from ...harness.target import Target
+from ...harness.trajectory import Pose, PrimerTrajectory
+from ...protocol import (
     DEFAULT_PORT,
     DEFAULT_PROFILE,
     Action,
@@ -36,7 +36,7 @@ from ..protocol import (
     request,
     value_blocks,
 )
-from .loop import run_loop
+from ..loop import run_loop
 from .robot_io import SessionIO, Stop
 from .robot_result import (
     EXIT_CONNECTION,

@@ -14,8 +14,6 @@ from ..protocol import Action, Frame, ProtocolError, StreamDecoder, TransferType
 from ..protocol.constants import MAX_FRAME_LEN
 from .behaviour import BoxBehaviour, Reaction, Tracer
 
-_POSE_FRAME_LEN = 39  # 12 + 25 + 2: the stream's frame
-
 
 class BoxConnection:
     """One TCP connection, sans-I/O: ``receive_data(bytes) -> answer bytes``.

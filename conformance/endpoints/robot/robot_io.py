@@ -13,8 +13,8 @@ import time
 from collections.abc import Callable
 from typing import cast
 
-from ..harness.target import Target
-from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, codec_for
+from ...harness.target import Target
+from ...protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, codec_for
 from .robot_result import EXIT_CONNECTION, EXIT_OK, EXIT_TIMEOUT, RobotResult, TimelineEntry
 from .robot_steps import Judgement, RobotFaults
 
