@@ -25,10 +25,13 @@ from __future__ import annotations
 
 from conformance.protocol import (
     Action,
+    BlockType,
     Frame,
     PoseBlock,
     TransferType,
     encode,
+    header_field_bytes,
+    peek_header,
     request,
     value_blocks,
 )
@@ -59,9 +62,9 @@ def test_answer_byte_order(isight: CaseContext) -> None:
     order = isight.profile.byte_order
     judged: list[str] = []
 
-    def expect(raw: bytes, offset: int, value: int, what: str, sent: bytes) -> None:
+    def expect(raw: bytes, field: str, value: int, what: str, sent: bytes) -> None:
         want = value.to_bytes(2, order)  # type: ignore[arg-type]
-        got = raw[offset:offset + 2]
+        got = header_field_bytes(raw, field)
         if got == want:
             judged.append(what)
             return
@@ -69,8 +72,8 @@ def test_answer_byte_order(isight: CaseContext) -> None:
             isight.details.setdefault("not_judged", []).append(f"{what}: read {got.hex(' ')} (not F4's business)")
             return
         # the same defect as every other case sees in those answers: group them under one root cause
-        signature = {2: Signature(Sig.ANSWER, clause="F2", field="version", value=got.hex()),
-                     10: Signature(Sig.SWAPPED, "error-code")}.get(offset)
+        signature = {"version": Signature(Sig.ANSWER, clause="F2", field="version", value=got.hex()),
+                     "error_code": Signature(Sig.SWAPPED, "error-code")}.get(field)
         raise isight.broken(expected=want.hex(" "), observed=f"{got.hex(' ')}: {what} in the other byte order",
                             sent=sent, received=raw, signature=signature, order=order, what=what)
 
@@ -79,20 +82,20 @@ def test_answer_byte_order(isight: CaseContext) -> None:
     raw = conn.request(sent, "NONE request").raw
     if len(raw) < 12:
         answers_other_order_only(isight, sent)
-    expect(raw, 2, 1, "version 00 01", sent)
+    expect(raw, "version", 1, "version 00 01", sent)
     first = isight.profile.first_index
     gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(first, POSE), PoseBlock(first + 2, POSE)))
     bad = encode(gap, isight.profile)
     raw = isight.send_malformed(bad, "two poses with indexes first, first+2 (B3 gap): answered 1001?").raw
-    if len(raw) >= 12 and raw[10:12] in (b"\x10\x01", b"\x01\x10"):
-        expect(raw, 10, 0x1001, "error code 1001", bad)
+    if header_field_bytes(raw, "error_code") in (b"\x10\x01", b"\x01\x10"):
+        expect(raw, "error_code", 0x1001, "error code 1001", bad)
     if isight.session.detect_extension(isight.transcript):
         sent = encode(request(Action.PROG_IDX, value_blocks([5], first)), isight.profile)
         conn = isight.connect()
         conn.request(sent, "ProgIdx 5: block length reads 5?")
         raw = isight.transcript.received(conn.conn_id)  # the wire bytes: a swapped L would derail the decoder
-        if len(raw) >= 12 and raw[6] == 0x03:
-            expect(raw, 8, 5, "block length 5", sent)
+        if getattr(peek_header(raw), "block_type", None) == BlockType.VALUE:
+            expect(raw, "block_length", 5, "block length 5", sent)
     isight.details["checked"] = judged
     if not judged:
         raise Inconclusive("the box sent no answer whose multi-byte fields could be read")

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from conformance.harness.client import Answer, Malformed
-from conformance.protocol import Action, Header, Transport, encode, encode_raw, pose_blocks, request
+from conformance.protocol import Action, Header, Transport, encode, encode_raw, header_field_bytes, pose_blocks, request
 from conformance.protocol.constants import START_BYTES
 from conformance.suite import (
     ANSWERED,
@@ -27,8 +27,9 @@ from conformance.suite.frame_checks import (
       checks={"answered": ANSWERED_0, "": Requirement(("F1",), "the start word is FE FE")})
 def test_answer_start_word(isight: CaseContext) -> None:
     _, raw = answer_bytes(isight)
-    if raw[:2] != START_BYTES:
-        raise isight.broken(expected="fe fe", observed=raw[:2].hex(" "), received=raw)
+    got = header_field_bytes(raw, "start_word")
+    if got != START_BYTES:
+        raise isight.broken(expected="fe fe", observed=got.hex(" "), received=raw)
 
 
 @case("F1-02", ["F1", "A5", "R1"], Level.MUST, "A frame with a wrong start word is not answered 0000",
@@ -44,8 +45,9 @@ def test_wrong_start_word(isight: CaseContext) -> None:
       checks={"answered": ANSWERED_0, "": Requirement(("F2",), "the version is 00 01")})
 def test_answer_version(isight: CaseContext) -> None:
     _, raw = answer_bytes(isight)
-    if raw[2:4] != b"\x00\x01":
-        raise isight.broken(expected="00 01", observed=raw[2:4].hex(" "), received=raw)
+    got = header_field_bytes(raw, "version")
+    if got != b"\x00\x01":
+        raise isight.broken(expected="00 01", observed=got.hex(" "), received=raw)
 
 
 @case("F2-02", ["F2", "A5", "R1"], Level.MUST, "A frame with version 00 02 is not answered 0000",

@@ -23,6 +23,8 @@ from conformance.harness.client import Answer
 from conformance.protocol import (
     Action,
     ErrorCode,
+    peek_action,
+    peek_header,
     request,
 )
 from conformance.suite import NOT_OK, CaseContext, Expect, Level, Requirement, answered, case
@@ -58,7 +60,9 @@ from conformance.suite.vector_checks import (
 @pytest.mark.parametrize("vector", params("valid"))
 def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = applicable(isight, vector)
-    action = Action(v.data[5])
+    head = peek_header(v.data)
+    assert head is not None  # a valid vector is a whole frame
+    action = Action(head.action)
     conn = isight.connect()
     if action in (Action.CYCLE_ON, Action.CYCLE_OFF):  # judge from a known state (S3: CycleOn twice MAY fail)
         prep = Action.CYCLE_OFF if action is Action.CYCLE_ON else Action.CYCLE_ON
@@ -102,7 +106,7 @@ def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
                       f"the box {outcome.describe()}")
         return
     isight.judge(outcome, sent=v.data, vector=v, clauses=", ".join(v.clauses), clause=v.clauses[0], named=named,
-                 action=v.data[5] if len(v.data) > 5 else None)
+                 action=peek_action(v.data))
 
 
 # -- acceptable ------------------------------------------------------------------------------------

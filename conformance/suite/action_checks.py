@@ -10,6 +10,8 @@ from ..protocol import (
     Profile,
     encode,
     encode_raw,
+    header_field_bytes,
+    peek_header,
     pose_blocks,
     request,
     tolerance_blocks,
@@ -74,12 +76,16 @@ def judge_sequence(isight: CaseContext, conn: TcpConnection, frames: list[Frame]
 
 def shape_problems(raw: bytes, action: int) -> list[str]:
     problems = []
-    if raw[4:5] != b"\x10":
-        problems.append(f"transfer type {raw[4]:02x}, expected 10 (F3)")
-    if raw[5] != action:
-        problems.append(f"action {raw[5]:02x}, expected the request's {action:02x}")
-    if raw[6:10] != b"\x00\x00\x00\x00":
-        problems.append(f"block type/N/L {raw[6:10].hex(' ')}, expected 00 00 00 00")
+    head = peek_header(raw)
+    if head is None:
+        return [f"{len(raw)} bytes, expected 14"]
+    if not head.is_answer:
+        problems.append(f"transfer type {head.transfer_type:02x}, expected 10 (F3)")
+    if head.action != action:
+        problems.append(f"action {head.action:02x}, expected the request's {action:02x}")
+    shape = b"".join(header_field_bytes(raw, f) for f in ("block_type", "block_count", "block_length"))
+    if shape != b"\x00\x00\x00\x00":
+        problems.append(f"block type/N/L {shape.hex(' ')}, expected 00 00 00 00")
     if len(raw) != 14:
         problems.append(f"{len(raw)} bytes, expected 14")
     return problems

@@ -24,6 +24,7 @@ from ..protocol import (
     TransferType,
     ValueBlock,
     codec_for,
+    header_field_bytes,
 )
 from ..protocol.answers import Cycle, allowed_codes, allowed_values
 from ..protocol.constants import START_WORD
@@ -224,7 +225,7 @@ def answer_signature(error: ProtocolError, asked: int | None = None) -> Signatur
     if h is None:
         return Signature(Sig.ANSWER, clause=clause, field="not-a-frame")
     field, value = {
-        "F1": ("start", raw[:2].hex()),
+        "F1": ("start", header_field_bytes(raw, "start_word").hex()),
         "F2": ("version", f"{h.version:04x}"),
         "F3": ("transfer-type", f"{h.transfer_type:02x}"),
         "F6": ("check", raw[-2:].hex() if len(raw) >= 14 else ""),

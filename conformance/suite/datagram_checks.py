@@ -8,11 +8,11 @@ from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, UdpCha
 from ..protocol import (
     Action,
     Frame,
-    Profile,
     Transport,
     crc16_names,
     crc_function,
     encode,
+    peek_action,
     pose_blocks,
     request,
 )
@@ -33,16 +33,8 @@ def pose_request(isight: CaseContext, action: Action = Action.POSE) -> Frame:
     return request(action, pose_blocks([POSE], isight.profile.first_index))
 
 
-def header_field(data: bytes, offset: int, profile: Profile) -> int | None:
-    """A 2-byte header field of a datagram, read in the profile's byte order (None if too short)."""
-    if len(data) < offset + 2:
-        return None
-    return int.from_bytes(data[offset:offset + 2], profile.byte_order)  # type: ignore[arg-type]
-
-
 def action_of(outcome: Outcome) -> int | None:
-    raw = outcome.raw
-    return raw[5] if len(raw) >= 6 else None
+    return peek_action(outcome.raw)
 
 
 def crc_matches(body: bytes, check: bytes) -> list[str]:

@@ -14,6 +14,7 @@ from ..protocol import (
     crc_function,
     encode,
     encode_body,
+    header_field_bytes,
     peek_header,
     pose_blocks,
     request,
@@ -238,7 +239,7 @@ def answers_other_order_only(isight: CaseContext, sent: bytes) -> None:
                                     "one got no answer)")
     if ok(outcome, Action.NONE):
         raise isight.broken("header-order", expected=f"NONE with {isight.profile.byte_order}-endian fields answered 0000",
-                            observed=f"only NONE with {other}-endian fields (version {data[2:4].hex(' ')}) is answered "
+                            observed=f"only NONE with {other}-endian fields (version {header_field_bytes(data, 'version').hex(' ')}) is answered "
                                      f"0000 (rerun with --byte-order={other} to test the rest)",
                             sent=sent, received=outcome.raw, order=isight.profile.byte_order)
     raise Inconclusive("the box answered NONE in neither byte order: nothing to read (A4/T1 judge the silence)")

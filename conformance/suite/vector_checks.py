@@ -18,11 +18,11 @@ from ..protocol import (
     TransferType,
     Transport,
     codec_for,
-    parse_header,
+    peek_header,
     request,
 )
 from ..protocol.answers import Cycle
-from ..protocol.constants import START_BYTES
+from ..protocol.constants import CHECK_LEN
 from .case_context import CaseContext
 from .case_judge import Skip, answered, answered_allowed
 from .record import Expect
@@ -48,7 +48,8 @@ def params(result: str) -> list[Any]:
 
 
 def has_blocks(v: Vector) -> bool:
-    return len(v.data) >= HEADER_LEN and v.data[7] > 0
+    head = peek_header(v.data)
+    return head is not None and head.block_count > 0
 
 
 def applicable(isight: CaseContext, v: Vector | None) -> Vector:
@@ -79,10 +80,8 @@ def run_profile_accepts(isight: CaseContext, v: Vector) -> bool:
 
 
 def announced_len(data: bytes) -> int:
-    if len(data) < HEADER_LEN:
-        return HEADER_LEN + 2
-    h = parse_header(data)
-    return HEADER_LEN + h.block_count * h.block_length + 2
+    head = peek_header(data)
+    return HEADER_LEN + CHECK_LEN if head is None else head.frame_length
 
 
 def restore_idle(isight: CaseContext, outcome: Outcome, conn: Any) -> None:
@@ -119,13 +118,13 @@ def valid_expect(v: Vector, action: Action, conflict: str = "block") -> Expect:
 
 def named_error(v: Vector) -> int | None:
     """A3: the error PROTOCOL.md names for this vector's parse error, if any."""
-    d = v.data
-    if len(d) < HEADER_LEN or d[:4] != START_BYTES + b"\x00\x01" or d[4] != 0x01:
+    head = peek_header(v.data)
+    if head is None or not (head.start_ok and head.version_ok and head.is_request):
         return None
     if not v.clauses or v.clauses[0] not in ("B1", "B2", "B3", "B4", "B5"):
         return None
     try:
-        return ACTION_ERROR.get(Action(d[5]))
+        return ACTION_ERROR.get(Action(head.action))
     except ValueError:
         return None
 

@@ -15,6 +15,7 @@ from typing import cast
 
 from ...harness.target import Target
 from ...protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, codec_for
+from ...protocol.constants import HEADER_FIELDS
 from .robot_result import EXIT_CONNECTION, EXIT_OK, EXIT_TIMEOUT, RobotResult, TimelineEntry
 from .robot_steps import Judgement, RobotFaults
 
@@ -158,7 +159,8 @@ class SessionIO:
         data = self._codec.encode(frame)
         faults = self.faults
         if faults.block_length is not None and frame.blocks:
-            data = data[:8] + self._codec.pack_u16(faults.block_length) + data[10:]
+            at, width = HEADER_FIELDS["block_length"]  # B1/F5: announce the wrong L, keep the body
+            data = data[:at] + self._codec.pack_u16(faults.block_length) + data[at + width:]
         if faults.encode_hook is not None:
             data = faults.encode_hook(frame, data)
         return data
