@@ -59,7 +59,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 @pytest.fixture(autouse=True)
 def _english_unless_a_test_chooses(monkeypatch: pytest.MonkeyPatch) -> None:
     """The commands take their language from the locale (--lang's default); the tests assert English
-    output, so a Chinese locale on the test machine is overridden (tests/test_i18n.py sets its own)."""
+    output, so a Chinese locale on the test machine is overridden (tests/integration/test_i18n.py sets its own)."""
     from conformance.i18n import default_lang
 
     if default_lang() != "en":

@@ -10,7 +10,7 @@ and ``flag`` names it for each non-default alternative).
 
 ``knob`` names the setting of the independent implementations in ``tests/impls`` that
 takes exactly these alternatives (the box's :class:`Choices`, the robot's
-``RobotChoices``); tests/test_impls_legal.py fails when a row has an alternative that is
+``RobotChoices``); tests/unit/test_impls_legal.py fails when a row has an alternative that is
 no knob value, or a knob has no row. docs/LEGAL-CHOICES.md is :func:`render_markdown`
 (a test keeps it in step): ``python -m conformance.protocol.legal > docs/LEGAL-CHOICES.md``.
 """

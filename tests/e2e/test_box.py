@@ -42,7 +42,7 @@ from conformance.protocol import (
 
 pytestmark = pytest.mark.timeout(60)
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 POSE = (812.5, -100.25, 250.0, 180.0, 4.5, -0.5)
 POSE_FRAME = encode(request(Action.POSE, pose_blocks([POSE])))
 

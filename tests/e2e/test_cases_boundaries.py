@@ -12,7 +12,7 @@ from typing import Any
 
 from conformance.protocol import ACTION_ERROR, Action, answer, encode
 from tests.boxes import ScriptedBox
-from tests.test_cases_extension_udp import run_suite, verdicts
+from tests.e2e.test_cases_extension_udp import run_suite, verdicts
 
 HEADER = 12
 KNOWN = {int(a) for a in Action}

@@ -7,7 +7,7 @@ end FAIL (MUST) or NON-STRICT (SHOULD), and nothing else must fail.
 
 Results come from ``summary.json`` (``--report-dir``) when the report writer is
 installed, else from this module loaded as a plugin in the subprocess
-(``-p tests.test_cases_extension_udp``), whose ``pytest_sessionfinish`` dumps the
+(``-p tests.e2e.test_cases_extension_udp``), whose ``pytest_sessionfinish`` dumps the
 suite's case results as JSON.
 """
 
@@ -38,7 +38,7 @@ from conformance.protocol import (
     value_blocks,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DUMP_ENV = "ISIGHT_SELFTEST_DUMP"
 RUN_TIMEOUT_S = 90
 
@@ -87,7 +87,7 @@ def run_suite(tmp_path: Path, cases: list[str], box: BoxThread | None = None, *e
     else:
         summary = tmp_path / "dump.json"
         env[DUMP_ENV] = str(summary)
-        args += ["-p", "tests.test_cases_extension_udp"]
+        args += ["-p", "tests.e2e.test_cases_extension_udp"]
     proc = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
     assert summary.is_file(), f"no results (exit {proc.returncode}):\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
     doc = json.loads(summary.read_text(encoding="utf-8"))

@@ -34,7 +34,7 @@ pytestmark = pytest.mark.timeout(60)
 LOOSE = {"rate_tolerance": 0.5, "jitter_tolerance": 3.0}
 FAST = Profile(time_out_ms=1000, vision_time_out_ms=1000)
 POSE = encode(request(Action.POSE, pose_blocks([(800.0, 0.0, 300.0, 180.0, 0.0, 0.0)])))
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LUA = ROOT / "conformance" / "wireshark" / "isight.lua"
 
 

@@ -36,11 +36,10 @@ from conformance.protocol import (
 )
 from conformance.protocol.clauses import all_clauses
 from conformance.suite.verdicts import Level
-
-from .boxes import ScriptedBox, answering
+from tests.boxes import ScriptedBox, answering
 
 pytestmark = pytest.mark.timeout(300)
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: MUST clauses of the registry that need no mutant of their own, and why (R6 is a SHOULD).
 NO_MUTANT = {

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from conformance.protocol import Action, answer, encode
 from tests.boxes import ScriptedBox
-from tests.test_cases_extension_udp import _udp_answers_bad_crc, reference_box, run_suite
+from tests.e2e.test_cases_extension_udp import _udp_answers_bad_crc, reference_box, run_suite
 
 HEADER = 12
 KNOWN = {int(a) for a in Action}

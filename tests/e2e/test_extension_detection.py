@@ -34,7 +34,7 @@ from conformance.protocol import (
 )
 from conformance.suite.extension import detect_extension
 from tests.boxes import ScriptedBox, answering, silent
-from tests.test_cases_extension_udp import Patch, failing, reference_box, run_suite, verdicts
+from tests.e2e.test_cases_extension_udp import Patch, failing, reference_box, run_suite, verdicts
 
 PROFILE = Profile(time_out_ms=2000)
 E = (Action.PROG_IDX, Action.VISION_RESULT)

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from conformance.cli import main
-from tests.test_fuzz_campaign import patched_box, zero_to_unknown_action
+from tests.integration.test_fuzz_campaign import patched_box, zero_to_unknown_action
 
 pytestmark = pytest.mark.timeout(240)
 

@@ -13,7 +13,7 @@ from hypothesis.database import DirectoryBasedExampleDatabase
 from conformance.cli import main
 from conformance.fuzz.cli import DEFAULT_DATABASE, resolve_database
 from conformance.vectors import REPO_VECTORS
-from tests.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, zero_to_bad_pose_index
+from tests.integration.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, zero_to_bad_pose_index
 
 pytestmark = pytest.mark.timeout(120)
 

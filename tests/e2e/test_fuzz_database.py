@@ -23,7 +23,7 @@ from hypothesis.database import DirectoryBasedExampleDatabase, MultiplexedDataba
 
 from conformance.cli import main
 from conformance.fuzz.database import redact, resolve_database
-from tests.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, zero_to_bad_pose_index
+from tests.integration.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, zero_to_bad_pose_index
 
 pytestmark = pytest.mark.timeout(240)
 

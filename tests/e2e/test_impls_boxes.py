@@ -23,7 +23,7 @@ from tests.impls.expectations import EXPECTATIONS
 from tests.impls.framers import Close, Frame, Framer, Framing, Garbage, Rejected, ResyncFine, SkipHeader, TrustHeader
 from tests.impls.policy import knob_choices
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NONE = bytes.fromhex("fefe 0001 01 00 00 00 0000 0000 0000")
 NONE_OK = bytes.fromhex("fefe 0001 10 00 00 00 0000 0000 0000")
 CYCLE_ON = bytes.fromhex("fefe 0001 01 01 00 00 0000 0000 0000")

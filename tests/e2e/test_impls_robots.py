@@ -19,7 +19,7 @@ from tests.impls.expectations import EXPECTATIONS
 from tests.impls.robot import ROBOTS, run_robot
 from tests.impls.robots import Outcome, Robot
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DURATION = 0.4
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 pytestmark = pytest.mark.impls
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LIMIT_S = 420  # the suite's wall-clock bound
 
 #: configuration -> the profile flags its readings need (PROFILE-01 prints them)

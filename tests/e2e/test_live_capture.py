@@ -22,7 +22,7 @@ from conformance.evidence.live import CaptureError, LiveCapture, default_bpf
 from conformance.evidence.pcap import PcapRecorder
 from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, request
-from tests.test_pcap import LUA, Box, Client, pose
+from tests.e2e.test_pcap import LUA, Box, Client, pose
 
 TSHARK = shutil.which("tshark")
 

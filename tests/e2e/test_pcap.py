@@ -60,7 +60,7 @@ from conformance.protocol import (
     tolerance_blocks,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LUA = Path(os.environ.get("ISIGHT_DISSECTOR", ROOT / "conformance" / "wireshark" / "isight.lua"))
 TSHARK = shutil.which("tshark")
 IO_TIMEOUT = 10.0  # seconds a socket call may block before the test fails (never hit)

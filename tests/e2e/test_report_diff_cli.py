@@ -17,9 +17,8 @@ from conformance.report.diff_cli import apply_baseline, load_baseline
 from conformance.report.load import SummaryError
 from conformance.report.summary import write_summary
 from conformance.suite.verdicts import Verdict
-
-from .boxes import ScriptedBox, answering
-from .test_report_summary import sample_cases, sample_suite
+from tests.boxes import ScriptedBox, answering
+from tests.unit.test_report_summary import sample_cases, sample_suite
 
 
 def _runs(tmp_path: Path, worse: bool) -> tuple[Path, Path]:

@@ -15,9 +15,8 @@ import pytest
 
 from conformance import i18n
 from conformance.report.html import write_html
-
-from .reportruns import chromium, conforming_run, pdf_pages, print_to_pdf, systematic_defect, without_root_causes
-from .test_report_summary import sample_root_causes, sample_suite
+from tests.reportruns import chromium, conforming_run, pdf_pages, print_to_pdf, systematic_defect, without_root_causes
+from tests.unit.test_report_summary import sample_root_causes, sample_suite
 
 pytestmark = [
     pytest.mark.skipif(chromium() is None, reason="headless Chromium is not installed (apt-get install chromium)"),

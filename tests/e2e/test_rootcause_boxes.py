@@ -108,7 +108,7 @@ def run_suite(box: Box, tmp_path: Path) -> dict[str, Any]:
                "--extension", "off", "--time-out", "2000", "--capture", "off",
                "--report-dir", str(tmp_path / "report"), "--pcap-dir", str(tmp_path / "pcaps")]
     done = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path,
-                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])})
+                          env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])})
     assert done.returncode == 1, done.stdout[-2000:] + done.stderr[-2000:]
     [summary] = (tmp_path / "report").rglob("summary.json")
     doc: dict[str, Any] = json.loads(summary.read_text())

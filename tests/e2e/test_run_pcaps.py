@@ -40,7 +40,7 @@ from conformance.harness.transcript import Kind, Transcript
 from conformance.protocol import Frame, ProtocolError, StreamDecoder, TransferType, decode_datagram
 from conformance.pytest_plugin import CTX
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 LUA = ROOT / "conformance" / "wireshark" / "isight.lua"
 TSHARK = shutil.which("tshark")
 CASES = [

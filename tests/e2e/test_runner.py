@@ -14,8 +14,7 @@ from pathlib import Path
 import pytest
 
 from conformance.protocol import ErrorCode, answer, encode
-
-from .boxes import ScriptedBox, answering, close_at_once, silent
+from tests.boxes import ScriptedBox, answering, close_at_once, silent
 
 pytestmark = pytest.mark.timeout(240)
 
@@ -126,7 +125,7 @@ def test_list_prints_the_catalogue(tmp_path: Path) -> None:
 
 def test_catalogue_doc_is_generated_from_the_cases() -> None:
     """docs/CATALOGUE.md must be what `run --list --list-format markdown` prints today."""
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     proc = subprocess.run([sys.executable, "-m", "conformance", "run", "--list", "--list-format", "markdown"],
                           capture_output=True, text=True, timeout=60, cwd=root)
     assert proc.returncode == 0, proc.stderr

@@ -35,7 +35,7 @@ from conformance.evidence.scapy_layer import (
 )
 from conformance.protocol import DEFAULT_PROFILE
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 VECTOR_DIR = ROOT / "vectors" / "frames"
 _SPECIAL_FLOATS = {"NaN": math.nan, "Infinity": math.inf, "-Infinity": -math.inf}
 

@@ -34,10 +34,9 @@ from conformance.suite.sequence import (
 )
 from conformance.suite.settings import SuiteSettings
 from conformance.suite.verdicts import Level, Verdict
+from tests.unit.test_sequence_format import _write
 
-from .test_sequence_format import _write
-
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 # -- helpers ------------------------------------------------------------------------------------------------

@@ -29,7 +29,7 @@ import pytest
 from conformance.protocol.profile import crc16_names
 from tests.pcaputil import TcpConnection, udp_datagram, write_pcap
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 # ISIGHT_DISSECTOR: test another copy of the script (e.g. a deliberately broken one)
 LUA = Path(os.environ.get("ISIGHT_DISSECTOR", ROOT / "conformance" / "wireshark" / "isight.lua"))
 VECTOR_DIR = ROOT / "vectors" / "frames"

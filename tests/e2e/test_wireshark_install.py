@@ -19,7 +19,7 @@ from conformance.wireshark_cli import (
     plugins_folder,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TSHARK = shutil.which("tshark")
 needs_tshark = pytest.mark.skipif(TSHARK is None, reason="tshark is not installed: cannot ask it for its folders "
                                                         "or check that it loads the installed plugin")

@@ -8,8 +8,7 @@ from conformance.harness.client import Answer, Closed, Malformed, Silence, TcpCo
 from conformance.harness.target import Target, Unreachable
 from conformance.harness.transcript import Kind, Transcript
 from conformance.protocol import Action, ErrorCode, Profile, answer, encode, request
-
-from .boxes import ScriptedBox, answering, close_at_once, garbage, reset_at_once, silent
+from tests.boxes import ScriptedBox, answering, close_at_once, garbage, reset_at_once, silent
 
 FAST = Profile(time_out_ms=400)
 

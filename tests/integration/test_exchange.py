@@ -39,8 +39,7 @@ from conformance.suite.record import CaseRecord
 from conformance.suite.session import SessionState
 from conformance.suite.settings import SuiteSettings
 from conformance.suite.verdicts import Level, Verdict
-
-from .boxes import ScriptedBox, answering
+from tests.boxes import ScriptedBox, answering
 
 pytestmark = pytest.mark.timeout(60)
 P = Profile(time_out_ms=2000)

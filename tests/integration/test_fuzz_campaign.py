@@ -22,7 +22,7 @@ from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.protocol import DEFAULT_PROFILE, Action, Frame, ProtocolError, Transport, answer
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: The frame the planted "0000 to a pose with a wrong index" defect must shrink to:
 #: a one-block pose whose index is 1 (the profile's first index is 0), every float 0.0.
 SHRUNK_BAD_INDEX = "fefe00010123010100190000" + "01" + "00" * 24 + "0000"

@@ -9,8 +9,8 @@ from typing import Any
 
 import pytest
 
-from tests.test_fuzz_campaign import patched_box, zero_to_bad_pose_index
-from tests.test_fuzz_stateful import pose_error_during_a_cycle
+from tests.integration.test_fuzz_campaign import patched_box, zero_to_bad_pose_index
+from tests.integration.test_fuzz_stateful import pose_error_during_a_cycle
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -1,6 +1,6 @@
 """R2: which input killed the box (conformance/fuzz/death.py).
 
-Against ``DyingBox`` (``tests/test_fuzz_campaign.py``): a box that stops accepting
+Against ``DyingBox`` (``tests/integration/test_fuzz_campaign.py``): a box that stops accepting
 connections after a tolerance request with three blocks. A whole campaign that meets
 it is tested there.
 """
@@ -18,7 +18,7 @@ from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, encode_tcp, request, tolerance_blocks
-from tests.test_fuzz_campaign import DyingBox
+from tests.integration.test_fuzz_campaign import DyingBox
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -13,7 +13,7 @@ from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, Profile, Transport, answer, encode, encode_udp, pose_blocks, request
 from conformance.suite.verdicts import Verdict
 from tests.boxes import ScriptedBox, answering, silent
-from tests.test_fuzz_campaign import patched_box, zero_to_bad_pose_index
+from tests.integration.test_fuzz_campaign import patched_box, zero_to_bad_pose_index
 
 pytestmark = pytest.mark.timeout(60)
 P = Profile()

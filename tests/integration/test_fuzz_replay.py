@@ -12,7 +12,7 @@ from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.protocol import Action, Profile, encode, pose_blocks, request, tolerance_blocks
 from conformance.vectors import REPO_VECTORS
-from tests.test_fuzz_campaign import DyingBox, patched_box, zero_to_bad_pose_index
+from tests.integration.test_fuzz_campaign import DyingBox, patched_box, zero_to_bad_pose_index
 
 pytestmark = pytest.mark.timeout(60)
 GOLDEN = sorted((REPO_VECTORS / "frames").glob("*.json"))

@@ -15,7 +15,7 @@ from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.protocol import Action
 from conformance.protocol.answers import Cycle
-from tests.test_fuzz_campaign import config, patched_box, target_of
+from tests.integration.test_fuzz_campaign import config, patched_box, target_of
 
 pytestmark = pytest.mark.timeout(90)
 

@@ -14,7 +14,7 @@ from conformance.fuzz.stateful import run_stateful
 from conformance.fuzz.strategies import Strategies
 from conformance.protocol import Action, ErrorCode, Frame, ProtocolError, Transport, answer
 from conformance.suite.sequence import load as load_sequence
-from tests.test_fuzz_campaign import config, patched_box, target_of
+from tests.integration.test_fuzz_campaign import config, patched_box, target_of
 
 pytestmark = pytest.mark.timeout(90)
 

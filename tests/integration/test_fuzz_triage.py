@@ -1,7 +1,7 @@
 """The triage of a failing case (conformance/fuzz/triage.py): confirm, hand to hypothesis, state plainly, write.
 
 Against the reference box with the planted "0000 to a pose with a wrong index" defect
-(``tests/test_fuzz_campaign.py``); a whole campaign's use of it is tested there.
+(``tests/integration/test_fuzz_campaign.py``); a whole campaign's use of it is tested there.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from conformance.fuzz.strategies import Strategies
 from conformance.fuzz.triage import Triage
 from conformance.harness.transcript import Transcript
 from conformance.protocol import Action, encode_tcp, pose_blocks, request
-from tests.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, target_of, zero_to_bad_pose_index
+from tests.integration.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, target_of, zero_to_bad_pose_index
 
 pytestmark = pytest.mark.timeout(120)
 

@@ -22,8 +22,7 @@ from conformance.report.html import render_html
 from conformance.report.junit import junit_bytes
 from conformance.report.summary import overall_line, write_summary
 from conformance.report.terminal import print_final_table
-
-from .test_report_summary import sample_cases, sample_root_causes, sample_suite
+from tests.unit.test_report_summary import sample_cases, sample_root_causes, sample_suite
 
 CJK = re.compile(r"[\u4e00-\u9fff]")
 
@@ -176,8 +175,7 @@ def test_run_writes_its_reports_in_the_chosen_language(tmp_path: Path, monkeypat
 
 def test_the_fleet_page_in_chinese_keeps_the_statuses_machines_read(tmp_path: Path):
     from conformance.fleet.html import render_fleet_html
-
-    from .test_fleet_html import doc_for
+    from tests.unit.test_fleet_html import doc_for
 
     with i18n.language("zh-CN"):
         doc = doc_for(tmp_path)

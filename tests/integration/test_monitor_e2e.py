@@ -18,8 +18,7 @@ from conformance.endpoints.robot import RobotSession
 from conformance.protocol import DEFAULT_PROFILE
 from tests.impls.box import start_box
 from tests.impls.robot import run_robot as run_impl_robot
-
-from .monitor_util import monitored
+from tests.monitor_util import monitored
 
 
 @pytest.fixture

@@ -14,8 +14,7 @@ import pytest
 from conformance.endpoints.bundled import start_bundled
 from conformance.endpoints.robot import RobotSession
 from conformance.protocol import DEFAULT_PROFILE
-
-from .monitor_util import monitored, pcapng_comments
+from tests.monitor_util import monitored, pcapng_comments
 
 PROFILE = dataclasses.replace(DEFAULT_PROFILE, time_out_ms=1000)
 

@@ -10,8 +10,7 @@ import socket
 from pathlib import Path
 
 from conformance.analyze import AnalyzeConfig, analyze
-
-from .monitor_util import monitored
+from tests.monitor_util import monitored
 
 WAIT = 10.0
 

@@ -28,8 +28,7 @@ from conformance.suite.record import CaseRecord
 from conformance.suite.session import SessionState
 from conformance.suite.settings import SuiteSettings
 from conformance.suite.verdicts import Level
-
-from .boxes import ScriptedBox
+from tests.boxes import ScriptedBox
 
 pytestmark = pytest.mark.timeout(60)
 P = Profile(time_out_ms=1500)  # every full wait in these tests costs this

@@ -416,6 +416,6 @@ def test_the_catalogue_reads_its_expectations_from_the_answer_table() -> None:
             assert exp.matches(got(action, code)) == (codes is None or code in codes), (cycle, action, code)
     result = answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT))
     assert result.matches(got(Action.VISION_RESULT, 0, 202)) and not result.matches(got(Action.VISION_RESULT, 0, 404))
-    cases = Path(__file__).resolve().parents[1] / "conformance" / "cases"
+    cases = Path(__file__).resolve().parents[2] / "conformance" / "cases"
     literal = re.compile(r"answered\([^()]*\[\s*\d")
     assert [p.name for p in cases.glob("*.py") if literal.search(p.read_text())] == []

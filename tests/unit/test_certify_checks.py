@@ -18,7 +18,7 @@ from conformance.report.svg import histogram_svg
 from conformance.suite.rootcause import find_root_causes
 from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import SuiteInfo, Verdict
-from tests.test_certify_session import POSE, Fake, canonical, frame
+from tests.unit.test_certify_session import POSE, Fake, canonical, frame
 
 NS = "{http://www.w3.org/2000/svg}"
 

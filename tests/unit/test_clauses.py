@@ -139,7 +139,7 @@ def test_the_shipped_file_parses_to_the_same_clauses():
 
 
 # -- docs/PROTOCOL.md says the same -------------------------------------------------------------
-DOC = Path(__file__).resolve().parents[1] / "docs" / "PROTOCOL.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "PROTOCOL.md"
 _HEADING = re.compile(r"^#### ([A-Z][0-9]+) · ([A-Z, ]+) · (.+)$")
 _FAMILY = re.compile(r"^### ([A-Z]) — (.+)$")
 

@@ -43,8 +43,7 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
-
-from .strategies import frames
+from tests.strategies import frames
 
 R2B, B2R = TransferType.ROBOT_TO_BOX, TransferType.BOX_TO_ROBOT
 POSE_HEX = (

@@ -19,8 +19,7 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
-
-from .test_behaviour import POSE, _header, answers, box, pose_frame, req
+from tests.unit.test_behaviour import POSE, _header, answers, box, pose_frame, req
 
 pytestmark = pytest.mark.timeout(60)
 

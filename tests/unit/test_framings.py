@@ -4,7 +4,7 @@ R6: a receiver that meets bad bytes may (a) trust a header whose start word and 
 are right and skip its announced length, (b) reject the header and resume at the next
 FE FE searching from any offset 1..12 after its first byte, or (c) close. The Reader must
 offer every one of them, and nothing else; which one a box chose is explain.py's search
-(tests/test_explain.py). Bytes are built with the codec; no sockets.
+(tests/unit/test_explain.py). Bytes are built with the codec; no sockets.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from conformance import i18n  # noqa: E402
 from conformance.i18n import update  # noqa: E402
 from conformance.protocol.clauses import all_clauses, families  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CATALOGUES = {lang: update.LOCALE / i18n.LOCALE_DIRS[lang] / "LC_MESSAGES" for lang in i18n.LANGS if lang != "en"}
 CJK = re.compile(r"[\u4e00-\u9fff]")
 SAME_IN_CHINESE = {"JUnit", "Box", "Boxes"}  # the glossary keeps "AI Box"; JUnit is a name

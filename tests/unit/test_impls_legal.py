@@ -16,7 +16,7 @@ from tests.impls.box import VARIANTS, variant
 from tests.impls.robot import ROBOTS
 from tests.impls.robot import variant as robot_variant
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 KNOBS = {"box": policy.KNOBS, "robot": robots.KNOBS}
 
 

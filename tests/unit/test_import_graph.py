@@ -10,7 +10,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-PACKAGE = Path(__file__).resolve().parents[1] / "conformance"
+PACKAGE = Path(__file__).resolve().parents[2] / "conformance"
 MAX_LINES = 450
 
 

@@ -2,7 +2,7 @@
 
 Each frame is read back with scapy (no traffic: the bytes are only parsed). The byte
 comparison with scapy's own checksums, and the files these packets go into, are in
-``tests/test_pcap.py``.
+``tests/e2e/test_pcap.py``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The pcapng container (conformance/evidence/pcapng.py): blocks, interfaces, comments, an unbuffered writer.
 
 The file is parsed here block by block (the pcapng layout), and read with scapy's
-reader; Wireshark/tshark reading whole recorded cases is in ``tests/test_pcap.py``.
+reader; Wireshark/tshark reading whole recorded cases is in ``tests/e2e/test_pcap.py``.
 """
 
 from __future__ import annotations

@@ -8,8 +8,7 @@ import json
 from conformance.report.diff import MARKDOWN_ROWS, compare, render, render_markdown, render_text, summary_line
 from conformance.report.summary import write_summary
 from conformance.suite.verdicts import CaseResult, Level, RootCause, Verdict
-
-from .test_report_summary import sample_cases, sample_suite
+from tests.unit.test_report_summary import sample_cases, sample_suite
 
 
 def _docs(tmp_path, new_cases, old_cases=None, new_suite=None, old_rcs=(), new_rcs=()):

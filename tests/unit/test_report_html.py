@@ -17,8 +17,7 @@ from conformance.report.html import WIRE_HEAD, WIRE_TAIL, pcap_href
 from conformance.report.html_cases import PRINT_CARDS, WIRE_PRINT_HEAD, WIRE_PRINT_TAIL
 from conformance.report.summary import CLAUSES, registry_version, write_summary
 from conformance.suite.verdicts import CaseResult, Level, Verdict, WireLine
-
-from .test_report_summary import sample_cases, sample_root_causes, sample_suite
+from tests.unit.test_report_summary import sample_cases, sample_root_causes, sample_suite
 
 VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "track", "wbr"}
 
@@ -234,7 +233,7 @@ def test_large_run_renders_quickly(tmp_path):
 
 
 def test_a_robot_certification_report_names_the_robot() -> None:
-    from .test_report_summary import sample_cases, sample_suite
+    from tests.unit.test_report_summary import sample_cases, sample_suite
 
     html = render_html(sample_suite(role="robot", target="robot at 127.0.0.1:9004 (client role)"), sample_cases())
     assert "Robot (client role) tested" in html and "The robot at" in html

@@ -1,6 +1,6 @@
 """junit.xml: Jenkins' schema, the counts CI tools read back, verdict mapping, escaping.
 
-``junit-10.xsd`` in this directory is Jenkins' JUnit schema, copied unchanged from the
+``junit-10.xsd`` in tests/ is Jenkins' JUnit schema, copied unchanged from the
 xUnit plugin (https://github.com/jenkinsci/xunit-plugin, file
 src/main/resources/org/jenkinsci/plugins/xunit/types/model/xsd/junit-10.xsd at commit
 8c515de2804b3fd591a3b0f1ff8908a1b1a41887; MIT licence, Copyright (c) 2014 Gregory
@@ -21,15 +21,14 @@ from conformance.report import write_junit, write_summary
 from conformance.report.clausetext import clause_text
 from conformance.report.junit import junit_timestamp
 from conformance.suite.verdicts import CaseResult, Level, Verdict
-
-from .test_report_summary import HOSTILE, sample_cases, sample_root_causes, sample_suite
+from tests.unit.test_report_summary import HOSTILE, sample_cases, sample_root_causes, sample_suite
 
 xmlschema = pytest.importorskip("xmlschema", reason="xmlschema is in the test extra: pip install -e '.[test]'")
 junitparser = pytest.importorskip("junitparser", reason="junitparser is in the test extra: pip install -e '.[test]'")
 
 OUTCOMES = {"failure", "error", "skipped"}
 TESTCASE_CHILDREN = OUTCOMES | {"system-out", "system-err"}
-SCHEMA = xmlschema.XMLSchema(str(Path(__file__).with_name("junit-10.xsd")))
+SCHEMA = xmlschema.XMLSchema(str(Path(__file__).resolve().parents[1] / "junit-10.xsd"))
 
 
 def _write(tmp_path, cases=None, suite=None, root_causes=()):

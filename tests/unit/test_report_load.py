@@ -15,8 +15,7 @@ from conformance.report.load import (
     summary_path,
 )
 from conformance.report.summary import write_summary
-
-from .test_report_summary import sample_cases, sample_root_causes, sample_suite
+from tests.unit.test_report_summary import sample_cases, sample_root_causes, sample_suite
 
 
 def test_round_trip(tmp_path):

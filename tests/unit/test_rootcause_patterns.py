@@ -1,7 +1,7 @@
 """Root causes that name the fix (conformance/suite/patterns.py, rootcause.py): a field wrong the same
 way in every answer, acceptance that changes at a block position, levels from what a cause explains.
 
-Runs are built as in tests/test_rootcause.py: each outcome goes through the judging routine and
+Runs are built as in tests/unit/test_rootcause.py: each outcome goes through the judging routine and
 ``result_of``, with the bytes a real case sends, so the signatures and quoted bytes are those of a run."""
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from conformance.suite.record import Requirement
 from conformance.suite.rootcause import SessionFacts, find_root_causes
 from conformance.suite.signature import Death, DeathKind, Sig, Signature
 from conformance.suite.verdicts import CaseResult, Level, Verdict
-from tests.test_rootcause import PARSE_ERROR, judged, malformed, marked, ok, parse_error, passed, raised, reply
+from tests.unit.test_rootcause import PARSE_ERROR, judged, malformed, marked, ok, parse_error, passed, raised, reply
 
 NONE, ON, OFF, POSE, REG, TOL = (Action.NONE, Action.CYCLE_ON, Action.CYCLE_OFF, Action.POSE, Action.REGISTER_POSE,
                                  Action.TOLERANCE)

@@ -31,8 +31,7 @@ from conformance.protocol import (
     pose_blocks,
     request,
 )
-
-from .strategies import frames, splits
+from tests.strategies import frames, splits
 
 POSE = request(Action.POSE, pose_blocks([(1, 2, 3, 4, 5, 6)]))
 CYCLE_ON = request(Action.CYCLE_ON)

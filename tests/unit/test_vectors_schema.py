@@ -13,7 +13,7 @@ import crcmod.predefined
 import jsonschema
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCHEMA_PATH = ROOT / "vectors" / "isight-vectors-1.schema.json"
 FRAME_FILES = sorted((ROOT / "vectors" / "frames").glob("*.json"))
 
