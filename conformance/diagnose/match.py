@@ -13,9 +13,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from ..model.verdicts import CaseResult, RootCause
 from ..protocol import parse_header
 from ..protocol.constants import HEADER_LEN, START_WORD
-from ..suite.verdicts import CaseResult, RootCause
 from .hypotheses import KINDS, Hypothesis, Mechanism, Status
 
 #: the catalogue's stories (root-cause kinds) and the mechanisms that are the same story told exactly

@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.target import Target
+from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..suite.rootcause import SessionFacts
-from ..suite.session import SessionState
-from ..suite.verdicts import CaseResult, Level, RootCause
+from ..suite.run_state import SessionState
 from . import families, match, titles
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found

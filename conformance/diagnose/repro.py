@@ -17,11 +17,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..evidence.vectors_file import SCHEMA, frame_to_dict
 from ..harness.target import Target
+from ..model.verdicts import RootCause
 from ..protocol import Profile, TransferType, Transport, codec_for
 from ..protocol.errors import ProtocolError
-from ..suite.verdicts import RootCause
-from ..vectors import SCHEMA, frame_to_dict
 from .experiments import Prober
 from .hypotheses import Expect
 

@@ -12,10 +12,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from ..model.signature import Sig, Signature
+from ..model.verdicts import CaseResult
 from ..protocol import ProtocolError, TransferType, Transport, parse_header
 from ..protocol.constants import HEADER_LEN, START_WORD
-from ..suite.signature import Sig, Signature
-from ..suite.verdicts import CaseResult
 from .experiments import Prober
 from .families import Found
 from .hypotheses import LEGAL_CODES, Exchange, Expect, Experiment, Mechanism, Status

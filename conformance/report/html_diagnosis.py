@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..suite.verdicts import RootCause
+from ..model.verdicts import RootCause
 
 #: at most this many exchanges per experiment, and bytes per frame, are shown (summary.json keeps 12 exchanges)
 SHOWN_EXCHANGES = 6

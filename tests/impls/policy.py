@@ -14,9 +14,10 @@ import random
 import threading
 from dataclasses import dataclass, fields, replace
 
-from . import systematic, wire
+from . import systematic
+from . import wire_format as wire
 from .framers import Close, Event, Frame, Framing, Garbage, Rejected
-from .wire import Check, Header
+from .wire_format import Check, Header
 
 #: The planted defects (one per broken box) and the clause each breaks.
 DEFECTS: dict[str, str] = {

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
-from . import wire
+from . import wire_format as wire
 from .framers import Close, Event, Frame
 
 POSE, REG, TOL, NONE, ON, OFF = wire.POSE, wire.REG_POSE, wire.TOLERANCE, wire.NONE, wire.CYCLE_ON, wire.CYCLE_OFF

@@ -9,9 +9,9 @@ import jsonschema
 
 from conformance.diagnose import repro
 from conformance.diagnose.hypotheses import Expect
+from conformance.evidence.vectors_file import REPO_VECTORS, load
+from conformance.model.verdicts import RootCause
 from conformance.protocol import Action, PoseBlock, Profile, codec_for, request
-from conformance.suite.verdicts import RootCause
-from conformance.vectors import REPO_VECTORS, load
 
 SCHEMA = json.loads((REPO_VECTORS / "isight-vectors-1.schema.json").read_text(encoding="utf-8"))
 
