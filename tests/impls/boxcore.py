@@ -249,6 +249,8 @@ class ThreadBox:
                 sent = conn.send(view)
             except TimeoutError:
                 continue
+            except (BrokenPipeError, ConnectionResetError):
+                return False  # the peer went away (a repro replayed, a probe closed): nothing left to answer
             view = view[sent:]
         return True
 
