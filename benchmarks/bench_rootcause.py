@@ -31,7 +31,7 @@ sys.path.insert(0, str(ROOT))
 from tests.impls.box import describe  # noqa: E402
 from tests.impls.boxcore import ThreadBox  # noqa: E402 - the project root first
 from tests.impls.policy import random_choices  # noqa: E402
-from tests.impls.systematic import FIXED, SYSTEMATIC  # noqa: E402
+from tests.impls.systematic import SYSTEMATIC, fixed_knobs  # noqa: E402
 
 GOAL_RIGHT = 0.95
 GOAL_PHASE_S = 20.0
@@ -64,13 +64,14 @@ def base_seed(name: str, base: int) -> int:
 
 def run_one(name: str, args: argparse.Namespace, out: Path) -> Row:
     seed = base_seed(name, args.base_seed)
-    choices = random_choices(seed, fixed=FIXED).with_defect(name)
+    choices = random_choices(seed, fixed=fixed_knobs(name)).with_defect(name)
     row = Row(name, SYSTEMATIC[name].mechanism, seed, knobs=describe(choices))
     work = out / name
     work.mkdir(parents=True, exist_ok=True)
     with ThreadBox(choices) as box:
         cmd = [sys.executable, "-m", "conformance", "run", "--target", f"127.0.0.1:{box.port}", "--quiet",
-               "--capture", "off", "--report-dir", str(work / "report"), *choices.suite_args()]
+               "--capture", "off", "--report-dir", str(work / "report"), "--time-out", str(args.time_out),
+               *choices.suite_args()]
         t0 = time.monotonic()
         try:
             done = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=args.limit,
@@ -106,7 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="+", metavar="NAME", help="only these defects")
     parser.add_argument("--base-seed", type=int, default=1, help="random legal bases drawn from B and the name")
     parser.add_argument("--jobs", type=int, default=1, help="boxes run at once (default 1)")
-    parser.add_argument("--limit", type=float, default=300, help="hard bound per suite run, seconds")
+    parser.add_argument("--limit", type=float, default=600, help="hard bound per suite run, seconds")
+    parser.add_argument("--time-out", type=int, default=2000, metavar="MS",
+                        help="the suite's time_out (default 2000, as tests/e2e runs broken boxes: a box that leaves "
+                             "requests unanswered costs a time_out in each of ~60 cases)")
     parser.add_argument("--out", type=Path, default=None, help="where reports go (default reports/bench-rootcause-*)")
     args = parser.parse_args(argv)
     threading.excepthook = _quiet

@@ -87,6 +87,14 @@ SYSTEMATIC: dict[str, Planted] = {
 }
 #: knobs a random base keeps fixed under these defects (TCP on one port, as the suite's run serves them)
 FIXED = {"udp": "off", "stream_port": "same"}
+#: ... and per defect: a pose refused in a cycle shows on the stream only when the cycle state is the box's (with a
+#: state per connection, no case sends a pose on the connection that holds the cycle: the catalogue sees nothing)
+FIXED_FOR = {"pose-refused-in-cycle": {"cycle_scope": "box"}}
+
+
+def fixed_knobs(defect: str) -> dict[str, str]:
+    """The knobs a random base keeps fixed under ``defect``."""
+    return FIXED | FIXED_FOR.get(defect, {})
 
 
 @dataclass
