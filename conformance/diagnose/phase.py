@@ -26,7 +26,7 @@ from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..suite.rootcause import SessionFacts
 from ..suite.run_state import SessionState
-from . import families, match, titles
+from . import deaths, families, match, titles
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
 from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
@@ -72,11 +72,12 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
     facts_by = {c.id: match.facts_of(c, cases) for c in causes}
     own: dict[str, Found] = {}
     probed = [c for c in causes if c.kind not in match.SESSION_KINDS]
-    prober = None
-    if target is not None and probed and not (facts.unresponsive or facts.deaths):
-        prober = Prober(target, profile, time_out_s, start + budget_s)
+    prober = None if target is None else Prober(target, profile, time_out_s, start + budget_s)
+    dead = {c.id: deaths.check(prober, c, cases) for c in causes if c.kind in deaths.DEATH_KINDS and prober is not None}
+    still_dead = any(v.confirmed for v in dead.values()) or (prober is None and bool(facts.unresponsive or facts.deaths))
+    if prober is not None and probed and not still_dead:
         _run(prober, lab, probed, facts_by, cases, own)
-    out = _assign(causes, facts_by, lab, own)
+    out = _assign(causes, facts_by, lab, own, dead)
     elapsed = round(time.monotonic() - start, 3)
     for cause in out.causes:
         if cause.diagnosis is not None:
@@ -122,11 +123,19 @@ def _session_diagnosis(cause: RootCause) -> dict[str, Any]:
 
 
 def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab: _Lab,
-            own: dict[str, Found]) -> Diagnosed:
+            own: dict[str, Found], dead: dict[str, deaths.Verdict] | None = None) -> Diagnosed:
     kept: list[RootCause] = []
     repros: dict[str, tuple[tuple[bytes, Expect], ...]] = {}
     owner: dict[int, RootCause] = {}  # id(mechanism) -> the root cause it already explains
     for cause in causes:
+        if dead and cause.id in dead:  # a death the phase put to the test again
+            verdict = dead[cause.id]
+            cause.diagnosis = deaths.diagnosis(cause, verdict)
+            cause.confirmed = verdict.confirmed
+            if not verdict.confirmed:
+                cause.title = titles.unconfirmed(f"{cause.title} ({verdict.why})")
+            kept.append(cause)
+            continue
         if cause.kind in match.SESSION_KINDS:
             cause.confirmed, cause.diagnosis = True, _session_diagnosis(cause)
             kept.append(cause)

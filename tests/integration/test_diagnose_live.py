@@ -131,3 +131,24 @@ def test_a_defect_that_shows_only_when_frames_arrive_together_is_replayed_in_one
         assert repro.judge(path, Target("127.0.0.1", box.port), profile, 1.5).status == "still present"
     with serving(replace(choices, defect=None)) as box:
         assert repro.judge(path, Target("127.0.0.1", box.port), profile, 1.5).status == "fixed"
+
+
+def test_a_death_is_confirmed_while_the_box_stays_silent_and_not_when_it_answers_again() -> None:
+    """A slow answer on a loaded machine looks like a death: the phase asks a fresh connection again, and after
+    a death after a case's input sends that input once more."""
+    profile = Profile().replace(time_out_ms=1000)
+    killer = CaseResult("R6-01", "R6-01", ("R6",), Level.MUST, Verdict.FAIL, "m", sent_hex="41 42 43 0d 0a")
+    death = RootCause("RC1", ("R2",), "The box stops answering new connections after the input of case R6-01", "e",
+                      ["R6-01"], kind="dead-after-input")
+    other = RootCause("RC2", ("B3",), "indexes", "e", ["X-01"], kind="block-position")
+    facts = SessionFacts(deaths=())  # what the session saw is in the root cause; the phase asks again
+    with serving(random_choices(4, fixed=FIXED | FAST)) as box:
+        done = diagnose([death, other], [killer, case("X-01", Action.POSE, Action.POSE, 0x1001)], facts,
+                        Target("127.0.0.1", box.port), profile, 1.0)
+    first = next(rc for rc in done.causes if rc.kind == "dead-after-input")
+    assert first.confirmed is False and first.title.startswith("unconfirmed: "), first.title
+    assert done.exchanges >= 3  # the box answers: the other root cause was diagnosed too
+    with serving(random_choices(4, fixed=FIXED | FAST).with_defect("dead")) as box:
+        done = diagnose([RootCause("RC1", ("A4", "T1"), "never answers NONE", "e", [], kind="unresponsive")], [],
+                        SessionFacts(unresponsive="silent"), Target("127.0.0.1", box.port), profile, 1.0, budget_s=5)
+    assert done.causes[0].confirmed is True and done.exchanges == 1
