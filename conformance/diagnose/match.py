@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol import parse_header
 from ..protocol.constants import HEADER_LEN, START_WORD
+from ..protocol.framings import embedded_actions
 from .hypotheses import KINDS, Hypothesis, Mechanism, Status
 
 #: the catalogue's stories (root-cause kinds) and the mechanisms that are the same story told exactly
@@ -53,16 +54,21 @@ def facts_of(cause: RootCause, cases: Sequence[CaseResult]) -> CauseFacts:
             if sig.reply.asked is not None:
                 asked.add(sig.reply.asked)
             answered.add(sig.reply.action)
-        asked.update(_sent_actions(case.sent_hex))
+        asked.update(_sent_actions(case.sent_hex, anywhere=cause.kind == "fuzz"))
+        if cause.kind == "fuzz":  # a fuzz finding names no answer: the actions the box answered with, as quoted
+            answered.update(_sent_actions(case.received_hex, anywhere=True))
     return CauseFacts(cause.kind, frozenset(asked), frozenset(answered))
 
 
-def _sent_actions(sent_hex: str) -> set[int]:
-    """The actions of the frames the quoted request bytes hold, as far as quoted (headers with the start word)."""
+def _sent_actions(sent_hex: str, anywhere: bool = False) -> set[int]:
+    """The actions of the frames the quoted request bytes hold, as far as quoted (headers with the start word);
+    ``anywhere``: of every header some legal framing may read in them (a fuzz finding's bytes start anyhow)."""
     try:
         raw = bytes.fromhex(sent_hex.partition("…")[0])
     except ValueError:
         return set()
+    if anywhere:
+        return set(embedded_actions(raw))
     out: set[int] = set()
     at = 0
     while len(raw) - at >= HEADER_LEN:
