@@ -195,3 +195,16 @@ def test_a_count_limit_title_names_the_threshold_clause_and_fix(n: int, text: st
 def test_an_index_title_uses_a_right_ordinal_and_guesses_the_counter() -> None:
     title = titles.index(block=41, value=41 & 0x0F, right=41, threshold=41)
     assert "the 41st block" in title and "41th" not in title and "4-bit" in title
+
+
+def test_a_fuzz_finding_is_explained_by_the_mechanism_of_the_answers_it_quotes() -> None:
+    from conformance.model.verdicts import CaseResult, Level, RootCause, Verdict
+
+    finding = CaseResult("FUZZ-01", "fuzz", ("A1",), Level.MUST, Verdict.FAIL, "A1: two answers",
+                         sent_hex="41 41 fe fe 00 01 01 00 00 00 00 00 00 00 00 00",
+                         received_hex=(ok(NONE).raw + ok(POSE).raw + ok(POSE).raw).hex(" "))
+    cause = RootCause("RC2", ("A1",), "Fuzzing finds the same defect (A1)", "e", ["FUZZ-01"], kind="fuzz")
+    facts = match.facts_of(cause, [finding])
+    assert NONE in facts.asked and POSE in facts.answered
+    chosen = match.pick([mech("extra-answer", POSE)], facts)
+    assert chosen is not None and chosen.kind == "extra-answer"
