@@ -229,9 +229,11 @@ def after_error(p: Prober, actions: Sequence[int], alone: dict[int, Alone]) -> F
         found.experiment.exchanges.append(ex)
         after = classify_alone(action, Exchange(ex.frames[1:], ex.readings[1:]))
         if ex.reading(0).answers and after.kind != "ok":
+            refused = after.kind == "refused" or (after.kind == "malformed" and after.error not in (None, 0))
             what = {"refused": f"refuses (error {after.error or 0:04X})", "missing": "leaves unanswered",
                     "silent": "leaves unanswered", "closed": "closes the connection on",
-                    "echo": "answers with the wrong action", "extra": "answers twice"}.get(after.kind, "mishandles")
+                    "echo": "answers with the wrong action", "extra": "answers twice"}.get(
+                "refused" if refused else after.kind, "mishandles")
             # one leak is enough: the next request is spoilt whatever its action (each try may cost time_out)
             found.mechanisms.append(_mech("state-leak", set(CORE) | set(actions), found, ("A1", "A3"),
                                           [(bad, Expect("invalid", POSE)), (frame, expect)], action=action, what=what))
