@@ -42,6 +42,8 @@ class CauseFacts:
     kind: str
     asked: frozenset[int]  # actions the cases asked for
     answered: frozenset[int]  # actions the box answered them with
+    most_blocks: int = 0  # the largest block count among the requests the cases quote
+    longest: int = 0  # the longest frame (bytes) among them
 
 
 def facts_of(cause: RootCause, cases: Sequence[CaseResult]) -> CauseFacts:
@@ -57,7 +59,24 @@ def facts_of(cause: RootCause, cases: Sequence[CaseResult]) -> CauseFacts:
         asked.update(_sent_actions(case.sent_hex, anywhere=cause.kind == "fuzz"))
         if cause.kind == "fuzz":  # a fuzz finding names no answer: the actions the box answered with, as quoted
             answered.update(_sent_actions(case.received_hex, anywhere=True))
-    return CauseFacts(cause.kind, frozenset(asked), frozenset(answered))
+    sizes = [size for case in members for size in _sizes(case.sent_hex)]
+    return CauseFacts(cause.kind, frozenset(asked), frozenset(answered), max((n for n, _ in sizes), default=0),
+                      max((length for _, length in sizes), default=0))
+
+
+def _sizes(sent_hex: str) -> list[tuple[int, int]]:
+    """(block count, frame length) of the first request header the quoted bytes start with (its length as the
+    header announces it: a quote may be cut short)."""
+    try:
+        raw = bytes.fromhex(sent_hex.partition("…")[0])
+    except ValueError:
+        return []
+    if len(raw) < HEADER_LEN:
+        return []
+    header = parse_header(raw[:HEADER_LEN])
+    if header.start_word != START_WORD:
+        return []
+    return [(header.block_count, HEADER_LEN + header.block_count * header.block_length + 2)]
 
 
 def _sent_actions(sent_hex: str, anywhere: bool = False) -> set[int]:
@@ -81,8 +100,14 @@ def _sent_actions(sent_hex: str, anywhere: bool = False) -> set[int]:
 
 
 def explains(m: Mechanism, f: CauseFacts) -> bool:
-    if m.kind in ("count-limit", "byte-limit", "index"):
-        return f.kind == "block-position" or bool(m.actions & f.asked)
+    if m.kind in ("count-limit", "byte-limit", "index"):  # the story the catalogue read, or its cases' sizes
+        if f.kind == "block-position":
+            return True
+        if not m.actions & f.asked:
+            return False
+        if m.kind == "byte-limit":
+            return f.longest > int(m.detail.get("max_bytes", 0))
+        return f.most_blocks >= int(m.detail.get("threshold", m.detail.get("block", 256)))
     if m.kind == "extra-answer":
         return bool(m.actions & (f.asked | f.answered))
     if m.kind == "echo-all":

@@ -208,3 +208,14 @@ def test_a_fuzz_finding_is_explained_by_the_mechanism_of_the_answers_it_quotes()
     assert NONE in facts.asked and POSE in facts.answered
     chosen = match.pick([mech("extra-answer", POSE)], facts)
     assert chosen is not None and chosen.kind == "extra-answer"
+
+
+def test_a_size_limit_explains_only_root_causes_whose_requests_reach_it() -> None:
+    limit = Mechanism("count-limit", frozenset({POSE, TOL}), "size", "t", ("B5",), (), {"threshold": 101})
+    small = match.CauseFacts("unanswered", frozenset({POSE}), frozenset(), most_blocks=1, longest=39)
+    big = match.CauseFacts("unanswered", frozenset({POSE}), frozenset(), most_blocks=128, longest=3214)
+    assert match.pick([limit], small) is None
+    assert match.pick([limit], big) is limit
+    assert match.pick([limit], match.CauseFacts("block-position", frozenset(), frozenset())) is limit
+    frame = Mechanism("byte-limit", frozenset({POSE}), "size", "t", ("F5",), (), {"max_bytes": 1024})
+    assert match.pick([frame], big) is frame and match.pick([frame], small) is None
