@@ -39,6 +39,7 @@ from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes
 from ..suite.verdicts import Verdict
 from .config import CampaignConfig
 from .executor import Executor, FuzzConnection, alive
+from .death_first import died
 from .oracle import Expectation, Finding, Rule, judge
 from .statecov import OPEN, StateCoverage, Transition
 from .strategies import FuzzCase, Strategies, _finite
@@ -147,13 +148,19 @@ class IsightSession(RuleBasedStateMachine):
         self.log.append(f"open {name}")
 
     def _fail(self, finding: Finding, case: FuzzCase, hang: bool = False) -> None:
+        """Death first: before a failure is reported the box's liveness is checked; a dead box is R2."""
         ctx = self.ctx
+        if not ctx.shrinking:
+            live = self.executor.check_alive()
+            if not alive(live):
+                death = died(finding, live)
+                if death.key in ctx.known:
+                    raise KnownFailure(death.describe())
+                raise StatefulHang(StatefulFailure(death, self, case), dead=True)
         if finding.key and finding.key in ctx.known and not ctx.shrinking:
             raise KnownFailure(finding.describe())
         if hang and not ctx.shrinking:
             raise StatefulHang(StatefulFailure(finding, self, case))
-        if not ctx.shrinking and not alive(self.executor.check_alive()):
-            raise StatefulHang(StatefulFailure(finding, self, case), dead=True)
         ctx.shrinking = True  # from now on every step runs: hypothesis is shrinking
         raise StatefulFailure(finding, self, case)
 

@@ -34,8 +34,10 @@ from .config import CampaignConfig
 from .evidence import Failure, clauses_of, write_pcap, write_sequence, write_vectors
 from .executor import Executor, alive
 from .hyp import seed_machine
+from .death_first import DEATH_KEY
 from .machine import KnownFailure, SessionContext, StatefulFailure, StatefulHang, machine_for
 from .statecov import StateCoverage, Transition
+from .transcript_replay import replay_sends
 from .strategies import Strategies
 
 #: Steps per session (hypothesis's stateful_step_count) and sessions per hypothesis run.
@@ -181,12 +183,31 @@ class SessionRunner:
                     conn.abort("steered session done")
 
     def _found(self, exc: StatefulFailure, shrunk: bool, how: str = "", stopped: str = "failure") -> None:
+        confirmed = True
+        if exc.finding.key.startswith(DEATH_KEY):
+            confirmed, why = self._confirm_death(exc)
+            how = f"{how}; {why}" if how else why
         failure = _record(self.cfg, self.seed, self.number(), exc, shrunk, how)
+        failure.confirmed = confirmed
         self.failures.append(failure)
         if exc.finding.key:
             self.ctx.known.add(exc.finding.key)
         self.stopped = stopped
         self._after_failure()
+
+    def _confirm_death(self, exc: StatefulFailure) -> tuple[bool, str]:
+        """R2 confirmed by the restart replay: bring the box back, replay the session's writes, is it dead again?"""
+        if self.recover is None:
+            return False, "not confirmed: the campaign cannot restart the box (fuzz --restart-cmd CMD)"
+        if not self.recover():
+            return False, "not confirmed: the box did not come back"
+        cfg = self.cfg
+        tr = Transcript(case_id="FUZZ-stateful-death")
+        replay_sends(exc.transcript, cfg.profile, tr)
+        if alive(Executor(cfg.target, cfg.profile, tr, extension=cfg.extension).check_alive()):
+            return False, "not confirmed: replayed after a restart, the session's writes did not kill the box again"
+        exc.transcript = tr  # the evidence: the replay that killed it again
+        return True, "confirmed: after a restart, the session's writes replayed on fresh connections killed it again"
 
     def _after_failure(self) -> None:
         """After a failing session: is the box still there? A dead one is brought back, or the runner stops."""
@@ -219,7 +240,10 @@ def _record(cfg: CampaignConfig, campaign_seed: int, number: int, exc: StatefulF
     f = exc.finding
     how = how or ("shrunk by hypothesis" if shrunk else "not shrunk: the box hung, each shrink step would wait time_out")
     message = f"{f.requirement}; the box {f.observed} (session of {len(exc.steps)} steps, {how})"
-    failure = Failure(number, "stateful", clauses_of(exc.case, [f.clause]), message, [exc.case] if exc.case.data else [],
+    clauses = clauses_of(exc.case, [f.clause])
+    if f.key.startswith(DEATH_KEY):  # the death first, then the trigger's clauses
+        clauses = ["R2", *(c for c in clauses if c != "R2")]
+    failure = Failure(number, "stateful", clauses, message, [exc.case] if exc.case.data else [],
                       shrunk=shrunk, steps=exc.steps, keys=[f.key] if f.key else [])
     desc = f"isight-conformance fuzz: session failure {number} against {cfg.target} (seed {campaign_seed})"
     if failure.cases and cfg.report_dir is not None:
