@@ -101,6 +101,9 @@ class Campaign:
 
     # -- budget ----------------------------------------------------------------------------
     def _going(self) -> bool:
+        if self.config.until_first and not self.stopped and any(f.confirmed for f in self.failures):
+            self.stopped = "the first confirmed finding (--until-first)"
+            self.config.log(f"fuzz: stopping at {self.stopped}")
         return not self.stopped and len(self.failures) < self.config.max_failures
 
     def budget_left(self) -> bool:

@@ -17,6 +17,7 @@ from hypothesis.database import ExampleDatabase
 from ..harness.target import Target
 from ..harness.transcript import Transcript
 from ..protocol import DEFAULT_PROFILE, Profile
+from .box_process import BoxProcess
 
 
 @dataclass
@@ -40,6 +41,8 @@ class CampaignConfig:
     categories: tuple[str, ...] = ()
     stateful_share: float = 0.2  # of the budget for the session state machine (0: off)
     restart: Callable[[], None] | None = None  # brings a dead box back (the bundled box)
+    box: BoxProcess | None = None  # the box as this campaign's child (fuzz --restart-cmd): its last words are kept
+    until_first: bool = False  # stop at the first confirmed finding (fuzz --until-first)
     recover_s: float | None = None  # how long to wait for a dead box to come back (default: time_out)
     chunk_examples: int = 100
     settle_s: float = 0.05

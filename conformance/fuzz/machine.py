@@ -38,8 +38,8 @@ from ..protocol import BLOCK_LEN, REQUEST_SHAPE, Action, BlockType, Header, code
 from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes
 from ..suite.verdicts import Verdict
 from .config import CampaignConfig
-from .executor import Executor, FuzzConnection, alive
 from .death_first import died
+from .executor import Executor, FuzzConnection, alive
 from .oracle import Expectation, Finding, Rule, judge
 from .statecov import OPEN, StateCoverage, Transition
 from .strategies import FuzzCase, Strategies, _finite

@@ -31,14 +31,15 @@ from hypothesis.stateful import run_state_machine_as_test
 
 from ..harness.transcript import Transcript
 from .config import CampaignConfig
+from .death_first import DEATH_KEY
 from .evidence import Failure, clauses_of, write_pcap, write_sequence, write_vectors
 from .executor import Executor, alive
 from .hyp import seed_machine
-from .death_first import DEATH_KEY
+from .last_words import LastWords, telling
 from .machine import KnownFailure, SessionContext, StatefulFailure, StatefulHang, machine_for
 from .statecov import StateCoverage, Transition
-from .transcript_replay import replay_sends
 from .strategies import Strategies
+from .transcript_replay import replay_sends
 
 #: Steps per session (hypothesis's stateful_step_count) and sessions per hypothesis run.
 STEPS = 25
@@ -183,11 +184,15 @@ class SessionRunner:
                     conn.abort("steered session done")
 
     def _found(self, exc: StatefulFailure, shrunk: bool, how: str = "", stopped: str = "failure") -> None:
-        confirmed = True
+        confirmed, words = True, None
         if exc.finding.key.startswith(DEATH_KEY):
+            box = self.cfg.box
+            first = len(box.incarnations) if box is not None else 0
+            said = [box.last_words()] if box is not None else []
             confirmed, why = self._confirm_death(exc)
             how = f"{how}; {why}" if how else why
-        failure = _record(self.cfg, self.seed, self.number(), exc, shrunk, how)
+            words = telling(said + ([i.last_words(0.0) for i in box.incarnations[first:-1]] if box else []))
+        failure = _record(self.cfg, self.seed, self.number(), exc, shrunk, how, words)
         failure.confirmed = confirmed
         self.failures.append(failure)
         if exc.finding.key:
@@ -234,7 +239,7 @@ def run_stateful(cfg: CampaignConfig, strategies: Strategies, campaign_seed: int
 
 
 def _record(cfg: CampaignConfig, campaign_seed: int, number: int, exc: StatefulFailure, shrunk: bool = True,
-            how: str = "") -> Failure:
+            how: str = "", words: LastWords | None = None) -> Failure:
     """The session failure's vector file (the failing request), sequence file and pcap, and a line in the log."""
     name = f"{cfg.name}-{number:03d}"
     f = exc.finding
@@ -244,7 +249,7 @@ def _record(cfg: CampaignConfig, campaign_seed: int, number: int, exc: StatefulF
     if f.key.startswith(DEATH_KEY):  # the death first, then the trigger's clauses
         clauses = ["R2", *(c for c in clauses if c != "R2")]
     failure = Failure(number, "stateful", clauses, message, [exc.case] if exc.case.data else [],
-                      shrunk=shrunk, steps=exc.steps, keys=[f.key] if f.key else [])
+                      shrunk=shrunk, steps=exc.steps, keys=[f.key] if f.key else [], last_words=words)
     desc = f"isight-conformance fuzz: session failure {number} against {cfg.target} (seed {campaign_seed})"
     if failure.cases and cfg.report_dir is not None:
         failure.vector = write_vectors(cfg.report_dir / f"{name}.json", failure, cfg.profile, desc)
@@ -255,7 +260,8 @@ def _record(cfg: CampaignConfig, campaign_seed: int, number: int, exc: StatefulF
     cfg.log(f"fuzz: FAIL {number} [{', '.join(failure.clauses)}] {message}\n      steps: "
             + "; ".join(exc.steps) + f"\n      sequence: {failure.sequence}"
             + (f"\n      vector: {failure.vector}" if failure.vector else "")
-            + (f"\n      pcap: {failure.pcap}" if failure.pcap else ""))
+            + (f"\n      pcap: {failure.pcap}" if failure.pcap else "")
+            + (f"\n      box: {words.summary()}" if words is not None else ""))
     return failure
 
 

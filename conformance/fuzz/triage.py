@@ -227,7 +227,8 @@ class Triage:
         self.failures.append(failure)
         cfg.log(f"fuzz: FAIL {failure.number} [{', '.join(failure.clauses)}] {failure.message}\n"
                 f"      bytes: {failure.hex}" + (f"\n      vector: {failure.vector}" if failure.vector else "")
-                + (f"\n      pcap: {failure.pcap}" if failure.pcap else ""))
+                + (f"\n      pcap: {failure.pcap}" if failure.pcap else "")
+                + (f"\n      box: {failure.last_words.summary()}" if failure.last_words is not None else ""))
         return failure
 
 
