@@ -44,6 +44,7 @@ from .death import RESTART_HINT, STOPPED, Seen, death_key, find_killer
 from .evidence import Failure, write_summary
 from .executor import Executor, Result, alive
 from .hyp import seed_test, set_database_key
+from .mutants import Mutants
 from .restart import recover
 from .result import CampaignResult, Observation, Sessions
 from .schedule import Schedule
@@ -69,6 +70,7 @@ class Campaign:
         self.strategies = Strategies(cfg.profile, cfg.extension, udp=cfg.udp_target is not None)
         self.cases = self.strategies.cases(cfg.categories)
         self.schedule = Schedule(self.strategies) if not cfg.categories else None
+        self.mutants = Mutants(self.strategies, self.seed ^ 0x6D757461) if not cfg.categories and cfg.mutants else None
         self.coverage = Coverage(cfg.profile)
         self.disabled: set[str] = set()
         self.window: list[Seen] = []  # cases since the last good liveness check
@@ -241,11 +243,32 @@ class Campaign:
             raised = self._step(case, shrinkable=True)
             if raised is not None:
                 return raised
-            if not triage.shrinking and self.schedule is not None and self.budget_left():
-                scheduled = self.schedule.next()
-                if scheduled is not None and scheduled.kind not in self.disabled:
-                    self._step(scheduled, shrinkable=False)
+            if not triage.shrinking:
+                self._scheduled()
+            if not triage.shrinking and self.mutants is not None:
+                self._mutants(case)
         return None
+
+    def _scheduled(self) -> None:
+        """The next case of the boundary schedule (after every case drawn or derived, until it is done)."""
+        if self.schedule is not None and self.budget_left():
+            scheduled = self.schedule.next()
+            if scheduled is not None and scheduled.kind not in self.disabled:
+                self._step(scheduled, shrinkable=False)
+
+    def _mutants(self, drawn: FuzzCase) -> None:
+        """``config.mutants`` cheap cases derived from the recent hypothesis cases (:mod:`.mutants`), each followed
+        by a case of the schedule: the schedule keeps half of the cases until it is done."""
+        assert self.mutants is not None
+        self.mutants.feed(drawn)
+        for _ in range(self.config.mutants):
+            if self.stopped or not self.budget_left():
+                return
+            mutant = self.mutants.next()
+            if mutant is None or mutant.kind in self.disabled:
+                return
+            self._step(mutant, shrinkable=False)
+            self._scheduled()
 
     def _step(self, case: FuzzCase, shrinkable: bool) -> Result | None:
         """One case: run, judged, confirmed if it fails; the result to raise to hypothesis (``shrinkable`` only)."""

@@ -45,6 +45,7 @@ class CampaignConfig:
     until_first: bool = False  # stop at the first confirmed finding (fuzz --until-first)
     recover_s: float | None = None  # how long to wait for a dead box to come back (default: time_out)
     chunk_examples: int = 100
+    mutants: int = 4  # cheap mutants of the recent hypothesis cases after each one (:mod:`.mutants`; 0: none)
     settle_s: float = 0.05
     progress_s: float = 2.0
     log: Callable[[str], None] = print

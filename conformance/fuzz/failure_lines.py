@@ -2,7 +2,8 @@
 
 A user (or CI) who reads only the first FAIL line learns the worst: that the box died.
 A failure that carries the box's last words (:mod:`.last_words`) gets a ``box:`` line
-with its headline, then the tail of what the box wrote (a few lines, indented).
+with its headline, then the lines that matter of what the box wrote (a sanitizer report's head, a
+traceback, else the last lines).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from collections.abc import Sequence
 
 from .death_first import deaths_first
 from .evidence import Failure
+from .last_words import excerpt
 
 #: Lines of the box's output shown under a failure (the summary and the vector file's note keep more).
 TAIL_LINES = 12
@@ -23,8 +25,7 @@ def failure_lines(failure: Failure) -> list[str]:
     words = failure.last_words
     if words is not None:
         out.append(f"       box: {words.summary()}")
-        tail = [line for line in words.tail.splitlines() if line.strip()][-TAIL_LINES:]
-        out += [f"       | {line}" for line in tail]
+        out += [f"       | {line}" for line in excerpt(words, TAIL_LINES)]
     return out
 
 

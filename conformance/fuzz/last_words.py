@@ -30,6 +30,9 @@ _SAN_SUMMARY = re.compile(r"SUMMARY: (AddressSanitizer|UndefinedBehaviorSanitize
                           r"MemorySanitizer): .*")
 _SAN_ERROR = re.compile(r"==\d+==\s*ERROR: (AddressSanitizer|LeakSanitizer|ThreadSanitizer|MemorySanitizer): .*")
 _UBSAN = re.compile(r"\S+:\d+:\d+: runtime error: .*")
+_ACCESS = re.compile(r"(READ|WRITE) of size \d+")
+_FRAME = re.compile(r"#\d+ 0x[0-9a-f]+ in (\S+ \S+)")
+_RUNTIME = ("__interceptor_", "__asan", "__sanitizer", "__ubsan", "__lsan", "__interceptor")
 _TRACEBACK = "Traceback (most recent call last):"
 _CRASH_LINE = re.compile(r".*(Segmentation fault|core dumped|Aborted|Bus error|Illegal instruction|"
                          r"Floating point exception).*")
@@ -84,12 +87,9 @@ def signal_of(status: int | None) -> str | None:
 def headline(text: str, status: int | None = None) -> tuple[str, str]:
     """(kind, the line that says why the box died) from its output and exit status; ("", "") when nothing does."""
     lines = text.splitlines()
-    for pattern, kind in ((_SAN_SUMMARY, ""), (_SAN_ERROR, ""), (_UBSAN, "ubsan")):
-        for line in reversed(lines):
-            m = pattern.search(line)
-            if m:
-                found = m.group(0).strip()
-                return kind or _sanitizer_kind(found), found
+    start = _sanitizer_start(lines)
+    if start is not None:
+        return _sanitizer_headline(lines, start)
     tb = _traceback_line(lines)
     if tb:
         return "traceback", tb
@@ -102,6 +102,48 @@ def headline(text: str, status: int | None = None) -> tuple[str, str]:
     if status:
         return "exit", f"exited with status {status}"
     return ("running", "") if status is None else ("", "")
+
+
+def _sanitizer_start(lines: list[str]) -> int | None:
+    """Where the last sanitizer report starts (its ``ERROR:`` or ``runtime error:`` line, else a ``SUMMARY:``)."""
+    for pattern in (_SAN_ERROR, _UBSAN, _SAN_SUMMARY):
+        found = [i for i, line in enumerate(lines) if pattern.search(line)]
+        if found:
+            return found[-1]
+    return None
+
+
+def _sanitizer_headline(lines: list[str], start: int) -> tuple[str, str]:
+    """The report's bug type, access and the first stack frame in the box's own code."""
+    line = lines[start]
+    m = _SAN_ERROR.search(line) or _UBSAN.search(line) or _SAN_SUMMARY.search(line)
+    assert m is not None
+    found = m.group(0).strip()
+    kind = "ubsan" if _UBSAN.search(line) else _sanitizer_kind(found)
+    if kind == "ubsan" or found.startswith("SUMMARY:"):
+        return kind, found
+    bug = re.sub(r" on (unknown )?address.*", "", found.split("ERROR: ", 1)[1])
+    access = next((am.group(0) for a in lines[start + 1 : start + 4] if (am := _ACCESS.match(a.strip()))), "")
+    where = next((f"in {fm.group(1)}" for f in lines[start + 1 : start + 40] if (fm := _FRAME.search(f))
+                  and not fm.group(1).startswith(_RUNTIME)), "")
+    return kind, " ".join(x for x in (bug, f"({access})" if access else "", where) if x)
+
+
+def excerpt(words: LastWords, limit: int = 12) -> list[str]:
+    """The lines worth printing: a sanitizer report's head, a traceback, else the last lines written."""
+    lines = [line for line in words.tail.splitlines() if line.strip()]
+    if words.kind in ("asan", "ubsan", "sanitizer"):
+        start = _sanitizer_start(lines)
+        if start is not None:
+            return lines[start : start + limit]
+    if words.kind == "traceback":
+        starts = [i for i, line in enumerate(lines) if line.strip() == _TRACEBACK]
+        if starts:
+            block = lines[starts[-1] :]
+            end = next((i for i, line in enumerate(block) if i and not line[0].isspace()), len(block) - 1)
+            block = block[: end + 1]
+            return block if len(block) <= limit else [block[0], "  ...", *block[-(limit - 2) :]]
+    return lines[-limit:]
 
 
 def _sanitizer_kind(line: str) -> str:
@@ -136,4 +178,4 @@ def telling(words: list[LastWords | None]) -> LastWords | None:
     return next((w for w in there if w.headline and w.kind != "running"), there[0] if there else None)
 
 
-__all__ = ["RING_BYTES", "TAIL_SHOWN", "LastWords", "headline", "last_words", "signal_of", "telling"]
+__all__ = ["RING_BYTES", "TAIL_SHOWN", "LastWords", "excerpt", "headline", "last_words", "signal_of", "telling"]

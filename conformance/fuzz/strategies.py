@@ -55,7 +55,7 @@ BLOCK_ACTIONS = (Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE)
 SMALL_COUNT = 4
 COUNTS = (1, 2, 3, 4, 255)
 #: Pauses between the pieces of a split frame (R3).
-GAPS = (0.0, 0.001, 0.005, 0.02)
+GAPS = (0.0, 0.001, 0.002, 0.005)
 
 
 def _skip(excluded: int) -> Callable[[int], int]:
