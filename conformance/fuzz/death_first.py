@@ -28,9 +28,17 @@ def died(trigger: Finding, live: Outcome) -> Finding:
     """The R2 finding for a box found dead right after ``trigger`` (``live``: what the fresh connection got)."""
     clause = trigger.clause if trigger.clause.startswith("R2") else f"R2/{trigger.clause}" if trigger.clause else "R2"
     parts = trigger.key.split("/")
-    what = parts[2] if len(parts) > 2 else parts[0] or "-"  # the trigger's action (clause/rule/action/what)
+    what = parts[2] if len(parts) > 2 and not trigger.clause.startswith("R2") else "-"  # the trigger's action
     observed = f"died: {trigger.observed}; then a fresh connection {live.describe()} [the trigger: {trigger.requirement}]"
     return Finding(Verdict.FAIL, clause, REQUIREMENT, observed, f"{DEATH_KEY}/session/{what}")
+
+
+def known_death(death: Finding, known: set[str]) -> bool:
+    """Reported before: the same trigger, or (no trigger: the box was found dead at a session's end or at a
+    connect) any session death (the session that killed it was reported)."""
+    if death.key in known:
+        return True
+    return death.key.endswith("/-") and any(k.startswith(f"{DEATH_KEY}/session/") for k in known)
 
 
 def is_death(keys: Sequence[str], kind: str = "") -> bool:
@@ -47,4 +55,4 @@ def deaths_first(failures: Sequence[T]) -> list[T]:
     return dead + [f for f in failures if f not in dead]
 
 
-__all__ = ["DEATH_KEY", "REQUIREMENT", "deaths_first", "died", "is_death"]
+__all__ = ["DEATH_KEY", "REQUIREMENT", "deaths_first", "died", "is_death", "known_death"]

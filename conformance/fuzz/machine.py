@@ -38,7 +38,7 @@ from ..protocol import BLOCK_LEN, REQUEST_SHAPE, Action, BlockType, Header, code
 from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes
 from ..suite.verdicts import Verdict
 from .config import CampaignConfig
-from .death_first import died
+from .death_first import died, known_death
 from .executor import Executor, FuzzConnection, alive
 from .oracle import Expectation, Finding, Rule, judge
 from .statecov import OPEN, StateCoverage, Transition
@@ -154,7 +154,7 @@ class IsightSession(RuleBasedStateMachine):
             live = self.executor.check_alive()
             if not alive(live):
                 death = died(finding, live)
-                if death.key in ctx.known:
+                if known_death(death, ctx.known):
                     raise KnownFailure(death.describe())
                 raise StatefulHang(StatefulFailure(death, self, case), dead=True)
         if finding.key and finding.key in ctx.known and not ctx.shrinking:

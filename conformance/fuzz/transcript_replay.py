@@ -4,8 +4,8 @@ A session of the state machine that left the box dead is not shrunk (every step 
 need a restart); it is *confirmed* instead: after the box is brought back, every
 connection the session opened is opened again in the same order, every write is
 written again, and before each next step the replay waits until the box has sent as
-many bytes on that connection as it did the first time (bounded by time_out). The
-liveness checks of the original run are left out. Then a fresh connection tells
+many bytes on that connection as it did the first time, or closes it where it did
+(bounded by time_out). The liveness checks of the original run are left out. Then a fresh connection tells
 whether the box died again.
 """
 
@@ -56,6 +56,8 @@ def replay_sends(original: Transcript, profile: Profile, into: Transcript, time_
             elif ev.kind == Kind.RECV:
                 want[ev.conn] += len(ev.data)
                 _wait_for(conn, want[ev.conn], wait)
+            elif ev.kind in (Kind.PEER_CLOSE, Kind.PEER_RESET):  # the box closed it here: wait for it to do so again
+                _wait_for(conn, 1 << 62, wait)
             elif ev.kind == Kind.CLOSE:
                 conn.close("replayed close")
             elif ev.kind == Kind.ABORT:
