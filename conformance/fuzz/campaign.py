@@ -10,7 +10,7 @@ down to the one case that fails and that case down to its simplest frame. After 
 hypothesis case one case of the boundary schedule (:mod:`.schedule`) runs, until the
 schedule is done: every block count, field boundary and float class early.
 
-Frame chunks alternate with chunks of the session state machine (:mod:`.stateful`)
+Frame chunks alternate with chunks of the session state machine (:mod:`.session_runner`)
 from the first second, so that the sessions get ``stateful_share`` of the time (or of
 the cases) all along. Between chunks the campaign checks its budget
 (``max_examples`` cases or ``duration_s``).
@@ -39,16 +39,16 @@ from ..options import profile_flags
 from ..suite.verdicts import Verdict
 from .budget import Budget
 from .config import CampaignConfig, new_seed
-from .coverage import Coverage
 from .death import RESTART_HINT, STOPPED, Seen, death_key, find_killer
-from .evidence import Failure, write_summary
 from .executor import Executor, Result, alive
+from .failure_files import Failure, write_summary
 from .hyp import seed_test, set_database_key
+from .input_coverage import Coverage
 from .mutants import Mutants
 from .restart import recover
 from .result import CampaignResult, Observation, Sessions
 from .schedule import Schedule
-from .stateful import SessionRunner
+from .session_runner import SessionRunner
 from .strategies import FuzzCase, Strategies
 from .triage import FuzzFailure, Triage
 

@@ -2,7 +2,7 @@
 
 :class:`CampaignConfig` is read by the campaign's loop (:mod:`.campaign`), by the triage of
 a failure (:mod:`.triage`), by the search for the input that killed the box (:mod:`.death`)
-and by the session state machine (:mod:`.stateful`); none of them needs the campaign itself.
+and by the session state machine (:mod:`.session_runner`); none of them needs the campaign itself.
 """
 
 from __future__ import annotations

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 from ..harness.transcript import Transcript
 from ..i18n import N_
 from .config import CampaignConfig
-from .evidence import Failure, clauses_of
 from .executor import Executor, Result, alive
+from .failure_files import Failure, clauses_of
 from .last_words import telling
 from .restart import History, Step, kills, recover, shrink
 from .strategies import FuzzCase

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from .death_first import deaths_first
-from .evidence import Failure
+from .failure_files import Failure
 from .last_words import excerpt
 
 #: Lines of the box's output shown under a failure (the summary and the vector file's note keep more).

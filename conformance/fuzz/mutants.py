@@ -7,7 +7,7 @@ of the recent ones, made with a seeded :class:`random.Random` (the campaign's se
 makes them repeat) by protocol-aware operators:
 
 * ``field``: one header field set to one of its boundary or defined values (the
-  tables of :mod:`.coverage`);
+  tables of :mod:`.input_coverage`);
 * ``count``: a well-formed block request re-encoded with another block count 1-255
   (its blocks repeated, indexes renumbered): every count reaches the box early;
 * ``float``: one float of a block set to one of the float32 classes (±0, subnormals,
@@ -34,7 +34,7 @@ from collections.abc import Callable
 
 from ..protocol import BLOCK_LEN, HEADER_LEN, MAX_FRAME_LEN, BlockType, Transport
 from ..protocol.constants import CHECK_LEN
-from .coverage import FIELDS, field_space
+from .input_coverage import FIELDS, field_space
 from .strategies import EDGE_FINITE_BITS, NON_FINITE_BITS, FuzzCase, Strategies
 
 #: Recent hypothesis cases kept as parents.

@@ -28,8 +28,8 @@ from ..harness.transcript import Transcript
 from ..protocol import HEADER_LEN, Profile, TransferType, Transport
 from ..suite.verdicts import Verdict
 from ..vectors import Vector, load
-from .evidence import splits_of
 from .executor import Executor
+from .failure_files import splits_of
 from .oracle import expectations
 from .strategies import FuzzCase
 

@@ -36,7 +36,6 @@ from .case import FuzzCase, _finite
 from .oracle import expectations
 
 #: IEEE-754 binary32 edge values that are legal (B4): a conforming box accepts them.
-F32_MAX = 3.4028234663852886e38
 EDGE_FINITE_BITS = (
     0x80000000,  # -0.0
     0x00000001,  # smallest subnormal 1.4e-45

@@ -24,8 +24,8 @@ from .. import __version__
 from ..harness.client import Silence
 from ..harness.transcript import Transcript
 from .config import CampaignConfig
-from .evidence import Failure, clauses_of, write_pcap, write_vectors
 from .executor import Executor, Result
+from .failure_files import Failure, clauses_of, write_pcap, write_vectors
 from .oracle import Finding
 from .strategies import FuzzCase, Strategies
 

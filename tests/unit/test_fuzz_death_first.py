@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from conformance.fuzz.death_first import DEATH_KEY, deaths_first, died, is_death, known_death
-from conformance.fuzz.evidence import Failure, write_vectors
+from conformance.fuzz.failure_files import Failure, write_vectors
 from conformance.fuzz.failure_lines import report_lines
 from conformance.fuzz.last_words import last_words
 from conformance.fuzz.oracle import Finding

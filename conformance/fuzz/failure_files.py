@@ -7,7 +7,7 @@ mishandled) and a ``comment`` saying what the box did. ``isight-conformance repl
 FILE`` resends it. The pcap is synthesised from the socket transcript of the
 evidence run (a fresh connection: the bytes, the probe, the liveness check) with
 :func:`~conformance.evidence.pcap.write_transcript`. A failing session of the state
-machine (:mod:`.stateful`) is also written as an ``isight-sequence-1`` file.
+machine (:mod:`.session_runner`) is also written as an ``isight-sequence-1`` file.
 """
 
 from __future__ import annotations

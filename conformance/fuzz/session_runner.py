@@ -1,7 +1,7 @@
-"""Stateful fuzzing: sessions of the state machine (:mod:`.machine`), run in slices between the frame cases.
+"""Stateful fuzzing: sessions of the state machine (:mod:`.session_machine`), run in slices between the frame cases.
 
 A :class:`SessionRunner` runs *chunks*: a *steered* session that walks straight to the
-transitions of :class:`~.statecov.StateCoverage` no session has reached yet (at most
+transitions of :class:`~.state_coverage.StateCoverage` no session has reached yet (at most
 ``STEER_PER_CHUNK``, each tried at most twice: the box may refuse the way there; the
 first one also opens 16 connections at once and makes 32 quick reconnects), then one
 hypothesis run of ``RUNS_PER_CHUNK`` sessions of ``STEPS`` steps each (seeded from the
@@ -32,12 +32,12 @@ from hypothesis.stateful import run_state_machine_as_test
 from ..harness.transcript import Transcript
 from .config import CampaignConfig
 from .death_first import DEATH_KEY
-from .evidence import Failure, clauses_of, write_pcap, write_sequence, write_vectors
 from .executor import Executor, alive
+from .failure_files import Failure, clauses_of, write_pcap, write_sequence, write_vectors
 from .hyp import seed_machine
 from .last_words import LastWords, telling
-from .machine import KnownFailure, SessionContext, StatefulFailure, StatefulHang, machine_for
-from .statecov import StateCoverage, Transition
+from .session_machine import KnownFailure, SessionContext, StatefulFailure, StatefulHang, machine_for
+from .state_coverage import StateCoverage, Transition
 from .strategies import Strategies
 from .transcript_replay import replay_sends
 

@@ -10,9 +10,9 @@ answer on each connection; what a request may be answered comes from
 judged by the frame oracle (:mod:`.oracle`). Teardown checks liveness on a fresh
 connection (R2).
 
-Every answered request marks a transition of :class:`~.statecov.StateCoverage`;
+Every answered request marks a transition of :class:`~.state_coverage.StateCoverage`;
 :meth:`IsightSession.steer` walks straight to one transition (set the cycle, send the
-last request, send the request), which is how the runner (:mod:`.stateful`) reaches the
+last request, send the request), which is how the runner (:mod:`.session_runner`) reaches the
 transitions random sessions have not.
 
 :func:`machine_for` makes the class for one campaign: the rules are defined once here,
@@ -41,7 +41,7 @@ from .config import CampaignConfig
 from .death_first import died, known_death
 from .executor import Executor, FuzzConnection, alive
 from .oracle import Expectation, Finding, Rule, judge
-from .statecov import OPEN, StateCoverage, Transition
+from .state_coverage import OPEN, StateCoverage, Transition
 from .strategies import FuzzCase, Strategies, _finite
 
 #: Frame categories the machine interleaves as malformed input (stream-safe: no truncation at EOF, no UDP).
