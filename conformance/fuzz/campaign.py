@@ -266,7 +266,7 @@ class Campaign:
                 return
             mutant = self.mutants.next()
             if mutant is None or mutant.kind in self.disabled:
-                return
+                continue
             self._step(mutant, shrinkable=False)
             self._scheduled()
 

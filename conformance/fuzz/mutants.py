@@ -73,12 +73,12 @@ class Mutants:
             self.parents.append(case)
 
     def next(self) -> FuzzCase | None:
-        """The next mutant (None before the first parent)."""
+        """The next mutant (None before the first parent, or when no operator applied to the parent picked)."""
         if not self.parents:
             return None
         rng = self.rng
         parent = self.parents[-1] if rng.random() < 0.5 else rng.choice(self.parents)
-        for _ in range(4):
+        for _ in range(8):  # an operator may not apply to the parent (a count change of a NONE request)
             name, op = rng.choice(self.ops)
             got = op(parent.data, parent.transport)
             if got is None or not self._sendable(got[0]):
