@@ -14,8 +14,8 @@ box is ``python -m conformance serve --port 0 --no-udp`` in a child process. In 
     the oracle, liveness on a fresh connection every 64 cases and after every anomaly;
     its rate is every case it sent (frame cases and session steps) per second;
   - **fuzz, frames only**: the same without sessions (``stateful_share=0``);
-  - **fuzz, no mutants**: frames only, every case drawn by hypothesis (``mutants=0``:
-    the campaign's loop of the previous release);
+  - **fuzz, no mutants**: sessions 0.2, every frame case drawn by hypothesis or the
+    schedule (``mutants=0``: the campaign's loop of the previous release);
   - **boofuzz**: ``benchmarks/boofuzz_isight.py`` (its cases/s, a new connection each);
 * **fuzz + pcap**: once, frames only with ``capture="all"``.
 
@@ -141,7 +141,7 @@ def rounds(port: int, args: argparse.Namespace, tmp: Path) -> dict[str, list[flo
         seed_value = args.seed + r
         full = campaign(port, args.seconds, seed_value, "failures", tmp, share=0.2, name=f"full-{r}")
         frames = campaign(port, args.seconds, seed_value, "failures", tmp, name=f"frames-{r}")
-        plain = campaign(port, args.seconds, seed_value, "failures", tmp, mutants=0, name=f"plain-{r}")
+        plain = campaign(port, args.seconds, seed_value, "failures", tmp, share=0.2, mutants=0, name=f"plain-{r}")
         boo = boofuzz(port, args.seconds, tmp)
         for key, value in (("fuzz", full["cases_per_s"]), ("frames", frames["cases_per_s"]),
                            ("no-mutants", plain["cases_per_s"])):
@@ -149,9 +149,11 @@ def rounds(port: int, args: argparse.Namespace, tmp: Path) -> dict[str, list[flo
         if boo is not None:
             rates["boofuzz"].append(boo)
         states = full["stateful"]["coverage"].get("fraction")  # type: ignore[index]
+        before = plain["stateful"]["coverage"].get("fraction")  # type: ignore[index]
         print(f"  round {r + 1}: fuzz {full['cases_per_s']:,.0f}/s (states {states}, coverage "
               f"{full['coverage']['fraction']}), frames only {frames['cases_per_s']:,.0f}/s, "  # type: ignore[index]
-              f"no mutants {plain['cases_per_s']:,.0f}/s, boofuzz {boo or 0:,.0f}/s; "
+              f"no mutants {plain['cases_per_s']:,.0f}/s (states {before}, coverage "
+              f"{plain['coverage']['fraction']}), boofuzz {boo or 0:,.0f}/s; "  # type: ignore[index]
               f"failures {len(full['failures']) + len(frames['failures']) + len(plain['failures'])}; "  # type: ignore[arg-type]
               f"load {os.getloadavg()[0]:.1f}", flush=True)
     return rates
@@ -183,7 +185,7 @@ def main() -> None:
     print(f"  median of {args.repeats} rounds, cases/s:")
     print(f"    fuzz (sessions 0.2, schedule, mutants):          {med['fuzz']:>10,.0f}")
     print(f"    fuzz, frames only:                               {med['frames']:>10,.0f}")
-    print(f"    fuzz, frames only, no mutants (previous loop):   {med['no-mutants']:>10,.0f}")
+    print(f"    fuzz, no mutants (the previous release's loop):  {med['no-mutants']:>10,.0f}")
     print(f"    boofuzz (boofuzz_isight.py):                     {med['boofuzz']:>10,.0f}")
     if med["boofuzz"]:
         print(f"  fuzz / boofuzz: {med['fuzz'] / med['boofuzz']:.2f}x (previous release: {PREVIOUS['fuzz']:,.0f} vs "
