@@ -56,6 +56,9 @@ from .triage import FuzzFailure, Triage
 SEGMENT_CASES = 20_000
 #: Events kept in memory per campaign transcript (the pcap has them all).
 KEEP_EVENTS = 20_000
+#: Mutants after which the box waited time_out without failing (a legal framing of their bytes) before the
+#: campaign sends no more mutants.
+MUTANT_SILENCES = 3
 
 
 class Campaign:
@@ -71,6 +74,7 @@ class Campaign:
         self.cases = self.strategies.cases(cfg.categories)
         self.schedule = Schedule(self.strategies) if not cfg.categories else None
         self.mutants = Mutants(self.strategies, self.seed ^ 0x6D757461) if not cfg.categories and cfg.mutants else None
+        self._mutant_silences = 0
         self.coverage = Coverage(cfg.profile)
         self.disabled: set[str] = set()
         self.window: list[Seen] = []  # cases since the last good liveness check
@@ -335,6 +339,12 @@ class Campaign:
         return back
 
     def _observe(self, case: FuzzCase, result: Result) -> None:
+        if case.kind == "mutant" and isinstance(result.end, Silence) and result.verdict is not Verdict.FAIL:
+            self._mutant_silences += 1  # the box framed the bytes otherwise (R6 allows it) and waits on them
+            if self._mutant_silences >= MUTANT_SILENCES:
+                self.disabled.add(case.kind)
+                self.config.log(f"fuzz: the box waited time_out on {MUTANT_SILENCES} mutants (it frames some bytes "
+                                "otherwise, as R6 allows); no more mutants in this campaign (each would wait time_out)")
         if case.kind == "R5-oversized" and isinstance(result.end, Silence) and case.kind not in self.disabled:
             self.disabled.add(case.kind)  # legal (R6 a: it skips what the header announces), but each waits time_out
             self.config.log(f"fuzz: the box waits on a {case.kind} header (R6 a trusts it and skips what it "

@@ -33,7 +33,7 @@ from collections import deque
 from collections.abc import Callable
 
 from ..protocol import BLOCK_LEN, HEADER_LEN, MAX_FRAME_LEN, BlockType, Transport
-from ..protocol.constants import CHECK_LEN
+from ..protocol.constants import CHECK_LEN, START_WORD, VERSION
 from .input_coverage import FIELDS, field_space
 from .strategies import EDGE_FINITE_BITS, NON_FINITE_BITS, FuzzCase, Strategies
 
@@ -68,8 +68,14 @@ class Mutants:
         self.made = 0
 
     def feed(self, case: FuzzCase) -> None:
-        """A case hypothesis drew: a parent for the next mutants (not a truncated or split one)."""
-        if not case.eof and not case.splits and HEADER_LEN <= len(case.data) <= MAX_FRAME_LEN:
+        """A case hypothesis drew: a parent for the next mutants when it is one frame whose start word and version
+        are right and whose length is what its header announces (not garbage, a splice or a truncated or split
+        frame: a mutant of those often has a framing a box may legally read otherwise, and then waits time_out)."""
+        data = case.data
+        if case.eof or case.splits or not HEADER_LEN <= len(data) <= MAX_FRAME_LEN:
+            return
+        header = self.codec.parse_header(data)
+        if (header.start_word, header.version) == (START_WORD, VERSION) and self.codec.frame_length(data) == len(data):
             self.parents.append(case)
 
     def next(self) -> FuzzCase | None:
