@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from typing import TypeVar
 
 from ..harness.client import Outcome
-from ..suite.verdicts import Verdict
+from ..model.verdicts import Verdict
 from .oracle import Finding
 
 #: Finding keys of deaths start with this (``R2/death/<trigger>``).

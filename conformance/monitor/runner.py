@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-from ..suite.verdicts import CaseResult, SuiteInfo
+from ..model.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
 from .proxy import TcpProxy
 from .report import write_monitor_reports

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli import main
+from conformance.commands import main
 
 pytestmark = [pytest.mark.timeout(400), pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")]
 

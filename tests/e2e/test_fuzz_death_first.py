@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli import main
+from conformance.commands import main
 from conformance.fuzz.campaign import Campaign, CampaignConfig
 from conformance.fuzz.death import STOPPED
 from conformance.harness.target import Target

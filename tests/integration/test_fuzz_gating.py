@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli import main
+from conformance.commands import main
 
 pytestmark = pytest.mark.timeout(180)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from conformance.evidence.vectors_file import load
 from conformance.fuzz.death_first import DEATH_KEY, deaths_first, died, is_death, known_death
 from conformance.fuzz.failure_files import Failure, write_vectors
 from conformance.fuzz.failure_lines import report_lines
@@ -12,9 +13,8 @@ from conformance.fuzz.last_words import last_words
 from conformance.fuzz.oracle import Finding
 from conformance.fuzz.strategies import Strategies
 from conformance.harness.client import Closed
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Profile
-from conformance.suite.verdicts import Verdict
-from conformance.vectors import load
 
 A1 = Finding(Verdict.FAIL, "A1", "A1: the box answers well-formed requests", "closed the connection",
              "valid/answer/23/unanswered")
