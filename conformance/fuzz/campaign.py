@@ -294,6 +294,8 @@ class Campaign:
         self._progress()
         self._observe(case, result)
         failing = triage.new_failures(result)
+        if case.kind == "mutant" and len(failing) < len(result.judgement.failures):
+            failing = []  # a mutant failing a way already reported, among others, shows the same defect again
         if not failing:
             if result.anomaly:
                 self.history.clear()
