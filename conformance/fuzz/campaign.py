@@ -7,8 +7,10 @@ found once is replayed first next time). One hypothesis example is a *batch*: a 
 of up to ``batch`` fuzz cases, run one after the other on a reused connection;
 hypothesis pays its per-example overhead once per batch, and shrinks a failing batch
 down to the one case that fails and that case down to its simplest frame. After each
-hypothesis case one case of the boundary schedule (:mod:`.schedule`) runs, until the
-schedule is done: every block count, field boundary and float class early.
+hypothesis case ``mutants`` cheap mutants of the recent ones run (:mod:`.mutants`: hypothesis's
+engine, not the box, is what a case costs), and after each drawn case and each mutant one
+case of the boundary schedule (:mod:`.schedule`), until the schedule is done: every block
+count, field boundary and float class early.
 
 Frame chunks alternate with chunks of the session state machine (:mod:`.session_runner`)
 from the first second, so that the sessions get ``stateful_share`` of the time (or of
