@@ -112,7 +112,7 @@ class ConnJudge:
 
     # -- the robot's events ----------------------------------------------------------------------
     def request(self, event: Any, raw: bytes, offset: int, first: int, last: int, t: float) -> None:
-        if type(event) is Frame and event.action is POSE and self.steady:
+        if type(event) is Frame and event.action is POSE and self.steady and not self.robot_counts:
             # the stream's pose (after the first ones): counted, timed and queued for its answer
             self.poses += 1
             times = self.clock.times
@@ -162,7 +162,15 @@ class ConnJudge:
             self.not_paired += 1
             return
         exchange = None
-        if action is not None and action is not POSE and len(self.records) < KEEP_REQUESTS:
+        if action is POSE and self._keep_pose(t):
+            # a pose the session judges (its first, the first in the cycle, one on a command connection):
+            # what the box did about it is kept too, so A1/T1 of the robot see its answer
+            exchange = Exchange(offset, t, action, "pending")
+            self.exchanges.append(exchange)
+            if self.robot_counts:
+                self.records.append(FrameRecord(0, self.transport, t, offset, raw[:64], event))
+            self.frame_at.setdefault(t, last)
+        elif action is not None and action is not POSE and len(self.records) < KEEP_REQUESTS:
             exchange = Exchange(offset, t, action, "pending")
             self.records.append(FrameRecord(0, self.transport, t, offset, raw[:64], event))
             self.exchanges.append(exchange)
@@ -172,6 +180,14 @@ class ConnJudge:
         self.queue.append((t, action, first, last, KIND[exp.rule], raw, event, exchange, exp))
         if len(self.queue) > MAX_OUTSTANDING:
             self._overflow(t)
+
+    def _keep_pose(self, t: float) -> bool:
+        """Keep this pose's exchange: the connection's first pose or the first after the cycle began (the
+        session's records), or any pose on a connection that carries commands (ISIGHT(3,35)), within bounds."""
+        if len(self.exchanges) >= KEEP_REQUESTS:
+            return False
+        return bool(self.robot_counts) or (self.first_pose is not None and self.first_pose[0] == t) or \
+            (self.pose_after is not None and self.pose_after[0] == t)
 
     def _note_action(self, action: int) -> None:
         if action not in self.actions:
@@ -197,7 +213,7 @@ class ConnJudge:
         queue = self.queue
         if type(event) is Frame and event.action is POSE and not event.error_code and queue:
             head = queue[0]
-            if head[1] is POSE and head[4] == OK:  # the stream's answer, 0000, to the pose it answers
+            if head[1] is POSE and head[4] == OK and head[7] is None:  # the stream's answer, 0000, to its pose
                 latency = (t - head[0]) * 1000.0
                 if latency <= self.t1_ms:
                     queue.popleft()

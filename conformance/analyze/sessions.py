@@ -126,11 +126,14 @@ def judge_session(ctx: Context, session: Session) -> None:
         record = dataclasses.replace(o.record, number=n)
         records.append(record)
         kept = [dataclasses.replace(r, conn=n) for r in o.requests]
+        have = {r.offset for r in kept}
         for pose in (o.first_pose, o.pose_after):
             if pose is not None:
                 t, frame, offset, event = pose
-                kept.append(FrameRecord(n, "tcp", t, offset, b"", event))
                 frame_at.setdefault(t, frame)
+                if offset not in have:  # the first pose may be the first in the cycle, or kept already: once
+                    have.add(offset)
+                    kept.append(FrameRecord(n, "tcp", t, offset, b"", event))
         frames[n] = sorted(kept, key=lambda r: r.t)
         frame_at.update({t: f for t, f in o.frame_at.items() if t not in frame_at})
     t_end = max(o.t_end for o in outcomes)
