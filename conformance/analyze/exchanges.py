@@ -84,6 +84,9 @@ class ConnJudge:
         self.robot_counts: dict[int, int] = {}  # well-formed non-pose requests per action
         self.box_counts: dict[int, int] = {}  # well-formed answers per action (but the short path's poses)
         self.robot_errors = self.box_errors = 0
+        self.answer_codes: dict[int, int] = {}  # answers per error code (but the short path's poses: 0000)
+        #: the monitor's live histogram of the poses' answer latencies (ms), when it watches (else None)
+        self.observe_pose: Any = getattr(ctx, "observe_pose", None)
         self.poses = self.box_poses = 0  # well-formed poses; well-formed pose answers on the short path
         self.paired = self.paired_poses = self.poses_ok = 0
         self.t1_ms = ctx.time_out_s * 1000.0
@@ -220,6 +223,8 @@ class ConnJudge:
                     self.box_poses += 1
                     lat = self._latencies
                     lat.append(latency)
+                    if self.observe_pose is not None:
+                        self.observe_pose(latency)
                     if len(lat) >= LATENCY_BATCH:
                         self.pose_latency.extend(lat)
                         self._latencies = array("d")
@@ -235,6 +240,7 @@ class ConnJudge:
             action = event.action
             code = event.error_code
             self.box_counts[event.action] = self.box_counts.get(event.action, 0) + 1
+            self.answer_codes[code] = self.answer_codes.get(code, 0) + 1
             if event.blocks and self.f4[BOX] < F4_SAMPLE:
                 byte_order(self, BOX, event, raw, offset, t, last)
         else:
@@ -295,6 +301,8 @@ class ConnJudge:
         if r_action is POSE:
             self.paired_poses += 1
             self._latencies.append(latency)
+            if self.observe_pose is not None:
+                self.observe_pose(latency)
         else:
             ctx.latency.add(latency)
         frames = (r_last, last)

@@ -75,6 +75,7 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
             now = loop.time()
             if end is not None and now >= end:
                 break
+            hub.tick()
             view.tick()
             if next_checkpoint is not None and now >= next_checkpoint:
                 next_checkpoint = now + checkpoint_s
