@@ -45,6 +45,8 @@ class MonitorSettings:
     seed: int = 0
     udp: bool = False
     connect_timeout_s: float = 5.0
+    metrics: tuple[str, int] | None = None  # --metrics HOST:PORT (the address got, once listening)
+    http: tuple[str, int] | None = None  # --http HOST:PORT
 
 
 @dataclass
