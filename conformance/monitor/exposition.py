@@ -122,7 +122,7 @@ class HubCollector:
 
 def registry_for(hub: Hub, rate: Any = None) -> CollectorRegistry:
     registry = CollectorRegistry(auto_describe=False)
-    registry.register(HubCollector(hub, rate))  # type: ignore[arg-type]
+    registry.register(HubCollector(hub, rate))
     return registry
 
 
