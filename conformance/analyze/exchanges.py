@@ -27,7 +27,7 @@ from typing import Any
 
 from ..observed.connections import Exchange
 from ..observed.frames import FrameRecord
-from ..protocol import Action, Frame, ProtocolError, action_name
+from ..protocol import EXTENSION_ACTIONS, Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
 from ..suite.verdicts import Verdict, broken_verdict
@@ -248,6 +248,8 @@ class ConnJudge:
             clause = _BOX_CLAUSE.get(event.clause, event.clause)
             self.findings.add(clause, BOX, broken_verdict(spec_for(clause, BOX).level),
                               f"{self.label}, offset {offset}: {event.message}", (first, last), box=raw)
+            # the robot may take a malformed answer for a refusal and stop: what it does next is not judged
+            self.refused(t, f"the box sent a malformed frame ({event.clause})")
             if event.clause in ("F2", "F1") and self.f4[BOX] < F4_SAMPLE:
                 byte_order(self, BOX, event, raw, offset, t, last)
             action = _header_action(event)
@@ -310,6 +312,9 @@ class ConnJudge:
         if latency > limit:
             self.findings.add("T1", BOX, FAIL, f"{self.label}: {action_name(r_action)} answered after "
                               f"{latency:.1f} ms; the bound is {limit:.0f} ms", frames, robot=r_raw, box=raw)
+            # the robot stops waiting at its time_out: from then on it may give the session up
+            self.refused(t_req + limit / 1000.0, f"the box did not answer {action_name(r_action)} within "
+                                                 f"{limit:.0f} ms")
         if exchange is not None:
             exchange.answer, exchange.t_answer, exchange.error_code = raw, t, code
             exchange.reaction = "answered"
@@ -384,7 +389,14 @@ class ConnJudge:
             if exchange is not None:
                 exchange.reaction = "close" if end in ("box", "robot") else "silent"
             name = action_name(action)
-            if self.garbage_t is not None and t_req > self.garbage_t:
+            if action in EXTENSION_ACTIONS and not any(self.box_counts.get(a) for a in EXTENSION_ACTIONS):
+                # a box without the extension E may stay silent on 26 and 27 (A5, legal table row
+                # extension-refusal); nothing here shows this box implements E
+                f.add("A1", BOX, INCONCLUSIVE, f"{label}: {name} never answered; a box without the extension E may "
+                      "stay silent on it (A5), and no answer to 26 or 27 shows this box implements E", (last,),
+                      robot=raw)
+                self.refused(t_req, f"the box did not answer {name}")
+            elif self.garbage_t is not None and t_req > self.garbage_t:
                 f.add("R6", BOX, NON_STRICT, f"{label}: {name} after the robot's garbage never answered; the box "
                       "neither resynchronised nor closed", (last,), robot=raw)
             elif end in ("box", "robot") or waited >= limit:

@@ -1,0 +1,82 @@
+"""Legal refusals the passive judges must accept (issue 26, found by the robot ↔ monitor ↔ box pairs):
+
+* a box without the extension E may stay silent on 26/27 (A5, legal row extension-refusal): with no
+  answer to 26 or 27 on the connection, its silence is INCONCLUSIVE, not an A1 FAIL; once it has
+  answered one, silence on the next is a FAIL again;
+* after the box's malformed answer the robot may move on (or stop): its next request is not an A1
+  violation of the robot's (the box's frame error is filed, on the box).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from conformance.analyze import AnalyzeConfig, analyze, build_cases
+from conformance.protocol import Action, answer, encode, request, value_blocks
+from conformance.suite.verdicts import Verdict
+from tests.analyze_util import Capture, exchange
+
+LOOSE = AnalyzeConfig(rate_tolerance=0.5, jitter_tolerance=3.0)
+PROG_IDX = encode(request(Action.PROG_IDX, value_blocks([7])))
+RESULT = encode(request(Action.VISION_RESULT))
+
+
+def _cases(cap: Capture, tmp_path: Path) -> dict:
+    return {c.id: c for c in build_cases(analyze(cap.write(tmp_path / "s.pcapng"), LOOSE))}
+
+
+def test_silence_on_progidx_from_a_box_that_may_lack_the_extension_is_inconclusive(tmp_path: Path) -> None:
+    cap = Capture()
+    cmd = cap.tcp(41000)
+    cmd.robot(PROG_IDX)
+    cmd.close()  # the robot gives up after its time_out
+    c = _cases(cap, tmp_path)
+    assert c["OBS-A1-box"].verdict is Verdict.INCONCLUSIVE, c["OBS-A1-box"].message
+    assert "without the extension" in c["OBS-A1-box"].message
+
+
+def test_silence_on_27_after_answering_26_is_still_a_fail(tmp_path: Path) -> None:
+    cap = Capture()
+    cmd = cap.tcp(41000)
+    exchange(cmd, PROG_IDX, encode(answer(Action.PROG_IDX, blocks=value_blocks([200]))))
+    cmd.robot(RESULT)
+    cmd.robot(b"", t=cap.t + 6.0)  # time_out passes
+    cmd.close()
+    c = _cases(cap, tmp_path)
+    assert c["OBS-A1-box"].verdict is Verdict.FAIL
+    assert "VISION_RESULT never answered" in c["OBS-A1-box"].message
+
+
+def test_the_robot_moving_on_after_a_malformed_answer_is_not_its_a1(tmp_path: Path) -> None:
+    cap = Capture()
+    cmd = cap.tcp(41000)
+    bad = bytearray(encode(answer(Action.NONE)))
+    bad[2:4] = bytes(reversed(bad[2:4]))  # the version in the other byte order (F2)
+    cmd.robot(encode(request(Action.NONE)))
+    cmd.box(bytes(bad))
+    cmd.robot(encode(request(Action.CYCLE_ON)))  # the robot took the malformed answer as the answer
+    cmd.box(bytes(bad[:5]) + bytes([Action.CYCLE_ON]) + bytes(bad[6:]))
+    cmd.close()
+    c = _cases(cap, tmp_path)
+    assert c["OBS-F2-box"].verdict is Verdict.FAIL
+    assert c["OBS-A1-robot"].verdict is not Verdict.FAIL, c["OBS-A1-robot"].message
+
+
+def test_a_robot_that_gives_up_at_time_out_on_a_late_answer_is_not_blamed_for_s1(tmp_path: Path) -> None:
+    from tests.analyze_util import POSE, POSE_OK
+
+    cap = Capture()
+    cmd, stream = cap.tcp(41000), cap.tcp(41001)
+    for _ in range(20):
+        stream.robot(POSE, t=cap.t + 0.02)
+        stream.box(POSE_OK, t=cap.t + 0.0004)
+    cmd.robot(encode(request(Action.CYCLE_ON)))
+    for _ in range(10):
+        stream.robot(POSE, t=cap.t + 0.02)
+        stream.box(POSE_OK, t=cap.t + 0.0004)
+    cmd.box(encode(answer(Action.CYCLE_ON)), t=cap.t + 6.0)  # after time_out (5 s): the robot gave up
+    cmd.close()  # no CycleOff: the robot stops its session
+    stream.close()
+    c = _cases(cap, tmp_path)
+    assert c["OBS-T1-box"].verdict is Verdict.FAIL
+    assert c["OBS-S1-robot"].verdict is not Verdict.FAIL, c["OBS-S1-robot"].message
