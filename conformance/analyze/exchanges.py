@@ -241,7 +241,7 @@ class ConnJudge:
             code = event.error_code
             self.box_counts[event.action] = self.box_counts.get(event.action, 0) + 1
             self.answer_codes[code] = self.answer_codes.get(code, 0) + 1
-            if event.blocks and self.f4[BOX] < F4_SAMPLE:
+            if event.blocks and self.f4[BOX] < F4_SAMPLE and not self._echoes(event):
                 byte_order(self, BOX, event, raw, offset, t, last)
         else:
             self.box_errors += 1
@@ -270,6 +270,12 @@ class ConnJudge:
             self._unsolicited(raw, action, code, first, last)
             return
         self._pair(queue.popleft(), event, raw, action, code, last, t)
+
+    def _echoes(self, event: Frame) -> bool:
+        """The answer carries the very blocks of the request it answers (a ProgIdx echoed): their byte order
+        is the robot's, not evidence about the box's (F4)."""
+        head = self.queue[0] if self.queue else None
+        return head is not None and type(head[6]) is Frame and head[6].blocks == event.blocks
 
     def _ok_later(self, action: int | None) -> bool:
         return any(r[4] == OK and r[1] == action for r in self.queue)

@@ -80,3 +80,15 @@ def test_a_robot_that_gives_up_at_time_out_on_a_late_answer_is_not_blamed_for_s1
     c = _cases(cap, tmp_path)
     assert c["OBS-T1-box"].verdict is Verdict.FAIL
     assert c["OBS-S1-robot"].verdict is not Verdict.FAIL, c["OBS-S1-robot"].message
+
+
+def test_a_box_echoing_a_little_endian_index_is_not_blamed_for_f4(tmp_path: Path) -> None:
+    cap = Capture()
+    cmd = cap.tcp(41000)
+    swapped = encode(request(Action.PROG_IDX, value_blocks([7 << 24])))  # 7 written little-endian
+    echoed = encode(answer(Action.PROG_IDX, blocks=value_blocks([7 << 24])))
+    exchange(cmd, swapped, echoed)
+    cmd.close()
+    c = _cases(cap, tmp_path)
+    assert c["OBS-F4-robot"].verdict is Verdict.FAIL
+    assert c["OBS-F4-box"].verdict is not Verdict.FAIL, c["OBS-F4-box"].message
