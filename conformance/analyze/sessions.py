@@ -29,7 +29,12 @@ from .context import Context
 from .findings import ROBOT
 from .timing import StreamJudgement
 
-__all__ = ["ConnOutcome", "ObservedView", "Session", "SessionTracker"]
+__all__ = ["SPLIT_AFTER_S", "SPLIT_CONNECTIONS", "ConnOutcome", "ObservedView", "Session", "SessionTracker"]
+
+#: a session takes at most this many connections, and no new one once it is this old: the next starts a new
+#: session (several robots behind one address, a connection open for a week: memory stays flat)
+SPLIT_CONNECTIONS = 64
+SPLIT_AFTER_S = 3600.0
 
 
 @dataclass
@@ -72,6 +77,9 @@ class Session:
         self.conns: list[Any] = []  # the live connections (their judges get the first CycleOn)
         self.outcomes: list[ConnOutcome] = []
         self.cycle_on: float | None = None
+        self.seen = 0  # connections attached so far
+        self.split_at: float | None = None  # when a new connection went to a new session instead
+        self.continues: int | None = None  # the number of the session this one was split from
 
     def on_cycle_on(self, t: float) -> None:
         if self.cycle_on is None:
@@ -94,11 +102,20 @@ class SessionTracker:
     def attach(self, conn: Any) -> Session:
         key = (conn.robot[0], conn.box[0], conn.box[1])
         session = self.open.get(key)
+        previous = None
+        if session is not None and (session.seen >= SPLIT_CONNECTIONS or conn.t_open - session.t0 > SPLIT_AFTER_S):
+            # split: the old session keeps its open connections and is judged when they end; it is cut here
+            session.split_at = conn.t_open
+            previous, session = session, None
+            del self.open[key]
         if session is None:
             self.count += 1
             self.ctx.stats.sessions += 1
             session = self.open[key] = Session(self.count, key, conn.t_open)
+            if previous is not None:
+                session.continues = previous.number
         session.open += 1
+        session.seen += 1
         session.conns.append(conn)
         conn.judge.on_cycle_on = session.on_cycle_on
         if session.cycle_on is not None:
@@ -142,11 +159,14 @@ def judge_session(ctx: Context, session: Session) -> None:
                         frame_at=frame_at)
     view.frames = frames
     view.cut = _cut(view, outcomes)
+    if session.split_at is not None and (view.cut is None or view.cut.t > session.split_at):
+        view.cut = Cut(session.split_at, f"the session was split there (more than {SPLIT_CONNECTIONS} connections, "
+                                         f"or older than {SPLIT_AFTER_S:g} s): what follows is a new session")
     label = session.label
     extension = ctx.config.extension
     if extension is None:
         extension = any(a in (Action.PROG_IDX, Action.VISION_RESULT) for o in outcomes for a in o.record.actions)
-    _order(ctx, view, outcomes, label, extension)
+    _order(ctx, view, outcomes, label, extension, session.continues)
     _awaited(ctx, view, label)
     _closes(ctx, view, outcomes, label)
     _streams(ctx, outcomes)
@@ -163,15 +183,18 @@ def _cut(view: SessionView, outcomes: list[ConnOutcome]) -> Cut | None:
     return min(cuts, key=lambda c: c.t) if cuts else None
 
 
-def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label: str, extension: bool) -> None:
+def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label: str, extension: bool,
+           continues: int | None = None) -> None:
     clause = "E4" if extension else "S1"
     f = ctx.findings
     first = outcomes[0]
     seen = [r for rs in view.frames.values() for r in rs if r.action is not None]
-    if not first.handshake:
+    if not first.handshake or continues is not None:
         actions = sorted({r.action for r in seen if r.action is not None})
+        why = (f"it continues session {continues}, split there (too many or too old connections)"
+               if first.handshake else f"the capture starts mid-session ({first.label} was already open)")
         f.add(clause, ROBOT, Verdict.INCONCLUSIVE,
-              f"{label}: the capture starts mid-session ({first.label} was already open): the order is not judged; "
+              f"{label}: {why}: the order is not judged; "
               f"seen: {', '.join(action_name(a) for a in actions) or 'no request'}",
               (view.frame_at.get(first.record.t_open, 0),))
         return
