@@ -1,6 +1,6 @@
 """Memory of ``analyze`` (and so of ``monitor``, the same engine) over days of one robot address.
 
-Run on demand: ``python benchmarks/bench_long_capture.py [--frames 10000000] [--keep PATH]``.
+Run on demand: ``python benchmarks/bench_long_capture.py [--frames 10000000] [--keep PATH] [--by-address]``.
 The capture (in a temporary directory, or ``--keep PATH``: never commit it) is written
 with ``struct``: ONE robot address (several robots behind one NAT address) whose traffic
 never pauses: a command connection that stays open for the whole capture (a ping every
@@ -96,8 +96,13 @@ def generate(path: Path, frames: int) -> int:
     return w.frames
 
 
-def child(path: str, samples: int) -> None:
+def child(path: str, samples: int, by_address: bool = False) -> None:
     from conformance.analyze import AnalyzeConfig, analyze, build_cases
+
+    if by_address:  # the baseline: sessions by address alone (never split), as before issue 26
+        from conformance.analyze import sessions
+
+        sessions.SPLIT_CONNECTIONS, sessions.SPLIT_AFTER_S = 1 << 62, float("inf")
 
     size = os.path.getsize(path)
     curve: list[tuple[float, float]] = []
@@ -133,18 +138,22 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=10_000_000)
     parser.add_argument("--keep", type=Path, help="write the capture here and keep it (never commit it)")
     parser.add_argument("--samples", type=int, default=20)
+    parser.add_argument("--by-address", action="store_true",
+                        help="the baseline: sessions keyed by address alone, never split (as before issue 26)")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
-        child(args.child, args.samples)
+        child(args.child, args.samples, args.by_address)
         return
     with tempfile.TemporaryDirectory() as tmp:
         path = args.keep or Path(tmp) / "long.pcap"
         t = time.perf_counter()
-        written = generate(path, args.frames)
-        print(f"{written:,} frames from one robot address ({path.stat().st_size / 1e9:.2f} GB pcap) written in "
+        again = args.keep is not None and args.keep.exists()  # analyse the kept capture again
+        written = -1 if again else generate(path, args.frames)
+        print(f"{written:,} frames (-1: the kept capture) from one robot address ({path.stat().st_size / 1e9:.2f} GB pcap) written in "
               f"{time.perf_counter() - t:.0f} s", flush=True)
-        out = subprocess.run([sys.executable, __file__, "--child", str(path), "--samples", str(args.samples)],
+        out = subprocess.run([sys.executable, __file__, "--child", str(path), "--samples", str(args.samples),
+                              *(["--by-address"] if args.by_address else [])],
                              capture_output=True, text=True, timeout=6 * 3600)
         if out.returncode:
             print(out.stderr[-2000:])
