@@ -97,11 +97,12 @@ class View:
         return time.strftime('%H:%M:%S') + " " + _(
             "status: {open} open / {connections} connection(s), {sessions} session(s) done, frames robot→box "
             "{requests} box→robot {answers}, answer latency p50 {p50} p99 {p99} ms; {pose}stream {rate} poses/s; "
-            "findings {findings} in {causes} root cause(s); alarms {alarms} active; injected {injected}").format(
+            "findings {findings} in {causes} root cause(s); injected {injected}").format(
             open=len(hub.open), connections=f"{hub.connections:,}", sessions=f"{hub.ctx.stats.sessions:,}",
             requests=f"{requests:,}", answers=f"{answers:,}", p50=_ms(lat.percentile(50)),
             p99=_ms(lat.percentile(99)), pose=pose, rate=f"{self.counts.rate:.1f}", findings=f"{bad:,}",
-            causes=len(hub.findings.roots.causes), alarms=len(hub.alarms.active), injected=f"{hub.reactions.total:,}")
+            causes=len(hub.findings.roots.causes), injected=f"{hub.reactions.total:,}") + "; " + _(
+            "alarms {alarms} active").format(alarms=len(hub.alarms.active))
 
     def _panel(self, hub: Hub) -> Any:
         from rich.table import Table
