@@ -35,6 +35,8 @@ __all__ = ["SPLIT_AFTER_S", "SPLIT_CONNECTIONS", "ConnOutcome", "ObservedView", 
 #: session (several robots behind one address, a connection open for a week: memory stays flat)
 SPLIT_CONNECTIONS = 64
 SPLIT_AFTER_S = 3600.0
+#: a stream's rate (T2) is judged from this many intervals on (the robot stopped after a refusal: a few poses)
+MIN_RATE_INTERVALS = 8
 
 
 @dataclass
@@ -255,8 +257,9 @@ def _streams(ctx: Context, outcomes: list[ConnOutcome]) -> None:
         if o.record.role != "stream":
             continue
         j = o.stream
-        if not j.blocks:
-            f.add("T2", ROBOT, Verdict.INCONCLUSIVE, f"{o.label}: {j.poses} pose(s): too few to measure a rate")
+        if not j.blocks or j.poses <= MIN_RATE_INTERVALS:  # a few poses' "rate" is the machine's scheduling
+            f.add("T2", ROBOT, Verdict.INCONCLUSIVE, f"{o.label}: {j.poses} pose(s): too few to measure a rate "
+                  f"(at least {MIN_RATE_INTERVALS + 1})")
             continue
         tally = f.tally("T2", ROBOT)
         if len(tally.details.setdefault("streams", [])) < 20:

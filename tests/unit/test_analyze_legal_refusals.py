@@ -92,3 +92,34 @@ def test_a_box_echoing_a_little_endian_index_is_not_blamed_for_f4(tmp_path: Path
     c = _cases(cap, tmp_path)
     assert c["OBS-F4-robot"].verdict is Verdict.FAIL
     assert c["OBS-F4-box"].verdict is not Verdict.FAIL, c["OBS-F4-box"].message
+
+
+def test_four_poses_before_a_refusal_are_too_few_for_a_rate(tmp_path: Path) -> None:
+    from tests.analyze_util import POSE, POSE_OK
+
+    cap = Capture()
+    cmd, stream = cap.tcp(41000), cap.tcp(41001)
+    for gap in (0.02, 0.01, 0.012, 0.014):  # 62 Hz over three intervals, declared 50
+        stream.robot(POSE, t=cap.t + gap)
+        stream.box(POSE_OK, t=cap.t + 0.0004)
+    exchange(cmd, encode(request(Action.CYCLE_ON)), encode(answer(Action.CYCLE_ON, error_code=1)))  # not ready
+    stream.close()
+    cmd.close()
+    c = {c.id: c for c in build_cases(analyze(cap.write(tmp_path / "s.pcapng"), AnalyzeConfig()))}  # ±10 %
+    assert c["OBS-T2-robot"].verdict is Verdict.INCONCLUSIVE, c["OBS-T2-robot"].message
+
+
+def test_latency_growing_by_less_than_one_period_is_no_backlog_but_more_is() -> None:
+    from conformance.analyze.findings import Series
+    from conformance.analyze.timing import backlog
+
+    def grown(last_ms: float) -> bool:
+        s = Series()
+        for i in range(40):
+            s.add(5.0 if i < 20 else last_ms)
+        b = backlog(s, 20.0)  # 20 Hz: a period of 50 ms
+        assert b is not None
+        return b.grows
+
+    assert not grown(47.0)  # the box is less than one pose behind (a loaded machine)
+    assert grown(80.0)
