@@ -25,6 +25,8 @@ BASE = sample_seeds(SEED + 104729, 2)
 ARGS = argparse.Namespace(duration=1.0)
 
 PAIRS = [
+    # issue 26's report: a pose (23) and a register pose (24) on the command connection, legal, read as ROBOT A1
+    pytest.param(Side("karel-calls", 0), Side(PARTNER_BOX, 0), id="karel-calls-resync-fine"),
     pytest.param(Side(RANDOM, ROBOTS[0]), Side(RANDOM, BOX), id=f"legal-robot{ROBOTS[0]}-box{BOX}"),
     pytest.param(Side(RANDOM, ROBOTS[1]), Side(RANDOM, BOX), id=f"legal-robot{ROBOTS[1]}-box{BOX}"),
     pytest.param(Side("little-floats", BASE[0]), Side(PARTNER_BOX, 0), id=f"broken-robot-F4-base{BASE[0]}"),
@@ -42,8 +44,8 @@ def test_monitor_and_analyze_agree_on_the_pair(robot: Side, box: Side, tmp_path:
         assert row.verdicts["monitor"] == "clean"
 
 
-@pytest.mark.parametrize("robot", [Side(RANDOM, ROBOTS[0]), Side("little-floats", BASE[0])],
-                         ids=["legal", "broken-F4"])
+@pytest.mark.parametrize("robot", [Side(RANDOM, ROBOTS[0]), Side("karel-calls", 0), Side("little-floats", BASE[0])],
+                         ids=["legal", "karel-calls", "broken-F4"])
 def test_certify_robot_agrees_on_the_sampled_robot(robot: Side, tmp_path: Path) -> None:
     verdict, cases = certify(robot, ARGS, tmp_path)
     assert verdict.startswith("ok"), (verdict, cases)

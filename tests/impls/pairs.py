@@ -35,7 +35,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from .expectations import Expectation, expectation, judge
+from .expectations import EXPECTATIONS, Expectation, expectation, judge
 from .matrix import ROOT, Proc, sample_seeds, target_args
 
 #: broken robots whose defect a legal box's traffic shows (stream-open holds its stream 30 s: left out)
@@ -62,7 +62,7 @@ class Side:
 
     @property
     def broken(self) -> bool:
-        return self.name not in (RANDOM, PARTNER_BOX)
+        return self.name != RANDOM and not EXPECTATIONS[self.name].conforming
 
 
 @dataclass
