@@ -32,9 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from conformance import i18n  # noqa: E402
+from conformance.model.verdicts import CaseResult, RootCause, SuiteInfo  # noqa: E402
 from conformance.report.html import write_html  # noqa: E402
 from conformance.report.load import cases_of, load_summary, root_causes_of, suite_of  # noqa: E402
-from conformance.suite.verdicts import CaseResult, RootCause, SuiteInfo  # noqa: E402
 from tests.reportruns import (  # noqa: E402
     chromium,
     conforming_run,

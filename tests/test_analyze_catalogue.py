@@ -5,10 +5,10 @@ from __future__ import annotations
 import re
 
 from conformance.analyze.catalogue import SPECS, case_id, spec_for
+from conformance.model.verdicts import Level
 from conformance.observed.catalogue import FRAME_SPECS
 from conformance.protocol.clauses import clause as registry_clause
 from conformance.report.summary import CLAUSES
-from conformance.suite.verdicts import Level
 
 
 def test_every_case_is_obs_clause_side_and_cites_known_clauses():

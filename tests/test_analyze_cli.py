@@ -1,4 +1,4 @@
-"""``isight-conformance analyze`` (conformance/analyze/cli.py): exit status 0/1/2, one clear
+"""``isight-conformance analyze`` (conformance/commands/analyze.py): exit status 0/1/2, one clear
 line for a file that is not a whole capture, the reports, the flags."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from conformance.analyze.cli import config_from_args
-from conformance.cli import build_parser, main
+from conformance.commands import build_parser, main
+from conformance.commands.analyze import config_from_args
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.protocol import Action, answer, encode, request
 from tests.analyze_util import FAST, Capture, canonical, exchange, record

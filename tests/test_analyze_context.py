@@ -1,10 +1,10 @@
-"""The settings of an analysis (conformance/analyze/context.py)."""
+"""The settings of an analysis (conformance/analyze/analysis_context.py)."""
 
 from __future__ import annotations
 
 import pytest
 
-from conformance.analyze.context import AnalyzeConfig, Context
+from conformance.analyze.analysis_context import AnalyzeConfig, Context
 from conformance.protocol import Profile, TcpCheckPolicy
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from conformance.analyze.context import AnalyzeConfig, Context
+from conformance.analyze.analysis_context import AnalyzeConfig, Context
 from conformance.analyze.conversations import Conversations
 from conformance.analyze.packets import TCP, PacketDecoder
 from conformance.analyze.sessions import SessionTracker

@@ -27,10 +27,10 @@ import pytest
 from conformance.analyze import AnalyzeConfig, analyze, build_cases
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.robot import RobotSession
-from conformance.endpoints.robot_steps import RobotFaults
+from conformance.endpoints.robot.robot_steps import RobotFaults
 from conformance.endpoints.server import ReferenceBox
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, answer, encode, encode_udp, request
-from conformance.suite.verdicts import Verdict
 from tests.analyze_util import FAST, POSE, POSE_OK, Capture, canonical, exchange, record
 
 pytestmark = pytest.mark.timeout(120)

@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.analyze.context import AnalyzeConfig, Context
+from conformance.analyze.analysis_context import AnalyzeConfig, Context
 from conformance.analyze.exchanges import ConnJudge
+from conformance.model.verdicts import Verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -24,7 +25,6 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.answers import Cycle
-from conformance.suite.verdicts import Verdict
 
 POSE = request(Action.POSE, pose_blocks([(800.0, 1.0, 2.0, 3.0, 4.0, 5.0)]))
 BAD_POSE = encode_raw(Header(action=Action.POSE, block_type=1, block_count=1, block_length=25), bytes([3]) + bytes(24))

@@ -6,7 +6,7 @@ import math
 from array import array
 
 from conformance.analyze.findings import BOX, KEEP, Findings, Series, frames_text
-from conformance.suite.verdicts import Verdict
+from conformance.model.verdicts import Verdict
 
 
 def test_frames_text():

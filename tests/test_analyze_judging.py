@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.analyze.context import AnalyzeConfig, Context
+from conformance.analyze.analysis_context import AnalyzeConfig, Context
 from conformance.analyze.exchanges import ConnJudge
 from conformance.analyze.judging import Cycles, count_frames, expect, judge_pair
+from conformance.model.verdicts import Verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -27,7 +28,6 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.answers import Cycle, Rule
-from conformance.suite.verdicts import Verdict
 
 
 def judge(transport: str = "tcp") -> ConnJudge:

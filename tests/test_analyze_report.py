@@ -1,4 +1,4 @@
-"""An analysis as the suite's evidence (conformance/analyze/report.py): one case per
+"""An analysis as the suite's evidence (conformance/analyze/analysis_report.py): one case per
 (clause, side), frame numbers in the message, the bytes of both sides, the plots."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import xml.etree.ElementTree as ET
 
 from conformance.analyze import AnalyzeConfig, analyze, build_cases, write_analysis
 from conformance.analyze.catalogue import SPECS
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, answer, encode, request
-from conformance.suite.verdicts import Verdict
 from tests.analyze_util import Capture, canonical, exchange
 
 

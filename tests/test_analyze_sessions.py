@@ -8,9 +8,9 @@ from pathlib import Path
 
 from conformance.analyze import AnalyzeConfig, analyze, build_cases
 from conformance.analyze.sessions import ObservedView
+from conformance.model.verdicts import Verdict
 from conformance.observed.session import SessionView
 from conformance.protocol import Action, answer, encode, request, value_blocks
-from conformance.suite.verdicts import Verdict
 from tests.analyze_util import POSE, POSE_OK, Capture, canonical, exchange
 
 LOOSE = AnalyzeConfig(rate_tolerance=0.5, jitter_tolerance=3.0)

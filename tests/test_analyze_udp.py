@@ -1,12 +1,12 @@
-"""iSight over UDP (conformance/analyze/udp.py): one datagram one frame, the CRC, R7."""
+"""iSight over UDP (conformance/analyze/udp_conversation.py): one datagram one frame, the CRC, R7."""
 
 from __future__ import annotations
 
-from conformance.analyze.context import AnalyzeConfig, Context
+from conformance.analyze.analysis_context import AnalyzeConfig, Context
 from conformance.analyze.packets import PacketDecoder
-from conformance.analyze.udp import UdpConversation, crc_reading
+from conformance.analyze.udp_conversation import UdpConversation, crc_reading
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, answer, encode_udp, request
-from conformance.suite.verdicts import Verdict
 from tests.analyze_util import Capture
 
 

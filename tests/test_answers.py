@@ -396,7 +396,7 @@ def test_the_catalogue_reads_its_expectations_from_the_answer_table() -> None:
     from conformance.protocol import Action, ErrorCode, ResultCode, answer, request
     from conformance.protocol.answers import ALLOWED_CODES, ROBOT_RESULTS, SENDABLE_RESULTS, Cycle
     from conformance.protocol.frames import value_blocks
-    from conformance.suite.judge import answered_allowed
+    from conformance.suite.case_judge import answered_allowed
 
     def got(action: Action, code: int, value: int | None = None) -> Answer:
         blocks = value_blocks([value]) if value is not None else ()

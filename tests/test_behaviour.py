@@ -19,7 +19,7 @@ from conformance.endpoints.behaviour import (
     Cycle,
     Reaction,
 )
-from conformance.endpoints.connection import BoxConnection
+from conformance.endpoints.box_connection import BoxConnection
 from conformance.protocol import (
     DEFAULT_PROFILE,
     REQUEST_SHAPE,

@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conformance.cli import main
+from conformance.commands import main
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.loop import BoxThread
 from conformance.endpoints.server import ReferenceBox

@@ -35,7 +35,7 @@ from conformance.protocol import (
     pose_blocks,
 )
 
-MINE = ["conformance.cases.test_blocks", "conformance.cases.test_actions", "conformance.cases.test_vector_replay"]
+MINE = ["conformance.cases.blocks", "conformance.cases.actions", "conformance.cases.vector_replay"]
 BAD = ("FAIL", "NON-STRICT", "ERROR")
 #: the case IDs these modules define (the plugin may add an "always" baseline case of its own)
 MY_IDS = ("B1-", "B2-", "B3-", "B4-", "B5-", "A1-", "A2-", "A3-", "A4-", "A5-", "R1-10", "R1-11")
@@ -200,7 +200,7 @@ def test_zero_to_everything_fails_must_cases(tmp_path: Path, broken: BrokenBox) 
 
 @pytest.mark.parametrize("broken", ["no-ext-26-ok"], indirect=True)
 def test_unknown_extension_action_answered_zero_fails_a5(tmp_path: Path, broken: BrokenBox) -> None:
-    results = run_cases(tmp_path, ["conformance.cases.test_actions"], f"127.0.0.1:{broken.port}", ("A5-02*",))
+    results = run_cases(tmp_path, ["conformance.cases.actions"], f"127.0.0.1:{broken.port}", ("A5-02*",))
     _assert_failed(results, "A5-02[26-prog-idx]")
     assert results["A5-02[27-vision-result]"]["verdict"] == "PASS"  # closing is allowed (A5)
 
@@ -219,7 +219,7 @@ def test_wrong_error_code_is_non_strict(tmp_path: Path, broken: BrokenBox) -> No
 
 @pytest.mark.parametrize("broken", ["twice", "reorder"], indirect=True)
 def test_extra_or_reordered_answers_fail_a1(tmp_path: Path, broken: BrokenBox) -> None:
-    results = run_cases(tmp_path, ["conformance.cases.test_actions"], f"127.0.0.1:{broken.port}", ("A1-*", "A4-*"))
+    results = run_cases(tmp_path, ["conformance.cases.actions"], f"127.0.0.1:{broken.port}", ("A1-*", "A4-*"))
     _assert_failed(results, "A1-01")
     if broken.mode == "twice":
         _assert_failed(results, "A1-02")
@@ -229,7 +229,7 @@ def test_extra_or_reordered_answers_fail_a1(tmp_path: Path, broken: BrokenBox) -
 
 @pytest.mark.parametrize("broken", ["blocks", "tt01"], indirect=True)
 def test_answer_shape_fails_a2(tmp_path: Path, broken: BrokenBox) -> None:
-    modules = ["conformance.cases.test_frame", "conformance.cases.test_actions"]
+    modules = ["conformance.cases.frame", "conformance.cases.actions"]
     results = run_cases(tmp_path, modules, f"127.0.0.1:{broken.port}", ("A2-*", "F3-01"))
     for param in ("cycle-on-off", "pose", "register-pose", "tolerance", "malformed-pose"):
         _assert_failed(results, f"A2-01[{param}]")
@@ -240,7 +240,7 @@ def test_answer_shape_fails_a2(tmp_path: Path, broken: BrokenBox) -> None:
 
 @pytest.mark.parametrize("broken", ["none-0001"], indirect=True)
 def test_none_answered_error_fails_a4(tmp_path: Path, broken: BrokenBox) -> None:
-    results = run_cases(tmp_path, ["conformance.cases.test_actions"], f"127.0.0.1:{broken.port}", ("A4-*", "A2-01?pose?"))
+    results = run_cases(tmp_path, ["conformance.cases.actions"], f"127.0.0.1:{broken.port}", ("A4-*", "A2-01?pose?"))
     _assert_failed(results, "A4-01")
     assert results["A2-01[pose]"]["verdict"] == "PASS"  # the shape of a NONE 0001 answer is A4's business
 
@@ -248,12 +248,12 @@ def test_none_answered_error_fails_a4(tmp_path: Path, broken: BrokenBox) -> None
 def test_missing_vectors_give_one_skip(tmp_path: Path) -> None:
     """Without the vector directory the replay collects one SKIP per kind instead of crashing."""
     code = (
-        "import conformance.vectors as v, pathlib; v.REPO_VECTORS = pathlib.Path('/nonexistent');"
+        "import conformance.evidence.vectors_file as v, pathlib; v.REPO_VECTORS = pathlib.Path('/nonexistent');"
         "import sys, pytest; sys.exit(pytest.main(sys.argv[1:]))"
     )
     report = tmp_path / "report"
     proc = subprocess.run(
-        [sys.executable, "-c", code, "-p", "no:cacheprovider", "-q", "-o", "addopts=", "--pyargs", "conformance.cases.test_vector_replay",
+        [sys.executable, "-c", code, "-p", "no:cacheprovider", "-q", "-o", "addopts=", "--pyargs", "conformance.cases.vector_replay",
          "--report-dir", str(report)], capture_output=True, text=True, timeout=30, cwd=tmp_path)
     cases = {c["id"]: c for c in json.loads((report / "summary.json").read_text())["cases"]}
     assert set(cases) == {"A1-10[no-vectors]", "R1-10[no-vectors]", "R1-11[no-vectors]"}, proc.stdout[-2000:]

@@ -11,8 +11,9 @@ import time
 
 import pytest
 
-from conformance.certify.cli import DEFAULT_LISTEN, parse_listen
-from conformance.cli import build_parser, main
+from conformance.commands import build_parser, main
+from conformance.commands.certify_robot import DEFAULT_LISTEN
+from conformance.commands.options import parse_listen
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -22,12 +22,12 @@ from pathlib import Path
 import pytest
 
 from conformance.certify import CertifyConfig, certify
-from conformance.certify.runner import CertifyOutcome
+from conformance.certify.certification import CertifyOutcome
 from conformance.endpoints.robot import RobotSession
-from conformance.endpoints.robot_result import RobotResult
-from conformance.endpoints.robot_steps import RobotFaults
+from conformance.endpoints.robot.robot_result import RobotResult
+from conformance.endpoints.robot.robot_steps import RobotFaults
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, encode, encode_udp, pose_blocks, request
-from conformance.suite.verdicts import Verdict
 
 pytestmark = pytest.mark.timeout(60)
 

@@ -24,6 +24,7 @@ import pytest
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
 from conformance.endpoints.loop import BoxThread
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     Action,
     ErrorCode,
@@ -35,7 +36,6 @@ from conformance.protocol import (
     value_blocks,
 )
 from conformance.protocol.clauses import all_clauses
-from conformance.suite.verdicts import Level
 
 from .boxes import ScriptedBox, answering
 
@@ -339,7 +339,7 @@ def run_cases(tmp_path: Path, target: str, globs: tuple[str, ...], args: tuple[s
 
 
 def test_every_must_clause_is_cited_by_a_must_case() -> None:
-    from conformance.runner import collect
+    from conformance.commands.run_flow import collect
     from conformance.suite.settings import SuiteSettings
 
     cases = collect(SuiteSettings())

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from conformance.options import PROFILE_OPTIONS
 from conformance.protocol import clauses as registry
 from conformance.protocol.clauses import (
     REGISTRY_VERSION,
@@ -23,6 +22,7 @@ from conformance.protocol.clauses import (
     parse_registry,
     text_of,
 )
+from conformance.suite.profile_options import PROFILE_OPTIONS
 from conformance.suite.settings import SUITE_OPTIONS
 
 EXPECTED_IDS = [f"{f}{i}" for f, n in zip("FBASTRE", (7, 5, 5, 6, 2, 7, 5)) for i in range(1, n + 1)]
@@ -200,10 +200,10 @@ def test_protocol_doc_quotes_come_with_a_translation():
 
 
 def test_one_level_vocabulary_for_the_registry_the_verdicts_and_the_findings() -> None:
+    from conformance.model import verdicts
     from conformance.protocol.answers import Expectation, Rule, Seen, judge_answer
     from conformance.protocol.clauses import LEVELS, all_clauses
     from conformance.protocol.levels import Level
-    from conformance.suite import verdicts
 
     assert verdicts.Level is Level and LEVELS == (Level.MUST, Level.SHOULD, Level.MAY)
     assert all(isinstance(c.level, Level) and all(isinstance(lv, Level) for lv in c.levels) for c in all_clauses().values())

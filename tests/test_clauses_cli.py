@@ -9,8 +9,8 @@ import sys
 
 import pytest
 
-from conformance.clauses_cli import format_text, select
-from conformance.cli import main
+from conformance.commands import main
+from conformance.commands.clauses import format_text, select
 from conformance.protocol.clauses import REGISTRY_VERSION, all_clauses, clause
 
 

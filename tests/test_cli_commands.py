@@ -1,5 +1,5 @@
-"""conformance/cli.py registers every subcommand one way: each command module's ``add_parser(sub)``
-adds it, binds its handler and returns its parser; cli.py only lists them."""
+"""conformance/commands/ registers every subcommand one way: each command module's ``COMMAND``
+(a registry.Command) adds it, binds its handler and returns its parser; COMMANDS only lists them."""
 
 from __future__ import annotations
 
@@ -7,16 +7,16 @@ import argparse
 
 import pytest
 
-from conformance.cli import COMMANDS, build_parser, main
+from conformance.commands import COMMANDS, build_parser, main
 
 NAMES = ("decode", "serve", "robot", "certify-robot", "run", "fuzz", "replay", "clauses", "wireshark", "diff", "analyze", "monitor")
 
 
 def test_every_add_parser_registers_one_command_with_its_handler() -> None:
     sub = argparse.ArgumentParser().add_subparsers(dest="command")
-    for add_parser in COMMANDS:
+    for command in COMMANDS:
         before = set(sub.choices)
-        parser = add_parser(sub)
+        parser = command.add_to(sub)
         (name,) = set(sub.choices) - before
         assert sub.choices[name] is parser, name
         assert callable(parser.get_default("func")), name

@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Reaction
-from conformance.endpoints.connection import BoxConnection
+from conformance.endpoints.box_connection import BoxConnection
 from conformance.protocol import (
     DEFAULT_PROFILE,
     Action,

@@ -23,6 +23,7 @@ from conformance.harness.exchange import (
 from conformance.harness.liveness import check_alive, responsive, unreachable_outcome
 from conformance.harness.target import Refused, Target, Unreachable
 from conformance.harness.transcript import Transcript
+from conformance.model.verdicts import Level, Verdict
 from conformance.protocol import (
     Action,
     Profile,
@@ -34,11 +35,10 @@ from conformance.protocol import (
     pose_blocks,
     request,
 )
-from conformance.suite.context import CaseContext
+from conformance.suite.case_context import CaseContext
 from conformance.suite.record import CaseRecord
-from conformance.suite.session import SessionState
+from conformance.suite.run_state import SessionState
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.verdicts import Level, Verdict
 
 from .boxes import ScriptedBox, answering
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from conformance.fleet.html import render_fleet_html, write_fleet_html
 from conformance.fleet.results import fleet_document
-from conformance.suite.verdicts import RootCause, Verdict
+from conformance.model.verdicts import RootCause, Verdict
 from tests.fleet_util import box_run, case
 
 

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from conformance.fleet.results import box_entry, fleet_document, write_fleet_json
-from conformance.suite.verdicts import RootCause, Verdict
+from conformance.model.verdicts import RootCause, Verdict
 from tests.fleet_util import box_run, case
 
 P, F = Verdict.PASS, Verdict.FAIL

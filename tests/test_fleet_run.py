@@ -1,4 +1,4 @@
-"""``isight-conformance run --targets FILE`` end to end (conformance/fleet/command.py): bundled boxes, a box with
+"""``isight-conformance run --targets FILE`` end to end (conformance/commands/fleet.py, conformance/fleet/fleet_run.py): bundled boxes, a box with
 a planted defect and its expected failures, a stop by signal, and the usage errors (exit 2, one line)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli import main
+from conformance.commands import main
 from tests.test_fuzz_campaign import patched_box, zero_to_unknown_action
 
 pytestmark = pytest.mark.timeout(240)

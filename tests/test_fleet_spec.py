@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from conformance.commands.run import add_arguments as add_run_arguments
 from conformance.fleet.spec import FleetFileError, command_line_overrides, load_fleet, parse_fleet
-from conformance.runner import add_run_arguments
 
 GOOD = """\
 # line 1: a fleet of three

@@ -1,4 +1,4 @@
-"""The fuzz cases of the suite (conformance/cases/test_fuzz.py): PASS on the reference box, FAIL on broken ones."""
+"""The fuzz cases of the suite (conformance/cases/fuzzing.py): PASS on the reference box, FAIL on broken ones."""
 
 from __future__ import annotations
 

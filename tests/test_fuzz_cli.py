@@ -1,4 +1,4 @@
-"""The fuzz and replay commands (conformance/fuzz/cli.py via ``isight-conformance``): exit codes, the
+"""The fuzz and replay commands (conformance/commands/fuzz.py and replay.py, conformance/fuzz/launch.py, via ``isight-conformance``): exit codes, the
 planted-defect round trip (fuzz finds it, replay reproduces it, the reference box passes it)."""
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ import pytest
 from hypothesis import settings
 from hypothesis.database import DirectoryBasedExampleDatabase
 
-from conformance.cli import main
-from conformance.fuzz.cli import DEFAULT_DATABASE, resolve_database
-from conformance.vectors import REPO_VECTORS
+from conformance.commands import main
+from conformance.evidence.vectors_file import REPO_VECTORS
+from conformance.fuzz.database import DEFAULT_DATABASE, resolve_database
 from tests.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, zero_to_bad_pose_index
 
 pytestmark = pytest.mark.timeout(120)
@@ -93,7 +93,8 @@ def test_restart_cmd_is_the_campaign_s_restart_and_the_report_prints_the_coverag
     import shlex
     import sys
 
-    from conformance.fuzz.cli import _restart, add_fuzz_arguments
+    from conformance.commands.fuzz import add_arguments as add_fuzz_arguments
+    from conformance.fuzz.launch import _restart
 
     parser = argparse.ArgumentParser()
     add_fuzz_arguments(parser)

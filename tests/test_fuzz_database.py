@@ -21,7 +21,7 @@ from typing import Any
 import pytest
 from hypothesis.database import DirectoryBasedExampleDatabase, MultiplexedDatabase, ReadOnlyDatabase
 
-from conformance.cli import main
+from conformance.commands import main
 from conformance.fuzz.database import redact, resolve_database
 from tests.test_fuzz_campaign import SHRUNK_BAD_INDEX, patched_box, zero_to_bad_pose_index
 

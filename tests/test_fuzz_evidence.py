@@ -7,11 +7,11 @@ from pathlib import Path
 
 import jsonschema
 
+from conformance.evidence.vectors_file import REPO_VECTORS, frame_from_dict, load
 from conformance.fuzz.evidence import Failure, clauses_of, write_pcap, write_summary, write_vectors
 from conformance.fuzz.strategies import Strategies
 from conformance.harness.transcript import Endpoint, Kind, Transcript
 from conformance.protocol import Action, Profile, Transport, encode, encode_udp, pose_blocks, request
-from conformance.vectors import REPO_VECTORS, frame_from_dict, load
 
 SCHEMA = json.loads((REPO_VECTORS / "isight-vectors-1.schema.json").read_text(encoding="utf-8"))
 S = Strategies(Profile(), udp=True)

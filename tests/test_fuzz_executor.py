@@ -10,8 +10,8 @@ from conformance.fuzz.strategies import Strategies
 from conformance.harness.client import Answer, Closed, Silence
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, Transport, answer, encode, encode_udp, pose_blocks, request
-from conformance.suite.verdicts import Verdict
 from tests.boxes import ScriptedBox, answering, silent
 from tests.test_fuzz_campaign import patched_box, zero_to_bad_pose_index
 

@@ -6,6 +6,7 @@ import pytest
 
 from conformance.fuzz.oracle import Rule, expectations, judge
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
+from conformance.model.verdicts import Verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -23,7 +24,6 @@ from conformance.protocol import (
     tolerance_blocks,
     value_blocks,
 )
-from conformance.suite.verdicts import Verdict
 
 P = Profile()
 NONE = encode(request(Action.NONE))

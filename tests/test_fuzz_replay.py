@@ -6,12 +6,12 @@ from pathlib import Path
 
 import pytest
 
+from conformance.evidence.vectors_file import REPO_VECTORS
 from conformance.fuzz.evidence import Failure, write_vectors
 from conformance.fuzz.replay import load_files, replay, summary_line
 from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.protocol import Action, Profile, encode, pose_blocks, request, tolerance_blocks
-from conformance.vectors import REPO_VECTORS
 from tests.test_fuzz_campaign import DyingBox, patched_box, zero_to_bad_pose_index
 
 pytestmark = pytest.mark.timeout(60)

@@ -17,7 +17,7 @@ from rich.cells import cell_len
 from rich.console import Console
 
 from conformance import i18n
-from conformance.cli import LANG_COMMANDS, build_parser, main
+from conformance.commands import COMMANDS, build_parser, main
 from conformance.report.html import render_html
 from conformance.report.junit import junit_bytes
 from conformance.report.summary import overall_line, write_summary
@@ -26,6 +26,8 @@ from conformance.report.terminal import print_final_table
 from .test_report_summary import sample_cases, sample_root_causes, sample_suite
 
 CJK = re.compile(r"[\u4e00-\u9fff]")
+#: the commands that take --lang (the registry's flag)
+LANG_COMMANDS = tuple(c.name for c in COMMANDS if c.lang)
 
 
 @pytest.mark.parametrize(("env", "lang"), [
@@ -192,7 +194,7 @@ def test_the_fleet_page_in_chinese_keeps_the_statuses_machines_read(tmp_path: Pa
 def test_diff_in_chinese(tmp_path: Path, capsys):
     from dataclasses import replace
 
-    from conformance.suite.verdicts import Verdict
+    from conformance.model.verdicts import Verdict
 
     cases = sample_cases()
     write_summary(tmp_path / "old.json", sample_suite(), cases)
@@ -216,7 +218,7 @@ def test_wrapped_chinese_keeps_its_punctuation_with_its_neighbour():
 
 
 def test_monitor_help_and_status_line_in_chinese(capsys, monkeypatch):
-    from conformance.analyze.context import AnalyzeConfig
+    from conformance.analyze.analysis_context import AnalyzeConfig
     from conformance.monitor.hub import Hub, MonitorSettings
     from conformance.monitor.view import View
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.impls import wire
+from tests.impls import wire_format as wire
 from tests.impls.box import VARIANTS, start_box
 from tests.impls.boxcore import ThreadBox
 from tests.impls.expectations import EXPECTATIONS

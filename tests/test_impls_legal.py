@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.cli import build_parser
+from conformance.commands import build_parser
 from conformance.protocol import legal
 from tests.impls import policy, robots
 from tests.impls.box import VARIANTS, variant

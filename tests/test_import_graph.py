@@ -100,7 +100,7 @@ def test_the_walker_finds_a_planted_circle() -> None:
 
 def test_the_package_has_no_import_circle() -> None:
     graph = import_graph()
-    assert "conformance.protocol.codec" in graph and graph["conformance.runner"], "the walker found no imports"
+    assert "conformance.protocol.codec" in graph and graph["conformance.commands.run_flow"], "the walker found no imports"
     assert circles(graph) == []
 
 
@@ -111,6 +111,17 @@ def test_the_protocol_package_imports_nothing_of_the_suite() -> None:
         if name.startswith("conformance.protocol"):
             assert {d for d in deps if d.startswith("conformance.")} <= {
                 d for d in deps if d.startswith("conformance.protocol")}, name
+
+
+def test_the_result_model_is_the_bottom_layer() -> None:
+    """conformance/model/ (verdicts, signatures, root causes, exit statuses) sits at the bottom, beside
+    protocol/: it may import only itself and conformance/protocol/, so every room above can use it."""
+    graph = import_graph()
+    assert graph["conformance.model.verdicts"], "the walker found no imports"
+    for name, deps in graph.items():
+        if name.startswith("conformance.model"):
+            assert {d for d in deps if d.startswith("conformance.")
+                    and not d.startswith(("conformance.model", "conformance.protocol"))} == set(), name
 
 
 def test_fuzz_suite_and_cases_import_endpoints_only_to_start_the_bundled_box() -> None:
@@ -142,7 +153,7 @@ def test_the_suite_imports_nothing_of_the_fuzzer() -> None:
     """The catalogue and the fuzzer share the exchange engine below them (conformance/harness/):
     no module of conformance/suite/ imports conformance/fuzz/, not even lazily."""
     graph = import_graph()
-    assert graph["conformance.suite.context"], "the walker found no imports"
+    assert graph["conformance.suite.case_context"], "the walker found no imports"
     leaks = {name: sorted(d for d in deps if d.startswith("conformance.fuzz"))
              for name, deps in graph.items() if name.startswith("conformance.suite")}
     assert {name: deps for name, deps in leaks.items() if deps} == {}
@@ -155,3 +166,21 @@ def test_the_harness_imports_only_the_protocol() -> None:
         if name.startswith("conformance.harness"):
             assert {d for d in deps if d.startswith("conformance.")
                     and not d.startswith(("conformance.harness", "conformance.protocol"))} == set(), name
+
+
+def test_commands_are_the_top_layer_and_the_model_the_bottom() -> None:
+    """conformance/commands/ (one module per subcommand) is imported by nothing of the package but
+    ``__main__``; conformance/model/ (the result model, exit statuses) imports nothing above the protocol."""
+    graph = import_graph()
+    assert graph["conformance.commands"], "the walker lost the commands"
+    for name, deps in graph.items():
+        if not name.startswith("conformance.commands") and name != "conformance.__main__":
+            assert not {d for d in deps if d.startswith("conformance.commands")}, name
+        if name.startswith("conformance.model"):
+            assert {d for d in deps if d.startswith("conformance.")
+                    and not d.startswith(("conformance.model", "conformance.protocol"))} == set(), name
+
+
+def test_the_package_root_holds_only_packages_and_its_entry_points() -> None:
+    assert sorted(p.name for p in PACKAGE.glob("*.py")) == ["__init__.py", "__main__.py", "pytest_plugin.py",
+                                                             "xdist_hooks.py"]

@@ -1,16 +1,18 @@
-"""Expectations and verdicts (conformance/suite/judge.py): the ready-made Expects, ``check`` (the level's
+"""Expectations and verdicts (conformance/suite/case_judge.py): the ready-made Expects, ``check`` (the level's
 verdict, or FAIL on format alone for a malformed answer that read leniently would be acceptable),
 ``answer_view``, the signatures, CaseVerdict, and what a verdict becomes downstream: its CaseResult
 (suite/results.py), the clause table (report/summary.by_clause), the overall line of a run cut short and
-the exit codes (runner.py; run end to end by test_runner.py and test_signals.py). Outcomes come from the
+the exit codes (conformance/model/exit_codes.py; run end to end by test_runner.py and test_signals.py). Outcomes come from the
 codec, no sockets. ``judge``/``broken`` (the routine over a Requirement) are in test_record.py."""
 
 from __future__ import annotations
 
 import pytest
 
-from conformance import runner
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
+from conformance.model import exit_codes as runner
+from conformance.model.signature import Signature
+from conformance.model.verdicts import CaseResult, Level, SuiteInfo, Verdict, broken_verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -25,7 +27,7 @@ from conformance.protocol import (
     request,
 )
 from conformance.report.summary import by_clause, overall_line, overall_state
-from conformance.suite.judge import (
+from conformance.suite.case_judge import (
     CLOSED,
     NOT_MALFORMED,
     NOT_OK,
@@ -47,8 +49,6 @@ from conformance.suite.judge import (
 )
 from conformance.suite.record import Requirement, record
 from conformance.suite.results import result_of
-from conformance.suite.signature import Signature
-from conformance.suite.verdicts import CaseResult, Level, SuiteInfo, Verdict, broken_verdict
 
 BOX = TransferType.BOX_TO_ROBOT
 SENT = encode_raw(Header(start_word=0xFFFE))  # not a request (A5: a wrong start word)
@@ -342,7 +342,7 @@ def test_a_run_cut_short_is_incomplete_never_conforms() -> None:
 
 
 def test_exit_codes_and_which_verdicts_fail_a_run() -> None:
-    # runner.main_run: 0 clean, 1 a FAIL/ERROR, 2 usage, 3 cut short (end to end: test_runner.py, test_signals.py)
+    # commands.run.main_run: 0 clean, 1 a FAIL/ERROR, 2 usage, 3 cut short (end to end: test_runner.py, test_signals.py)
     assert (runner.EXIT_OK, runner.EXIT_FAILED, runner.EXIT_USAGE, runner.EXIT_INCOMPLETE) == (0, 1, 2, 3)
     assert {v for v in Verdict if v.failing} == {Verdict.FAIL, Verdict.ERROR}
     assert _f2_result().verdict.failing  # a malformed answer fails the run even in a SHOULD case

@@ -11,12 +11,12 @@ from hypothesis import strategies as st
 
 from conformance.analyze.capture import CaptureReader
 from conformance.analyze.findings import BOX, ROBOT
+from conformance.model.verdicts import Verdict
 from conformance.monitor.faults import FaultPlan, corrupt, parse_fault
 from conformance.monitor.judge import MAX_CAUSES, LiveFindings, signature
 from conformance.monitor.ring import Ring
 from conformance.monitor.split import Splitter
 from conformance.protocol import Action
-from conformance.suite.verdicts import Verdict
 
 POSE = bytes.fromhex("fefe0001102300000000000000 00".replace(" ", ""))  # a pose answer, 0000
 CYCLE_ON = bytes.fromhex("fefe00010101000000000000 0000".replace(" ", ""))
@@ -150,7 +150,7 @@ def test_the_ring_refuses_nonsense() -> None:
 def test_without_a_terminal_a_status_line_every_minute(tmp_path: Path) -> None:
     import io
 
-    from conformance.analyze.context import AnalyzeConfig
+    from conformance.analyze.analysis_context import AnalyzeConfig
     from conformance.monitor.hub import Hub, MonitorSettings
     from conformance.monitor.view import STATUS_EVERY_S, View
 

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 from conformance.certify.records import INJECTIONS
+from conformance.model.verdicts import Level
 from conformance.observed.catalogue import APPLIES, FRAME_SPECS, INJECT_SPECS, catalogue
 from conformance.protocol import errors
 from conformance.suite.record import _CLAUSE, _ID
-from conformance.suite.verdicts import Level
 
 
 def test_ids_and_clauses_are_valid_and_unique():

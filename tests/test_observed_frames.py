@@ -6,7 +6,7 @@ import struct
 
 import pytest
 
-from conformance.certify.wire import frame_wire, session_wire
+from conformance.certify.wire_log import frame_wire, session_wire
 from conformance.harness.transcript import Kind, Transcript, WireEvent
 from conformance.observed.connections import BY_ROBOT
 from conformance.observed.frames import (

@@ -10,6 +10,7 @@ import pytest
 from conformance.harness.client import Silence
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
+from conformance.model.verdicts import Level
 from conformance.protocol import (
     Action,
     Profile,
@@ -21,13 +22,12 @@ from conformance.protocol import (
     pose_blocks,
     request,
 )
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import Inconclusive
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import Inconclusive
 from conformance.suite.quiet import CUT_S, HANG_CASES, Hangs, bad_kind, pattern_key
 from conformance.suite.record import CaseRecord
-from conformance.suite.session import SessionState
+from conformance.suite.run_state import SessionState
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.verdicts import Level
 
 from .boxes import ScriptedBox
 

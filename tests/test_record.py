@@ -1,6 +1,6 @@
 """The case record as data (conformance/suite/record.py): Expect, Requirement, CaseRecord, ``record``,
 ``case`` and ``info_of``, and the one judging routine that turns an outcome into a requirement's verdict
-(``judge`` and ``broken`` in conformance/suite/judge.py). Outcomes are built from the codec, no sockets."""
+(``judge`` and ``broken`` in conformance/suite/case_judge.py). Outcomes are built from the codec, no sockets."""
 
 from __future__ import annotations
 
@@ -10,11 +10,21 @@ from typing import Any
 import pytest
 
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
+from conformance.model.signature import Sig, Signature
+from conformance.model.verdicts import Level, Verdict
 from conformance.protocol import Action, Header, ProtocolError, TransferType, answer, encode, encode_raw, parse_frame
-from conformance.suite.judge import CLOSED, NOT_OK, SILENCE, CaseVerdict, Inconclusive, answered, broken, judge, words
+from conformance.suite.case_judge import (
+    CLOSED,
+    NOT_OK,
+    SILENCE,
+    CaseVerdict,
+    Inconclusive,
+    answered,
+    broken,
+    judge,
+    words,
+)
 from conformance.suite.record import MARKER, CaseRecord, Expect, Requirement, case, info_of, record
-from conformance.suite.signature import Sig, Signature
-from conformance.suite.verdicts import Level, Verdict
 
 pytest_plugins = ["pytester"]
 

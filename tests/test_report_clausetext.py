@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from conformance.model.verdicts import CaseResult, Level, Verdict
 from conformance.protocol.clauses import all_clauses
 from conformance.report.clausetext import clause_text, judged_clauses, judged_texts
-from conformance.suite.verdicts import CaseResult, Level, Verdict
 
 
 def _case(requirement: str = "", message: str = "", clauses=("A5", "R1", "F1"), judged=()) -> CaseResult:

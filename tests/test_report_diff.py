@@ -5,9 +5,9 @@ from __future__ import annotations
 import dataclasses
 import json
 
+from conformance.model.verdicts import CaseResult, Level, RootCause, Verdict
 from conformance.report.diff import MARKDOWN_ROWS, compare, render, render_markdown, render_text, summary_line
 from conformance.report.summary import write_summary
-from conformance.suite.verdicts import CaseResult, Level, RootCause, Verdict
 
 from .test_report_summary import sample_cases, sample_suite
 

@@ -11,12 +11,13 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
-from conformance.cli import main
+from conformance.commands import main
+from conformance.model.verdicts import Verdict
 from conformance.protocol import ErrorCode, answer, encode
-from conformance.report.diff_cli import apply_baseline, load_baseline
+from conformance.report import write_reports
+from conformance.report.baseline import load_baseline, print_comparison
 from conformance.report.load import SummaryError
 from conformance.report.summary import write_summary
-from conformance.suite.verdicts import Verdict
 
 from .boxes import ScriptedBox, answering
 from .test_report_summary import sample_cases, sample_suite
@@ -77,11 +78,19 @@ def test_registered_in_the_command():
     assert proc.returncode == 0 and "what got worse" in proc.stdout and "--format" in proc.stdout
 
 
-def test_apply_baseline_prints_and_rewrites_the_report(tmp_path):
+def test_the_report_writers_apply_the_baseline_once_and_the_run_prints_it(tmp_path):
     old, new = _runs(tmp_path, worse=True)
+    worse = [dataclasses.replace(c, verdict=Verdict.FAIL, message="broke") if c.id == "B3-01" else c
+             for c in sample_cases()]
     console = Console(file=__import__("io").StringIO(), width=100)
-    assert apply_baseline(None, new, sample_cases(), console) is None
-    diff = apply_baseline(load_baseline(old), new, sample_cases(), console, "old")
+    assert write_reports(new, sample_suite(), worse) is None
+    print_comparison(None, None, console)
+    assert console.file.getvalue() == ""
+    baseline = load_baseline(old)
+    assert baseline is not None
+    baseline = dataclasses.replace(baseline, label="old")
+    diff = write_reports(new, sample_suite(), worse, baseline=baseline)
+    print_comparison(baseline, diff, console)
     assert diff is not None and diff.got_worse
     assert "Compared with the baseline old:" in console.file.getvalue()
     html = (new / "report.html").read_text(encoding="utf-8")

@@ -10,13 +10,13 @@ from importlib import resources
 
 from markupsafe import escape
 
+from conformance.model.verdicts import CaseResult, Level, Verdict, WireLine
 from conformance.report import render_html, write_html
 from conformance.report.clausetext import clause_text
 from conformance.report.diff import compare
 from conformance.report.html import WIRE_HEAD, WIRE_TAIL, pcap_href
 from conformance.report.html_cases import PRINT_CARDS, WIRE_PRINT_HEAD, WIRE_PRINT_TAIL
 from conformance.report.summary import CLAUSES, registry_version, write_summary
-from conformance.suite.verdicts import CaseResult, Level, Verdict, WireLine
 
 from .test_report_summary import sample_cases, sample_root_causes, sample_suite
 

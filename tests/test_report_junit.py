@@ -17,10 +17,10 @@ from pathlib import Path
 
 import pytest
 
+from conformance.model.verdicts import CaseResult, Level, Verdict
 from conformance.report import write_junit, write_summary
 from conformance.report.clausetext import clause_text
 from conformance.report.junit import junit_timestamp
-from conformance.suite.verdicts import CaseResult, Level, Verdict
 
 from .test_report_summary import HOSTILE, sample_cases, sample_root_causes, sample_suite
 

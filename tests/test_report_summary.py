@@ -12,6 +12,7 @@ import re
 
 import pytest
 
+from conformance.model.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict, WireLine
 from conformance.protocol import DEFAULT_PROFILE
 from conformance.report import by_clause, conforms, overall_line, totals, write_summary
 from conformance.report.summary import (
@@ -24,7 +25,6 @@ from conformance.report.summary import (
     registry_version,
     worst,
 )
-from conformance.suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict, WireLine
 
 HOSTILE = "<script>alert('x')</script> & \x00\x1b[31m\ud800 ]]> [bold]markup[/]"
 

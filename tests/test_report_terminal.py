@@ -7,10 +7,10 @@ import re
 
 from rich.console import Console
 
+from conformance.model.verdicts import CaseResult, Level, Verdict
 from conformance.report import Progress, print_final_table
 from conformance.report.clausetext import clause_text
 from conformance.report.terminal import LISTED, NOT_RUN_SHOWN, ROWS_PER_ROOT_CAUSE
-from conformance.suite.verdicts import CaseResult, Level, Verdict
 
 from .test_report_summary import sample_cases, sample_root_causes, sample_suite
 

@@ -9,9 +9,11 @@ import pytest
 from conformance.harness.client import Malformed
 from conformance.harness.target import Unreachable
 from conformance.harness.transcript import Endpoint, Kind, Transcript
+from conformance.model.signature import Sig, Signature
+from conformance.model.verdicts import Level, Verdict, broken_verdict
 from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
-from conformance.suite.context import CaseContext
-from conformance.suite.judge import CaseVerdict, Inconclusive, Skip, answered, check, fail
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import CaseVerdict, Inconclusive, Skip, answered, check, fail
 from conformance.suite.record import CaseRecord, record
 from conformance.suite.results import (
     QUOTED_BYTES,
@@ -21,10 +23,8 @@ from conformance.suite.results import (
     result_of,
     safe_name,
 )
-from conformance.suite.session import SessionState
+from conformance.suite.run_state import SessionState
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.signature import Sig, Signature
-from conformance.suite.verdicts import Level, Verdict, broken_verdict
 
 POSE_CASE = record("S3-01", ["S3"], Level.MUST, "Poses before CycleOn are answered 0000", "answered POSE 0000")
 BOX = Endpoint("127.0.0.1", 9000)

@@ -8,11 +8,11 @@ import threading
 
 import pytest
 
-from conformance.cli import main
+from conformance.commands import main
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.loop import BoxThread
 from conformance.endpoints.robot import RobotSession, parse_target, run_robot
-from conformance.endpoints.robot_result import (
+from conformance.endpoints.robot.robot_result import (
     EXIT_CONNECTION,
     EXIT_MISBEHAVED,
     EXIT_NOT_READY,
@@ -20,7 +20,7 @@ from conformance.endpoints.robot_result import (
     EXIT_TIMEOUT,
     RobotResult,
 )
-from conformance.endpoints.robot_steps import E4_STEPS, S1_STEPS, RobotFaults
+from conformance.endpoints.robot.robot_steps import E4_STEPS, S1_STEPS, RobotFaults
 from conformance.protocol import (
     DEFAULT_PROFILE,
     Action,

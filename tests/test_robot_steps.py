@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from conformance.endpoints import robot_result, robot_steps
-from conformance.endpoints.robot_result import EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, RobotResult
-from conformance.endpoints.robot_steps import (
+from conformance.endpoints.robot import robot_result, robot_steps
+from conformance.endpoints.robot.robot_result import EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, RobotResult
+from conformance.endpoints.robot.robot_steps import (
     E4_STEPS,
     PASS,
     S1_STEPS,

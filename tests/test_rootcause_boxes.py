@@ -104,7 +104,7 @@ def running(defect: str) -> Iterator[Box]:
 
 
 def run_suite(box: Box, tmp_path: Path) -> dict[str, Any]:
-    command = [sys.executable, "-m", "conformance.cli", "run", "--target", f"127.0.0.1:{box.port}", "--quiet",
+    command = [sys.executable, "-m", "conformance", "run", "--target", f"127.0.0.1:{box.port}", "--quiet",
                "--extension", "off", "--time-out", "2000", "--capture", "off",
                "--report-dir", str(tmp_path / "report"), "--pcap-dir", str(tmp_path / "pcaps")]
     done = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=tmp_path,

@@ -9,6 +9,8 @@ from __future__ import annotations
 import json
 
 from conformance.harness.client import Closed, Outcome
+from conformance.model.signature import Death, DeathKind, Sig, Signature
+from conformance.model.verdicts import CaseResult, Level, Verdict
 from conformance.protocol import (
     Action,
     Header,
@@ -19,12 +21,10 @@ from conformance.protocol import (
     request,
     tolerance_blocks,
 )
-from conformance.suite.judge import NOT_OK, Inconclusive, answered, fail
+from conformance.suite.case_judge import NOT_OK, Inconclusive, answered, fail
 from conformance.suite.patterns import Blocks, blocks_of
 from conformance.suite.record import Requirement
 from conformance.suite.rootcause import SessionFacts, find_root_causes
-from conformance.suite.signature import Death, DeathKind, Sig, Signature
-from conformance.suite.verdicts import CaseResult, Level, Verdict
 from tests.test_rootcause import PARSE_ERROR, judged, malformed, marked, ok, parse_error, passed, raised, reply
 
 NONE, ON, OFF, POSE, REG, TOL = (Action.NONE, Action.CYCLE_ON, Action.CYCLE_OFF, Action.POSE, Action.REGISTER_POSE,
@@ -257,7 +257,7 @@ def test_a_field_wrong_in_every_answer_comes_before_a_larger_case_level_group() 
 def test_a_fuzz_finding_on_a_block_request_joins_the_b3_position_cause() -> None:
     """FUZZ-01 quotes the request, not the answer: a valid 17-block pose it found refused is the same
     B3 defect as the catalogue's (found against a box counting indexes in 4 bits)."""
-    from conformance.suite.judge import CaseVerdict
+    from conformance.suite.case_judge import CaseVerdict
 
     fuzz = raised("FUZZ-01", "R1 R2 A1 A3", CaseVerdict(
         Verdict.FAIL, "A1: a well-formed request (POSE ×17) is answered 0000; the box answered 1001",

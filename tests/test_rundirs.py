@@ -1,4 +1,4 @@
-"""Unique run directories (conformance/rundirs.py): runs started in the same second never share one."""
+"""Unique run directories (conformance/report/rundirs.py): runs started in the same second never share one."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from conformance import rundirs
-from conformance.rundirs import default_run_dirs, drop_if_empty, unique_run_dirs
+from conformance.report import rundirs
+from conformance.report.rundirs import default_run_dirs, drop_if_empty, unique_run_dirs
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -86,7 +86,7 @@ def test_default_run_dirs_fills_in_only_what_is_missing(tmp_path: Path, monkeypa
 
 
 def test_two_runs_in_the_same_second_write_separate_reports(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from conformance.cli import main
+    from conformance.commands import main
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(rundirs, "stamp", lambda now=None: "20240601-101500")

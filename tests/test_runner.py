@@ -1,4 +1,4 @@
-"""conformance.runner: ``isight-conformance run`` end to end (subprocesses, loopback, bounded)."""
+"""conformance.commands.run and run_flow: ``isight-conformance run`` end to end (subprocesses, loopback, bounded)."""
 
 from __future__ import annotations
 

@@ -20,9 +20,10 @@ import pytest
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.loop import BoxThread
 from conformance.harness.transcript import Transcript
+from conformance.model.verdicts import Level, Verdict
 from conformance.protocol import Action, ProtocolError, StreamDecoder, answer, encode
-from conformance.suite.context import CaseContext, SessionState
-from conformance.suite.judge import CaseVerdict, Inconclusive
+from conformance.suite.case_context import CaseContext, SessionState
+from conformance.suite.case_judge import CaseVerdict, Inconclusive
 from conformance.suite.record import CaseRecord
 from conformance.suite.sequence import (
     SHIPPED_DIR,
@@ -33,7 +34,6 @@ from conformance.suite.sequence import (
     run_sequence,
 )
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.verdicts import Level, Verdict
 
 from .test_sequence_format import _write
 

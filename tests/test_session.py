@@ -1,4 +1,4 @@
-"""conformance.suite.session: baseline, S4 preflight and witness, R2/S5 after a case, re-probes, known-late actions.
+"""conformance.suite.run_state: baseline, S4 preflight and witness, R2/S5 after a case, re-probes, known-late actions.
 
 The boxes are tiny loopback servers written here (threads, every wait bounded, all joined at the end)."""
 
@@ -17,12 +17,14 @@ import pytest
 from conformance.harness.client import Answer, Closed, Malformed, Silence, TcpConnection
 from conformance.harness.target import Target
 from conformance.harness.transcript import Kind, Transcript
+from conformance.model.signature import DeathKind, Sig, Signature
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, StreamDecoder, TransferType, answer, encode, request
 from conformance.protocol.errors import ProtocolError
 from conformance.protocol.frames import Frame
 from conformance.suite import session as session_mod
-from conformance.suite.judge import CaseVerdict, Inconclusive
-from conformance.suite.session import (
+from conformance.suite.case_judge import CaseVerdict, Inconclusive
+from conformance.suite.run_state import (
     LATE_CASES,
     RECHECK_S,
     S5_TEXT,
@@ -31,8 +33,6 @@ from conformance.suite.session import (
     responsive,
 )
 from conformance.suite.settings import SuiteSettings
-from conformance.suite.signature import DeathKind, Sig, Signature
-from conformance.suite.verdicts import Verdict
 
 PROFILE = Profile(time_out_ms=500)  # every silence in these tests costs at most this
 POLL = 0.05

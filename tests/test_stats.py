@@ -1,4 +1,4 @@
-"""conformance.stats: the one percentile definition every figure uses."""
+"""conformance.model.percentiles: the one percentile definition every figure uses."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import statistics
 from hypothesis import given
 from hypothesis import strategies as st
 
-from conformance.stats import percentile
+from conformance.model.percentiles import percentile
 
 
 def test_small_cases() -> None:

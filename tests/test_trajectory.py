@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from conformance.trajectory import PrimerTrajectory, RoundedRectangle
+from conformance.harness.trajectory import PrimerTrajectory, RoundedRectangle
 
 pytestmark = pytest.mark.timeout(30)
 

@@ -1,4 +1,4 @@
-"""The golden vectors through the codec: conformance.vectors and conformance.protocol agree
+"""The golden vectors through the codec: conformance.evidence.vectors_file and conformance.protocol agree
 with bytes derived by hand (vectors/frames/*.json)."""
 
 from __future__ import annotations
@@ -7,6 +7,7 @@ import math
 
 import pytest
 
+from conformance.evidence.vectors_file import Vector, frame_from_dict, frame_to_dict, load, load_dir, write
 from conformance.protocol import (
     CLOSED,
     Frame,
@@ -17,7 +18,6 @@ from conformance.protocol import (
     encode,
     parse_frame,
 )
-from conformance.vectors import Vector, frame_from_dict, frame_to_dict, load, load_dir, write
 
 VECTORS = load_dir()
 

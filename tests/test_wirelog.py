@@ -7,8 +7,8 @@ from collections.abc import Callable
 import pytest
 
 from conformance.harness.transcript import Endpoint, Kind, Transcript
+from conformance.model.verdicts import WireLine
 from conformance.protocol import Action, Profile, Transport, answer, encode, request
-from conformance.suite.verdicts import WireLine
 from conformance.suite.wirelog import MAX_EVENTS, MAX_HEX_BYTES, MAX_LINES, TAIL_LINES, wire_lines
 
 PROFILE = Profile()

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.wireshark_cli import (
+from conformance.commands.wireshark import (
     PLUGIN_NAME,
     default_folder,
     dissector_bytes,

@@ -67,7 +67,7 @@ def test_a_cases_box_is_read_from_its_node_id() -> None:
     from conformance.xdist_hooks import box_key
 
     keys = ["127.0.0.1:9004", "127.0.0.1:19004"]
-    assert box_key("test_actions.py::test_answer_shape[pose-127.0.0.1:19004]", keys) == "127.0.0.1:19004"
-    assert box_key("test_baseline.py::test_baseline[127.0.0.1:9004]", keys) == "127.0.0.1:9004"
-    assert box_key("test_baseline.py::test_baseline", keys) == ""  # one box: one scope
-    assert box_key("test_actions.py::test_answer_shape[pose]", []) == ""
+    assert box_key("actions.py::test_answer_shape[pose-127.0.0.1:19004]", keys) == "127.0.0.1:19004"
+    assert box_key("baseline.py::test_baseline[127.0.0.1:9004]", keys) == "127.0.0.1:9004"
+    assert box_key("baseline.py::test_baseline", keys) == ""  # one box: one scope
+    assert box_key("actions.py::test_answer_shape[pose]", []) == ""

@@ -7,9 +7,9 @@ The capture streams through :mod:`.capture` (pcap/pcapng), :mod:`.packets` (head
 A1, S5 across connections); :mod:`.report` turns the findings into the suite's reports.
 """
 
+from .analysis_context import AnalyzeConfig
+from .analysis_report import build_cases, write_analysis
 from .capture import CaptureError
-from .context import AnalyzeConfig
 from .engine import Analysis, analyze
-from .report import build_cases, write_analysis
 
 __all__ = ["Analysis", "AnalyzeConfig", "CaptureError", "analyze", "build_cases", "write_analysis"]

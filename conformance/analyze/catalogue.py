@@ -9,6 +9,7 @@ judge in the capture is SKIP.
 
 from __future__ import annotations
 
+from ..model.verdicts import Level
 from ..observed.catalogue import (
     AWAIT_SPEC,
     CLOSE_SPEC,
@@ -22,7 +23,6 @@ from ..observed.catalogue import (
 from ..protocol.clauses import clause as registry_clause
 from ..protocol.clauses import clause_ids, text_of
 from ..suite.record import CaseRecord
-from ..suite.verdicts import Level
 from .findings import BOX, ROBOT
 
 __all__ = ["SPECS", "case_id", "spec_for"]

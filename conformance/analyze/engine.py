@@ -15,8 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from .analysis_context import AnalyzeConfig, Context
 from .capture import CaptureError, CaptureReader
-from .context import AnalyzeConfig, Context
 from .conversations import Conversations
 from .findings import Findings
 from .packets import TCP, PacketDecoder

@@ -25,14 +25,14 @@ from array import array
 from collections import deque
 from typing import Any
 
+from ..model.verdicts import Verdict, broken_verdict
 from ..observed.connections import Exchange
 from ..observed.frames import FrameRecord
 from ..protocol import EXTENSION_ACTIONS, Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
-from ..suite.verdicts import Verdict, broken_verdict
+from .analysis_context import Context
 from .catalogue import spec_for
-from .context import Context
 from .findings import BOX, ROBOT, Series, frames_text
 from .judging import (
     BAD_DATAGRAM,

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..model.verdicts import Level, Verdict, broken_verdict
 from ..observed.frames import FrameRecord, byte_order_evidence
 from ..protocol import Action, Frame, Transport, action_name
 from ..protocol.answers import (
@@ -31,7 +32,6 @@ from ..protocol.answers import (
     rule_for_error,
     rule_for_frame,
 )
-from ..suite.verdicts import Level, Verdict, broken_verdict
 from .findings import BOX, ROBOT
 from .timing import backlog
 

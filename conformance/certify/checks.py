@@ -1,6 +1,6 @@
 """The judgments of ``certify-robot``: for each case of the catalogue (:mod:`.catalogue`)
 a function from a session's :class:`~.session.SessionView` to
-:class:`~conformance.suite.verdicts.CaseResult` objects, with the evidence (the
+:class:`~conformance.model.verdicts.CaseResult` objects, with the evidence (the
 offending bytes, the session's wire log, the interval histogram, the pcap).
 
 With ``--sessions N`` above 1 every ID gets the session as a parameter (``RB-S1-01[s2]``).
@@ -14,6 +14,8 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
+from ..model.signature import Sig, Signature
+from ..model.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from ..observed.catalogue import (
     ANY_FRAME,
     APPLIES,
@@ -36,10 +38,8 @@ from ..observed.timing import judge_jitter, judge_rate, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
-from ..suite.signature import Sig, Signature
-from ..suite.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from .records import RunRecord
-from .wire import frame_wire, session_wire
+from .wire_log import frame_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
 HISTOGRAM_BINS = 40

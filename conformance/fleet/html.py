@@ -17,9 +17,9 @@ import jinja2
 from markupsafe import Markup
 
 from .. import i18n
+from ..model.verdicts import VERDICT_ORDER
 from ..report.html import display_time, i18n_environment
 from ..report.summary import atomic_write_bytes, clean_text, format_duration, one_line
-from ..suite.verdicts import VERDICT_ORDER
 
 #: the CSS class of each box status (the colours of report.html's overall line)
 STATUS_CLASS = {"conforms": "ok", "expected failures": "ok", "fails": "bad", "error": "bad", "interrupted": "warn",

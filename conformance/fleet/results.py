@@ -24,8 +24,8 @@ from typing import Any
 
 from .. import __version__
 from ..i18n import _, current
+from ..model.verdicts import CaseResult, Level, SuiteInfo, Verdict
 from ..report.summary import atomic_write_bytes, one_line, overall_line, overall_state
-from ..suite.verdicts import CaseResult, Level, SuiteInfo, Verdict
 from .children import BoxRun
 
 FORMAT = "isight-fleet-1"

@@ -27,6 +27,7 @@ from ..protocol import (
     Transport,
     codec_for,
     decode_datagram,
+    peek_action,
 )
 from .target import Refused, Target, Unreachable
 from .transcript import Endpoint, Kind, Transcript
@@ -328,8 +329,9 @@ class TcpConnection:
         outcome = self.next_outcome(timeout_s, since=start)
         if self.on_answered is not None and isinstance(outcome, Answer):
             raw = data if isinstance(data, bytes) else self.codec.encode(data)
-            if len(raw) > 5 and outcome.frame.action == raw[5]:
-                self.on_answered(raw[5])
+            action = peek_action(raw)
+            if action is not None and outcome.frame.action == action:
+                self.on_answered(action)
         return outcome
 
     def drain(self, quiet_s: float = 0.05) -> list[Outcome]:

@@ -14,7 +14,7 @@ import time
 from collections import deque
 from typing import Any
 
-from ..stats import percentile
+from ..model.percentiles import percentile
 from .hub import Hub, judge_counts
 
 __all__ = ["HISTORY", "REPORTS", "Board"]

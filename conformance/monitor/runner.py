@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-from ..suite.verdicts import CaseResult, SuiteInfo
+from ..model.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
 from .liveserve import LiveServers
 from .proxy import TcpProxy

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from ..model.verdicts import Level
 from ..protocol import Action
 from ..protocol.clauses import clause as registry_clause
 from ..protocol.clauses import text_of
 from ..suite.record import CaseRecord, record
-from ..suite.verdicts import Level
 from .frames import FrameRecord
 
 MUST, SHOULD, MAY = Level.MUST, Level.SHOULD, Level.MAY

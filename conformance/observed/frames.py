@@ -23,12 +23,12 @@ from ..protocol import (
     TcpCheckPolicy,
     TransferType,
     decode_datagram,
+    peek_header,
 )
 from ..protocol.codec import Codec, codec_for
 from ..protocol.constants import (
     HEADER_LEN,
     POSE_BLOCK_LEN,
-    START_BYTES,
     START_WORD,
     TOLERANCE_BLOCK_LEN,
     VALUE_BLOCK_LEN,
@@ -156,11 +156,13 @@ def byte_order_evidence(rec: FrameRecord, profile: Profile) -> str | None:
     plausible in the other one, ``"straight"`` when it reads plausibly, None when the
     frame says nothing about byte order (no values, all zero, not a whole frame)."""
     raw = rec.raw
-    if len(raw) < HEADER_LEN + 2 or raw[:2] != START_BYTES:
+    head = peek_header(raw, 0, profile.byte_order)
+    if len(raw) < HEADER_LEN + 2 or head is None or not head.start_ok:
         return None
+    if not head.version_ok:
+        flipped = peek_header(raw, 0, profile.swapped(header=True).byte_order)
+        return "swapped" if flipped is not None and flipped.version_ok else None
     codec = codec_for(profile)
-    if codec.u16(raw, 2) != VERSION:
-        return "swapped" if codec_for(profile.swapped(header=True)).u16(raw, 2) == VERSION else None
     header = codec.parse_header(raw)
     if len(raw) != codec.frame_length(raw) or not header.block_count:
         return None

@@ -18,7 +18,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from ..stats import percentile
+from ..model.percentiles import percentile
 
 #: Below this many poses no rate is measured.
 MIN_POSES = 3

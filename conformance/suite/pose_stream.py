@@ -14,11 +14,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
+from ..harness.trajectory import PrimerTrajectory
+from ..model.percentiles import percentile
+from ..model.verdicts import Level
 from ..protocol import Action, pose_blocks, request
-from ..stats import percentile
-from ..trajectory import PrimerTrajectory
-from .judge import Expect, answered, check, fail
-from .verdicts import Level
+from .case_judge import Expect, answered, check, fail
 
 DEFAULT_POSE = PrimerTrajectory().home
 

@@ -15,8 +15,8 @@ from typing import Any
 
 from ..harness.target import Target
 from ..i18n import N_, gettext
-from ..options import add_profile_options, profile_flags, profile_from_options
 from ..protocol import DEFAULT_PORT, Profile
+from .profile_options import add_profile_options, profile_flags, profile_from_options
 
 #: (flag, argparse/pytest keyword arguments); dests all start with "isight_".
 SUITE_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (

@@ -11,8 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from conformance.analyze import AnalyzeConfig, analyze, build_cases
+from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, answer, encode, pose_blocks, request
-from conformance.suite.verdicts import Verdict
 from tests.analyze_util import POSE, POSE_OK, Capture, exchange
 
 LOOSE = AnalyzeConfig(rate_tolerance=0.5, jitter_tolerance=3.0)

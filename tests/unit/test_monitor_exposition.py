@@ -9,7 +9,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from conformance.analyze.context import AnalyzeConfig
+from conformance.analyze.analysis_context import AnalyzeConfig
 from conformance.monitor.alarms import Alarms
 from conformance.monitor.exposition import metrics_text, registry_for
 from conformance.monitor.hub import Hub, MonitorSettings
