@@ -108,7 +108,7 @@ def _served(option: str, value: str | None, allow_remote: bool) -> tuple[str, in
 def main_monitor(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from ..monitor.runner import ListenError, monitor_main
+    from ..monitor.monitor_loop import ListenError, monitor_main
     from ..monitor.view import View
     from ..report.terminal import print_final_table
 

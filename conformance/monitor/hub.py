@@ -1,6 +1,6 @@
 """The monitor's state: the wire, the engine, the ring, the faults and what the robot did after them.
 
-:class:`Hub` is what the proxies (:mod:`.proxy`, :mod:`.udp`) tell about each connection:
+:class:`Hub` is what the proxies (:mod:`.proxy`, :mod:`.udp_proxy`) tell about each connection:
 it opened, one side sent bytes, one side closed, the box could not be reached, a fault
 was injected. It keeps the counts the live view shows. Nothing here does I/O but the
 ring's writes.
@@ -20,12 +20,12 @@ from ..analyze.engine import Feed
 from ..analyze.findings import Observation
 from .alarms import Alarms
 from .faults import Fault, FaultPlan
-from .judge import Cause, LiveFindings
+from .line_recording import Line, Wire
+from .live_findings import Cause, LiveFindings
 from .reactions import Injection, Reactions
 from .ring import Ring
 from .split import Splitter
 from .tally import Buckets, ObservedSeries, Tally
-from .wire import Line, Wire
 
 __all__ = ["Conn", "Hub", "MonitorSettings"]
 

@@ -22,7 +22,7 @@ from ..i18n import _
 from ..model.percentiles import percentile
 from .alarms import Alarm
 from .hub import Hub
-from .judge import Cause
+from .live_findings import Cause
 
 __all__ = ["STATUS_EVERY_S", "View"]
 

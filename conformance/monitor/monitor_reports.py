@@ -24,7 +24,7 @@ from ..model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from ..report import write_reports
 from ..report.summary import atomic_write_bytes
 from .hub import Hub
-from .judge import Cause
+from .live_findings import Cause
 
 __all__ = ["snapshot", "write_monitor_reports"]
 

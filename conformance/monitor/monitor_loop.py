@@ -21,9 +21,9 @@ from typing import IO
 from ..model.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
 from .liveserve import LiveServers
+from .monitor_reports import write_monitor_reports
 from .proxy import TcpProxy
-from .report import write_monitor_reports
-from .udp import UdpProxy
+from .udp_proxy import UdpProxy
 from .view import View
 
 __all__ = ["ListenError", "MonitorOutcome", "monitor_main", "run_monitor"]
