@@ -204,7 +204,10 @@ def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label:
     steps = "; ".join(f"{name} {view.ms(t)}" for name, t in result.steps.items())
     lines = [*result.violations, *result.missing]
     frames = sorted({n for n in view.frame_at.values()})[:1]
-    if result.failed:
+    if result.failed and len(view.commands) > 1:
+        f.add(clause, ROBOT, Verdict.INCONCLUSIVE, f"{label}: {crowded(view)}; not judged: {'; '.join(lines)} "
+              f"[steps: {steps}]", frames)
+    elif result.failed:
         f.add(clause, ROBOT, Verdict.FAIL, f"{label}: {'; '.join(lines)} [steps: {steps}]", frames)
     elif result.not_judged:
         cut = view.cut
@@ -215,6 +218,13 @@ def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label:
         f.check(clause, ROBOT)
         f.tally(clause, ROBOT).note(f"{label}: all {len(result.steps)} steps in order [steps: {steps}]"
                                     + (f" ({'; '.join(result.notes)})" if result.notes else ""))
+
+
+def crowded(view: SessionView) -> str:
+    """Why a session with several command connections is not judged as one robot's."""
+    return (f"{len(view.commands)} command connections from one address at once: several robots behind one address "
+            "(NAT), or one robot opening several; which connection belongs to which session cannot be told from "
+            "the wire (certify-robot, or a capture per robot, tells)")
 
 
 def _awaited(ctx: Context, view: ObservedView, label: str) -> None:
@@ -240,7 +250,10 @@ def _closes(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label
             end = record.t_close if record.t_close is not None else o.t_end
             if end - cmd_closed > linger:
                 late = end - cmd_closed
-        if late is not None:
+        if late is not None and len(view.commands) > 1:
+            f.add("S5", ROBOT, Verdict.INCONCLUSIVE, f"{label}: {o.label} outlived a command connection by "
+                  f"{late:.1f} s; {crowded(view)}")
+        elif late is not None:
             what = "closed" if record.t_close is not None else "still open when the capture ends"
             f.add("S5", ROBOT, Verdict.FAIL, f"{label}: {o.label} {what} {late:.1f} s after the command connection "
                   f"closed (more than --linger {linger:g} s): the robot left it open",
