@@ -10,7 +10,7 @@ Steps (all on loopback; each bounded in time):
    leaves a run: ~150 FAIL under one root cause, 60 NON-STRICT, 10 INCONCLUSIVE, each with
    hex, expected/observed text and a wire log (``tests/reportruns.py``); printed with its
    root cause, and again without (a suite that reports no root cause);
-4. the synthetic runs of the print test (tests/test_report_print.py), for comparison.
+4. the synthetic runs of the print test (tests/e2e/test_report_print.py), for comparison.
 
     python benchmarks/bench_report_print.py
     python benchmarks/bench_report_print.py --summary reports/20260509-073525

@@ -6,7 +6,7 @@ codec judges each frame, so a frame is framed and judged here exactly as the sui
 does it everywhere else. Fast path: while no partial frame is waiting, a segment that
 holds whole frames is cut where each header says (the decoder's own rule: start word,
 version, at most the largest legal frame) and each frame goes straight to the codec's
-parser; anything else goes through the decoder (tests/test_analyze_framing.py checks
+parser; anything else goes through the decoder (tests/unit/test_analyze_framing.py checks
 that both give the same events for every split). A well-formed 14-byte frame (an
 answer without blocks: the stream's answers are all alike) is parsed once per reader.
 

@@ -15,7 +15,7 @@ containing ``:``):
 * :func:`connect_failed`: a SYN, and the server's RST-ACK when the connect was refused;
 * :func:`udp`: one datagram.
 
-IP and TCP/UDP checksums are correct (``tests/test_pcap.py`` compares the frames with
+IP and TCP/UDP checksums are correct (``tests/e2e/test_pcap.py`` compares the frames with
 scapy's). The initial sequence numbers come from the case ID and connection number
 (:func:`new_flow`), so the same transcript always gives the same bytes.
 """

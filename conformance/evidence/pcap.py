@@ -42,7 +42,7 @@ A transcript does not say who opened a TCP connection; the recorder assumes we d
 ``"accepted"`` is drawn as a passive open (the SYN comes from the remote end).
 
 Packets are built with ``struct`` rather than scapy: the result is the same bytes
-(``tests/test_pcap.py`` compares them with scapy's ``Ether()/IP()/TCP()/Raw``) at a
+(``tests/e2e/test_pcap.py`` compares them with scapy's ``Ether()/IP()/TCP()/Raw``) at a
 small fraction of the cost, so a 5,000-pose case is not slowed down by its evidence.
 
 The container is :mod:`.pcapng`; the packets of one connection (addresses, seq/ack,

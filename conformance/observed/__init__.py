@@ -12,5 +12,5 @@ read the same things, sans-I/O:
 * :mod:`.timing`: the pose stream's rate and jitter (T2);
 * :mod:`.catalogue`: the robot-role cases (``RB-*``) whose requirements both report.
 
-Nothing here imports ``certify`` or ``analyze`` (tests/test_import_graph.py).
+Nothing here imports ``certify`` or ``analyze`` (tests/unit/test_import_graph.py).
 """

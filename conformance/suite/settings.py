@@ -169,7 +169,10 @@ def add_suite_options(add: Callable[..., Any], pytest: bool = False) -> None:
     """Register the suite options and the profile options (argparse's add_argument,
     or pytest's addoption with ``pytest=True``, where ``--target`` may repeat)."""
     for flag, kwargs in SUITE_OPTIONS:
-        kwargs = {**kwargs, "help": gettext(kwargs["help"])}  # in the language active when the parser is built
+        # translated in the language active when the parser is built; the text is read out of the dict first so
+        # that no string literal sits inside gettext() (Babel <= 2.18 extracted the key "help" as a message)
+        text = kwargs["help"]
+        kwargs = {**kwargs, "help": gettext(text)}
         if pytest and flag == "--target":
             kwargs = {**kwargs, "action": "append"}
         add(PYTEST_RENAMES.get(flag, flag) if pytest else flag, **kwargs)
