@@ -18,6 +18,8 @@ import pytest
 from tests.impls.matrix import sample_seeds
 from tests.impls.pairs import PARTNER_BOX, RANDOM, Side, certify, run_pair
 
+pytestmark = pytest.mark.impls(seconds=20)
+
 SEED = int(os.environ.get("ISIGHT_PAIRS_SEED", "26"))
 ROBOTS = sample_seeds(SEED, 2)
 BOX = sample_seeds(SEED + 7919, 1)[0]

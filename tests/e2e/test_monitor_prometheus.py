@@ -75,6 +75,7 @@ def test_promtool_accepts_the_rules_file() -> None:
 
 
 @needs_prometheus
+@pytest.mark.impls(seconds=20)
 def test_prometheus_scrapes_a_live_session_through_the_monitor(tmp_path: Path) -> None:
     with start_box("resync-fine") as box:
         async def main() -> dict[str, float]:
