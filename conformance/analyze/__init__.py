@@ -1,6 +1,6 @@
 """``isight-conformance analyze``: judge a capture of real robot ↔ box traffic, both roles.
 
-The capture streams through :mod:`.capture` (pcap/pcapng), :mod:`.packets` (headers),
+The capture streams through :mod:`.capture` (pcap/pcapng), :mod:`.capture_packets` (headers),
 :mod:`.conversations` (which conversations are iSight, who is the robot),
 :mod:`.reassembly` (TCP in order, gaps), :mod:`.framing` (the codec's frames),
 :mod:`.exchanges` (each connection's requests and answers) and :mod:`.sessions` (S1/E4,

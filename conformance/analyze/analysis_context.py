@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..observed.frames import judge_profile
-from ..observed.timing import check_tolerances
+from ..observed.robot_frames import judge_profile
+from ..observed.stream_timing import check_tolerances
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile
 from .findings import Findings, Series
 from .judging import Cycles

@@ -1,7 +1,7 @@
 """An analysis as the suite's evidence: CaseResults, SuiteInfo, and the report files.
 
 One :class:`~conformance.model.verdicts.CaseResult` per (clause, side) of the catalogue
-(:mod:`.catalogue`): its verdict is the worst of its findings, PASS when it judged
+(:mod:`.capture_catalogue`): its verdict is the worst of its findings, PASS when it judged
 something and found nothing, SKIP when the capture had nothing for it to judge. The
 message names the first finding and its frames; ``observed`` lists the findings kept,
 worst first, with their frame numbers; ``sent_hex`` holds the robot's bytes and
@@ -19,7 +19,7 @@ from .. import __version__
 from ..model.verdicts import VERDICT_ORDER, CaseResult, SuiteInfo, Verdict
 from ..report import write_reports
 from ..suite.record import CaseRecord
-from .catalogue import SPECS, spec_for
+from .capture_catalogue import SPECS, spec_for
 from .engine import Analysis
 from .findings import ROBOT, Series, Tally
 

@@ -24,10 +24,10 @@ from ..model.verdicts import Verdict
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
 from ..protocol import TransferType, peek_transfer_type
 from .analysis_context import Context
+from .capture_packets import ACK, SYN, endpoints, format_endpoint, reverse_key
 from .exchanges import ConnJudge
 from .findings import BOX, ROBOT
 from .framing import FrameReader, plausible_header
-from .packets import ACK, SYN, endpoints, format_endpoint, reverse_key
 from .reassembly import RESTART, TcpStream
 from .sessions import ConnOutcome, SessionTracker
 from .udp_conversation import UdpConversation

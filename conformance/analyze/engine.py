@@ -17,9 +17,9 @@ from pathlib import Path
 
 from .analysis_context import AnalyzeConfig, Context
 from .capture import CaptureError, CaptureReader
+from .capture_packets import TCP, PacketDecoder
 from .conversations import Conversations
 from .findings import Findings
-from .packets import TCP, PacketDecoder
 from .sessions import SessionTracker
 
 __all__ = ["Analysis", "CaptureError", "Feed", "analyze"]

@@ -22,12 +22,12 @@ from typing import Any
 
 from ..model.verdicts import Verdict
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord, SessionRecord
-from ..observed.frames import FrameRecord
+from ..observed.robot_frames import FrameRecord
 from ..observed.session import Cut, SessionView, awaited, build_view, judge_order
 from ..protocol import Action, action_name
 from .analysis_context import Context
+from .capture_timing import StreamJudgement
 from .findings import ROBOT
-from .timing import StreamJudgement
 
 __all__ = ["SPLIT_AFTER_S", "SPLIT_CONNECTIONS", "ConnOutcome", "ObservedView", "Session", "SessionTracker"]
 

@@ -28,9 +28,9 @@ from ..protocol import (
     decode_datagram,
 )
 from .analysis_context import Context
+from .capture_packets import endpoints, format_endpoint
 from .exchanges import ConnJudge
 from .findings import BOX, ROBOT
-from .packets import endpoints, format_endpoint
 
 __all__ = ["UdpConversation", "crc_reading"]
 

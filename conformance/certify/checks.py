@@ -1,4 +1,4 @@
-"""The judgments of ``certify-robot``: for each case of the catalogue (:mod:`.catalogue`)
+"""The judgments of ``certify-robot``: for each case of the catalogue (:mod:`conformance.observed.robot_catalogue`)
 a function from a session's :class:`~.session.SessionView` to
 :class:`~conformance.model.verdicts.CaseResult` objects, with the evidence (the
 offending bytes, the session's wire log, the interval histogram, the pcap).
@@ -16,7 +16,8 @@ from pathlib import Path
 
 from ..model.signature import Sig, Signature
 from ..model.verdicts import CaseResult, Verdict, WireLine, broken_verdict
-from ..observed.catalogue import (
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
+from ..observed.robot_catalogue import (
     ANY_FRAME,
     APPLIES,
     AWAIT_SPEC,
@@ -31,10 +32,9 @@ from ..observed.catalogue import (
     S1_SPEC,
     catalogue,
 )
-from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
-from ..observed.frames import FrameRecord, byte_order_evidence
+from ..observed.robot_frames import FrameRecord, byte_order_evidence
 from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
-from ..observed.timing import judge_jitter, judge_rate, stream_stats
+from ..observed.stream_timing import judge_jitter, judge_rate, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord

@@ -6,7 +6,7 @@ from __future__ import annotations
 from ..harness.transcript import Kind
 from ..model.verdicts import WireLine
 from ..observed.connections import ConnRecord
-from ..observed.frames import FrameRecord, judge_profile
+from ..observed.robot_frames import FrameRecord, judge_profile
 from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, decode_datagram
 from ..protocol.constants import Action
 

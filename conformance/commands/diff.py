@@ -4,7 +4,7 @@
 Exit status: 0 nothing got worse, 1 something did (a new FAIL, ERROR or NON-STRICT),
 2 a path that is missing, unreadable or not a summary.json (one line on stderr).
 
-``run --baseline OLD`` compares in the report writers (:mod:`conformance.report.baseline`).
+``run --baseline OLD`` compares in the report writers (:mod:`conformance.report.run_comparison`).
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ from ..endpoints.bundled import bundled_or_target
 from ..harness.target import check_reachable
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_USAGE
-from ..report.baseline import load_baseline
+from ..report.run_comparison import load_baseline
 from ..report.rundirs import default_run_dirs
 from ..suite.settings import SuiteSettings, add_suite_options
 from .fleet import main_fleet

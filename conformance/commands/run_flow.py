@@ -27,7 +27,7 @@ from ..model.exit_codes import EXIT_FAILED, EXIT_INCOMPLETE, EXIT_OK, EXIT_USAGE
 from ..model.verdicts import RootCause
 from ..protocol.clauses import all_clauses, clause_ids
 from ..protocol.clauses import families as registry_families
-from ..report.baseline import Baseline, print_comparison
+from ..report.run_comparison import Baseline, print_comparison
 from ..suite.collected import BASELINE, BASELINE_DIFF, CAUSES, results, suite_info
 from ..suite.record import CaseRecord, info_of
 from ..suite.settings import SuiteSettings

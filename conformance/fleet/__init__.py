@@ -2,7 +2,7 @@
 
 * :mod:`.spec`: the fleet file (TOML, a ``[[box]]`` table per box), checked with line numbers;
 * :mod:`.children`: the child processes, ``jobs`` at a time, stopped together on a signal;
-* :mod:`.results`, :mod:`.html`: fleet.json and fleet.html;
+* :mod:`.fleet_results`, :mod:`.fleet_page`: fleet.json and fleet.html;
 * :mod:`.fleet_run`: the run itself (:func:`run_fleet`); its handler is :mod:`conformance.commands.fleet`.
 """
 

@@ -17,8 +17,8 @@ from rich.text import Text
 
 from ..model.exit_codes import EXIT_USAGE
 from .children import BoxRun, FleetRunner, stop_on_signals
-from .html import write_fleet_html
-from .results import box_entry, fleet_document, write_fleet_json
+from .fleet_page import write_fleet_html
+from .fleet_results import box_entry, fleet_document, write_fleet_json
 from .spec import FleetSpec
 
 PROG = "isight-conformance run"

@@ -31,7 +31,7 @@ from .split import Splitter
 
 __all__ = ["CHUNK", "TcpProxy"]
 
-CHUNK = 65000  # one synthesised segment at most (evidence.packets.MAX_SEGMENT)
+CHUNK = 65000  # one synthesised segment at most (evidence.packet_builder.MAX_SEGMENT)
 _ANSWER = int(TransferType.BOX_TO_ROBOT)
 
 

@@ -10,10 +10,10 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
-from .baseline import Baseline
 from .diff import RunDiff
 from .html import render_html, write_html
 from .junit import write_junit
+from .run_comparison import Baseline
 from .summary import by_clause, conforms, overall_line, totals, write_summary
 from .svg import latency_svg
 from .terminal import Progress, print_final_table

@@ -1048,7 +1048,7 @@ def test_checksums_equal_scapys_including_the_minus_zero_case(seed):
     from scapy.layers.inet import IP, TCP, UDP
     from scapy.layers.l2 import Ether
 
-    from conformance.evidence import packets as P
+    from conformance.evidence import packet_builder as P
 
     rng = random.Random(seed)
     conn = P.Flow(None, False, bytes([127, 0, 0, 1]), bytes([127, 0, 0, 1]), 40000, 9004, {True: 1, False: 2})  # type: ignore[arg-type]

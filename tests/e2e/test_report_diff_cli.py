@@ -15,8 +15,8 @@ from conformance.commands import main
 from conformance.model.verdicts import Verdict
 from conformance.protocol import ErrorCode, answer, encode
 from conformance.report import write_reports
-from conformance.report.baseline import load_baseline, print_comparison
 from conformance.report.load import SummaryError
+from conformance.report.run_comparison import load_baseline, print_comparison
 from conformance.report.summary import write_summary
 from tests.boxes import ScriptedBox, answering
 from tests.unit.test_report_summary import sample_cases, sample_suite

@@ -1,12 +1,12 @@
-"""The observed cases (conformance/analyze/catalogue.py): one per (clause, side)."""
+"""The observed cases (conformance/analyze/capture_catalogue.py): one per (clause, side)."""
 
 from __future__ import annotations
 
 import re
 
-from conformance.analyze.catalogue import SPECS, case_id, spec_for
+from conformance.analyze.capture_catalogue import SPECS, case_id, spec_for
 from conformance.model.verdicts import Level
-from conformance.observed.catalogue import FRAME_SPECS
+from conformance.observed.robot_catalogue import FRAME_SPECS
 from conformance.protocol.clauses import clause as registry_clause
 from conformance.report.summary import CLAUSES
 

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from conformance.analyze.analysis_context import AnalyzeConfig, Context
+from conformance.analyze.capture_packets import TCP, PacketDecoder
 from conformance.analyze.conversations import Conversations
-from conformance.analyze.packets import TCP, PacketDecoder
 from conformance.analyze.sessions import SessionTracker
 from conformance.protocol import Action, answer, encode, request
 from tests.analyze_util import Capture, exchange

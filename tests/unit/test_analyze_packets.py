@@ -1,4 +1,4 @@
-"""Link, IP, TCP and UDP headers (conformance/analyze/packets.py), against packets scapy builds
+"""Link, IP, TCP and UDP headers (conformance/analyze/capture_packets.py), against packets scapy builds
 (explicit MAC addresses: scapy resolves nothing)."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from scapy.layers.inet6 import IPv6, IPv6ExtHdrDestOpt
 from scapy.layers.l2 import CookedLinux, Dot1Q, Ether
 from scapy.packet import Raw
 
-from conformance.analyze.packets import ACK, FIN, PSH, SYN, PacketDecoder, endpoints, reverse_key
-from conformance.analyze.packets import TCP as P_TCP
-from conformance.analyze.packets import UDP as P_UDP
+from conformance.analyze.capture_packets import ACK, FIN, PSH, SYN, PacketDecoder, endpoints, reverse_key
+from conformance.analyze.capture_packets import TCP as P_TCP
+from conformance.analyze.capture_packets import UDP as P_UDP
 
 MACS = {"src": "02:00:00:00:00:01", "dst": "02:00:00:00:00:02"}
 

@@ -4,7 +4,7 @@ from the other side's ACKs; an answer never delivered before the request it answ
 
 from __future__ import annotations
 
-from conformance.analyze.packets import ACK, FIN, PSH, RST, SYN
+from conformance.analyze.capture_packets import ACK, FIN, PSH, RST, SYN
 from conformance.analyze.reassembly import DONE, REORDER_PACKETS, RESTART, STALL_PACKETS, TcpStream
 
 PA = PSH | ACK

@@ -7,7 +7,7 @@ import json
 import xml.etree.ElementTree as ET
 
 from conformance.analyze import AnalyzeConfig, analyze, build_cases, write_analysis
-from conformance.analyze.catalogue import SPECS
+from conformance.analyze.capture_catalogue import SPECS
 from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, answer, encode, request
 from tests.analyze_util import Capture, canonical, exchange

@@ -1,10 +1,10 @@
-"""T2 from a capture (conformance/analyze/timing.py): the robot's rate and jitter in blocks
+"""T2 from a capture (conformance/analyze/capture_timing.py): the robot's rate and jitter in blocks
 (certify-robot's judgement), the box's backlog (the active suite's figure)."""
 
 from __future__ import annotations
 
+from conformance.analyze.capture_timing import PoseClock, backlog
 from conformance.analyze.findings import Series
-from conformance.analyze.timing import PoseClock, backlog
 
 
 def clock(times, block=100, **kw):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from conformance.analyze.analysis_context import AnalyzeConfig, Context
-from conformance.analyze.packets import PacketDecoder
+from conformance.analyze.capture_packets import PacketDecoder
 from conformance.analyze.udp_conversation import UdpConversation, crc_reading
 from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, answer, encode_udp, request

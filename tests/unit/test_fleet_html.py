@@ -1,4 +1,4 @@
-"""fleet.html (conformance/fleet/html.py): one row per box, each linking its report; nothing a box sent
+"""fleet.html (conformance/fleet/fleet_page.py): one row per box, each linking its report; nothing a box sent
 becomes markup; no external reference."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import re
 from html.parser import HTMLParser
 from pathlib import Path
 
-from conformance.fleet.html import render_fleet_html, write_fleet_html
-from conformance.fleet.results import fleet_document
+from conformance.fleet.fleet_page import render_fleet_html, write_fleet_html
+from conformance.fleet.fleet_results import fleet_document
 from conformance.model.verdicts import RootCause, Verdict
 from tests.fleet_util import box_run, case
 

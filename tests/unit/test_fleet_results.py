@@ -1,11 +1,11 @@
-"""What fleet.json says about each box (conformance/fleet/results.py), from real summary.json files."""
+"""What fleet.json says about each box (conformance/fleet/fleet_results.py), from real summary.json files."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-from conformance.fleet.results import box_entry, fleet_document, write_fleet_json
+from conformance.fleet.fleet_results import box_entry, fleet_document, write_fleet_json
 from conformance.model.verdicts import RootCause, Verdict
 from tests.fleet_util import box_run, case
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from conformance.certify.records import INJECTIONS
 from conformance.model.verdicts import Level
-from conformance.observed.catalogue import APPLIES, FRAME_SPECS, INJECT_SPECS, catalogue
+from conformance.observed.robot_catalogue import APPLIES, FRAME_SPECS, INJECT_SPECS, catalogue
 from conformance.protocol import errors
 from conformance.suite.record import _CLAUSE, _ID
 

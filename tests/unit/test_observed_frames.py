@@ -9,7 +9,7 @@ import pytest
 from conformance.certify.wire_log import frame_wire, session_wire
 from conformance.harness.transcript import Kind, Transcript, WireEvent
 from conformance.observed.connections import BY_ROBOT
-from conformance.observed.frames import (
+from conformance.observed.robot_frames import (
     FrameRecord,
     byte_order_evidence,
     compare_readings,

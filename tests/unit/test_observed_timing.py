@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from conformance.observed.timing import MIN_POSES, judge_jitter, judge_rate, stream_stats
+from conformance.observed.stream_timing import MIN_POSES, judge_jitter, judge_rate, stream_stats
 
 RATE = 50.0
 T = 1 / RATE

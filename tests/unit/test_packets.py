@@ -1,4 +1,4 @@
-"""The packets of one connection (conformance/evidence/packets.py): handshake, seq/ack, FIN, RST, UDP.
+"""The packets of one connection (conformance/evidence/packet_builder.py): handshake, seq/ack, FIN, RST, UDP.
 
 Each frame is read back with scapy (no traffic: the bytes are only parsed). The byte
 comparison with scapy's own checksums, and the files these packets go into, are in
@@ -14,13 +14,13 @@ from scapy.layers.inet import IP, TCP, UDP
 from scapy.layers.inet6 import IPv6
 from scapy.layers.l2 import Ether
 
-from conformance.evidence import packets
+from conformance.evidence import packet_builder
 from conformance.harness.transcript import ConnectionInfo, Endpoint
 
 
 def flow(local: str = "127.0.0.1", remote: str = "127.0.0.1", lport: int = 40000, transport: str = "tcp",
-         conn: int = 1) -> packets.Flow:
-    return packets.new_flow(ConnectionInfo(conn, transport, Endpoint(local, lport), Endpoint(remote, 9004)), "T-001")
+         conn: int = 1) -> packet_builder.Flow:
+    return packet_builder.new_flow(ConnectionInfo(conn, transport, Endpoint(local, lport), Endpoint(remote, 9004)), "T-001")
 
 
 def tcp_of(frame: bytes) -> TCP:
@@ -43,7 +43,7 @@ def test_a_flow_starts_from_sequence_numbers_derived_from_the_case_and_connectio
 def test_the_handshake_is_syn_synack_ack_with_the_mss_and_advances_both_sides() -> None:
     f = flow()
     isn_local, isn_remote = f.seq[True], f.seq[False]
-    syn, synack, ack = packets.handshake(f, passive=False)
+    syn, synack, ack = packet_builder.handshake(f, passive=False)
     assert [flags(syn), flags(synack), flags(ack)] == ["S", "SA", "A"]
     assert tcp_of(syn).seq == isn_local and tcp_of(syn).options == [("MSS", 65495)]
     assert (tcp_of(synack).seq, tcp_of(synack).ack) == (isn_remote, isn_local + 1)
@@ -54,16 +54,16 @@ def test_the_handshake_is_syn_synack_ack_with_the_mss_and_advances_both_sides() 
 
 def test_a_passive_open_has_the_syn_come_from_the_remote_end() -> None:
     f = flow()
-    syn, synack, _ = packets.handshake(f, passive=True)
+    syn, synack, _ = packet_builder.handshake(f, passive=True)
     assert flags(syn) == "S" and (tcp_of(syn).sport, tcp_of(syn).dport) == (9004, 40000)
     assert (tcp_of(synack).sport, tcp_of(synack).dport) == (40000, 9004)
 
 
 def test_data_is_split_into_segments_each_acked_with_psh_on_the_last() -> None:
     f = flow()
-    packets.handshake(f, passive=False)
+    packet_builder.handshake(f, passive=False)
     start_local, start_remote = f.seq[True], f.seq[False]
-    frames = packets.data(f, True, bytes(range(250)), max_segment=100)
+    frames = packet_builder.data(f, True, bytes(range(250)), max_segment=100)
     assert [flags(x) for x in frames] == ["A", "A", "A", "A", "PA", "A"]
     segments = [tcp_of(x) for x in frames[::2]]
     assert [len(bytes(s.payload)) for s in segments] == [100, 100, 50]
@@ -76,19 +76,19 @@ def test_data_is_split_into_segments_each_acked_with_psh_on_the_last() -> None:
 
 def test_fin_and_rst() -> None:
     f = flow()
-    packets.handshake(f, passive=False)
+    packet_builder.handshake(f, passive=False)
     before = f.seq[False]
-    fin, ack = packets.fin(f, False)
+    fin, ack = packet_builder.fin(f, False)
     assert (flags(fin), flags(ack)) == ("FA", "A")
     assert tcp_of(ack).ack == before + 1 and f.fin == {True: False, False: True} and f.seq[False] == before + 1
-    rst = packets.rst(f, True)
+    rst = packet_builder.rst(f, True)
     assert flags(rst) == "RA" and f.reset
 
 
 @pytest.mark.parametrize("refused", [True, False])
 def test_a_failed_connect_is_a_syn_and_the_servers_reset_when_refused(refused: bool) -> None:
     f = flow(local="0.0.0.0", lport=0)
-    frames = packets.connect_failed(f, refused)
+    frames = packet_builder.connect_failed(f, refused)
     assert [flags(x) for x in frames] == (["S", "RA"] if refused else ["S"])
     assert tcp_of(frames[0]).sport >= 61000  # the local port was never known
     assert Ether(frames[0])[IP].src == "127.0.0.1"  # loopback target: loopback source
@@ -97,8 +97,8 @@ def test_a_failed_connect_is_a_syn_and_the_servers_reset_when_refused(refused: b
 
 def test_ipv6_and_udp() -> None:
     f6 = flow(local="::1", remote="::1")
-    syn = packets.handshake(f6, passive=False)[0]
+    syn = packet_builder.handshake(f6, passive=False)[0]
     assert IPv6 in Ether(syn) and Ether(syn)[IPv6].dst == "::1"
     fu = flow(transport="udp")
-    datagram = Ether(packets.udp(fu, False, b"\xfe\xfe payload"))
+    datagram = Ether(packet_builder.udp(fu, False, b"\xfe\xfe payload"))
     assert (datagram[UDP].sport, datagram[UDP].dport, bytes(datagram[UDP].payload)) == (9004, 40000, b"\xfe\xfe payload")

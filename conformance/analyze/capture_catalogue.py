@@ -10,7 +10,7 @@ judge in the capture is SKIP.
 from __future__ import annotations
 
 from ..model.verdicts import Level
-from ..observed.catalogue import (
+from ..observed.robot_catalogue import (
     AWAIT_SPEC,
     CLOSE_SPEC,
     E4_SPEC,

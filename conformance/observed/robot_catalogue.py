@@ -11,7 +11,7 @@ from ..protocol import Action
 from ..protocol.clauses import clause as registry_clause
 from ..protocol.clauses import text_of
 from ..suite.record import CaseRecord, record
-from .frames import FrameRecord
+from .robot_frames import FrameRecord
 
 MUST, SHOULD, MAY = Level.MUST, Level.SHOULD, Level.MAY
 

@@ -1,6 +1,6 @@
 """T2 from a capture: the robot's stream rate and jitter, the box's backlog.
 
-The robot side reuses certify-robot's judgement (:mod:`conformance.observed.timing`:
+The robot side reuses certify-robot's judgement (:mod:`conformance.observed.stream_timing`:
 :func:`stream_stats`, :func:`judge_rate`, :func:`judge_jitter`) on the time stamps of
 the robot's pose frames, in blocks of :data:`BLOCK` poses so that the memory a stream
 needs does not grow with its length (a block's figures are kept, its time stamps are
@@ -18,7 +18,7 @@ from __future__ import annotations
 from array import array
 from dataclasses import dataclass, field
 
-from ..observed.timing import judge_jitter, judge_rate, stream_stats
+from ..observed.stream_timing import judge_jitter, judge_rate, stream_stats
 from ..suite.pose_stream import StreamResult
 from .findings import Series
 
