@@ -12,7 +12,8 @@ The engine judges an unanswered request when its connection ends; a box that han
 ``stream-slow`` (T2, robot)
     a pose stream sent fewer poses per second than the declared rate allows
     (``--rate-tolerance``) over the last :data:`RATE_WINDOW_S` seconds (at least 20
-    periods); cleared when the rate is back.
+    periods), for :data:`HOLD_S` (a stream that ends slows down for a moment before its
+    connection closes); cleared when the rate is back.
 ``box-refused`` (S5, box)
     the box refused (or did not accept in ``--connect-timeout``) a connection the
     robot made; cleared by the next connection the box accepts.
@@ -31,10 +32,11 @@ from typing import Any
 
 from ..protocol import Action, action_name
 
-__all__ = ["KINDS", "RATE_WINDOW_S", "Alarm", "Alarms"]
+__all__ = ["HOLD_S", "KINDS", "RATE_WINDOW_S", "Alarm", "Alarms"]
 
 KINDS = ("box-silent", "stream-slow", "box-refused")
 RATE_WINDOW_S = 2.0
+HOLD_S = 1.0  # a stream below its rate this long raises stream-slow
 KEEP = 200
 MAX_ACTIVE = 1000
 
@@ -83,6 +85,7 @@ class Alarms:
         self.cleared: deque[Alarm] = deque(maxlen=KEEP)
         self.raised = dict.fromkeys(KINDS, 0)
         self.samples: dict[int, deque[tuple[float, int]]] = {}  # stream connection -> (t, poses so far)
+        self.below: dict[int, float] = {}  # stream connection -> since when its rate is below the bound
         self.next_id = 1
         self.changed: list[Alarm] = []  # raised or cleared since the last look (the view prints them)
 
@@ -156,6 +159,7 @@ class Alarms:
                         else "the stream connection closed")
         for number in [n for n in self.samples if n not in seen]:
             del self.samples[number]
+            self.below.pop(number, None)
 
     def _silent(self, number: int, judge: Any, now: float, fault_frame: int | None) -> None:
         key = ("box-silent", number)
@@ -196,6 +200,10 @@ class Alarms:
         if span < self.window_s:
             return
         rate = (judge.poses - n0) / span
+        if rate >= self.min_rate:
+            self.below.pop(number, None)
+        elif now - self.below.setdefault(number, now) < HOLD_S:
+            return  # not yet: a stream that ends slows down for a moment before its connection closes
         if rate < self.min_rate:
             self._raise("stream-slow", "T2", "robot", number,
                         f"{judge.label}: {rate:.1f} poses/s over the last {span:.1f} s; the declared "

@@ -110,8 +110,8 @@ def test_four_poses_before_a_refusal_are_too_few_for_a_rate(tmp_path: Path) -> N
 
 
 def test_latency_growing_by_less_than_one_period_is_no_backlog_but_more_is() -> None:
-    from conformance.analyze.findings import Series
     from conformance.analyze.capture_timing import backlog
+    from conformance.analyze.findings import Series
 
     def grown(last_ms: float) -> bool:
         s = Series()

@@ -65,7 +65,12 @@ def test_a_stream_below_its_rate_alarms_and_clears() -> None:
     alarms = Alarms(5000, 5000, 50, 0.1)  # at least 45 poses/s over 2 s
     j = _judge()
     t = 0.0
-    for _ in range(10):  # 20 poses/s
+    for _ in range(5):  # 20 poses/s for 2.5 s: below the bound, but not yet for a second
+        j.poses += 10
+        t += 0.5
+        alarms.check([(3, j, True)], t, {})
+    assert not alarms.active
+    for _ in range(5):  # and on
         j.poses += 10
         t += 0.5
         alarms.check([(3, j, True)], t, {})
