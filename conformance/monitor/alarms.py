@@ -30,7 +30,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..protocol import Action, action_name
+from ..protocol import EXTENSION_ACTIONS, Action, action_name
 
 __all__ = ["HOLD_S", "KINDS", "RATE_WINDOW_S", "Alarm", "Alarms"]
 
@@ -180,9 +180,11 @@ class Alarms:
         waited = (now - t_req) * 1000.0
         if waited >= limit:
             label = judge.label
+            legal = (" (a box without the extension E may stay silent on it: the robot's session stops here)"
+                     if action in EXTENSION_ACTIONS else "")
             self._raise("box-silent", "T1", "box", number,
                         f"{label}: no answer to {action_name(action)} (frame {last}) for {waited:.0f} ms; "
-                        f"the bound is {limit:.0f} ms (box silent, connection still open)", now, last, head)
+                        f"the bound is {limit:.0f} ms (box silent, connection still open){legal}", now, last, head)
 
     def _rate(self, number: int, judge: Any, now: float) -> None:
         if judge.robot_counts or not judge.poses or self.rate_hz <= 0:
