@@ -114,6 +114,12 @@ class Backlog:
 
 
 def backlog(latencies: Series, rate_hz: float) -> Backlog | None:
-    """The active suite's T2 backlog figure on the stream's latency sample (None below 8 answers)."""
+    """The active suite's T2 backlog figure on the stream's latency sample (None below 8 answers), with a
+    threshold of at least one stream period above the first quarter's p50: seen from the wire, a backlog is
+    a box at least one pose behind, not a loaded machine's scheduling (issue 26's pairs, at 20 Hz)."""
     b = StreamResult(rate_hz=rate_hz, latencies_ms=latencies.sample).backlog()
-    return None if b is None else Backlog(*b)
+    if b is None:
+        return None
+    first, last, threshold = b
+    period_ms = 1000.0 / rate_hz if rate_hz > 0 else 0.0
+    return Backlog(first, last, max(threshold, first + period_ms))

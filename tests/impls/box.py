@@ -161,6 +161,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--port", type=int, default=0, help="TCP port on 127.0.0.1 (0: a free one)")
     parser.add_argument("--seed", type=int, help="random: the combination; a broken box: its random legal base")
     parser.add_argument("--time-out", type=int, default=5000, metavar="MS", help="the time_out the box assumes")
+    parser.add_argument("--for-robot", action="store_true",
+                        help="serve a robot of tests/impls whatever the combination says: the stream on the command "
+                             "port (the robot is wired to one address, e.g. through isight-conformance monitor) and "
+                             "data block indexes from 0 (the robot's profile)")
     parser.add_argument("--list", action="store_true", help="list the variants and exit")
     args = parser.parse_args(argv)
     if args.list:
@@ -172,6 +176,8 @@ def main(argv: list[str] | None = None) -> int:
         if not 0 <= args.port <= 65535 or not 0 < args.time_out <= 600_000:
             raise ValueError("--port must be 0..65535 and --time-out 1..600000")
         chosen = variant(args.variant, args.seed)
+        if args.for_robot:
+            chosen = replace(chosen, choices=replace(chosen.choices, stream_port="same", first_index="0"))
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -369,9 +369,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit", type=float, default=1800, metavar="S", help="hard bound per suite run (s)")
     parser.add_argument("--mem-limit", type=float, default=4096, metavar="MB", help="suite RSS cap (default 4096)")
     parser.add_argument("--out", type=Path, help="where reports go (default reports/impls-matrix-<time>)")
+    parser.add_argument("--through-monitor", type=int, nargs=2, metavar=("R", "B"),
+                        help="instead: R random legal robots x B random legal boxes through monitor, analyze on the "
+                             "capture, plus the broken ones on random bases (tests/impls/pairs.py; --seed, --jobs)")
     parser.add_argument("--rejudge", type=Path, metavar="DIR",
                         help="run nothing: re-read DIR's reports, judge them again and rewrite DIR's table")
     args = parser.parse_args(argv)
+    if args.through_monitor:
+        from .pairs import main as pairs_main
+
+        return pairs_main(["--robots", str(args.through_monitor[0]), "--boxes", str(args.through_monitor[1]),
+                           "--broken", "--seed", str(args.seed), "--jobs", str(args.jobs)]
+                          + (["--out", str(args.out)] if args.out else []))
     if args.rejudge is not None:
         return rejudge(args.rejudge)
     names = args.only or list(EXPECTATIONS)

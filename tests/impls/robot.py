@@ -17,7 +17,7 @@ import argparse
 import signal
 import sys
 import threading
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 from .robots import Outcome, Robot, RobotChoices, random_choices
@@ -70,10 +70,18 @@ ROBOTS: dict[str, RobotVariant] = {v.name: v for v in _LIST}
 RANDOM = "random"
 
 
-def variant(name: str, seed: int | None = None) -> RobotVariant:
-    """A robot by name; ``random`` with ``seed`` is a random legal combination of the knobs."""
+def variant(name: str, seed: int | None = None, base_seed: int | None = None) -> RobotVariant:
+    """A robot by name; ``random`` with ``seed`` is a random legal combination of the knobs; a broken
+    robot with ``base_seed`` carries its one defect on a random legal base (drawn from that seed)."""
     if name != RANDOM:
-        return ROBOTS[name]
+        found = ROBOTS[name]
+        if base_seed is None or found.conforming:
+            return found
+        defect = {f.name: getattr(found.choices, f.name) for f in fields(RobotChoices)
+                  if getattr(found.choices, f.name) != getattr(_CANONICAL, f.name)}
+        base = random_choices(base_seed)
+        return replace(found, choices=replace(base, **defect),
+                       description=f"{found.description} (on the random legal base #{base_seed})")
     if seed is None:
         raise ValueError("the random robot needs --seed")
     choices = random_choices(seed)
@@ -97,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.impls.robot", description=__doc__.split("\n\n")[0])
     parser.add_argument("variant", nargs="?", help="which robot (see --list), or 'random'")
     parser.add_argument("--seed", type=int, help="random: the combination")
+    parser.add_argument("--base-seed", type=int, help="a broken robot: its random legal base")
     parser.add_argument("--flags", action="store_true", help="print the certify-robot flags the robot needs, exit")
     parser.add_argument("--target", default="127.0.0.1:9004", help="the box, HOST:PORT (default 127.0.0.1:9004)")
     parser.add_argument("--duration", type=float, default=2.0, help="primer trajectory seconds (default 2)")
@@ -113,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.variant not in ROBOTS and args.variant != RANDOM:
             raise ValueError(f"unknown robot {args.variant!r}; try --list")
-        chosen = variant(args.variant, args.seed)
+        chosen = variant(args.variant, args.seed, args.base_seed)
         if args.flags:
             print(" ".join(chosen.choices.suite_args()))
             return 0

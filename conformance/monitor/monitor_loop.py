@@ -20,9 +20,10 @@ from typing import IO
 
 from ..model.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
+from .liveserve import LiveServers
+from .monitor_reports import write_monitor_reports
 from .proxy import TcpProxy
-from .report import write_monitor_reports
-from .udp import UdpProxy
+from .udp_proxy import UdpProxy
 from .view import View
 
 __all__ = ["ListenError", "MonitorOutcome", "monitor_main", "run_monitor"]
@@ -63,6 +64,22 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
         raise ListenError(exc.errno, exc.strerror or str(exc)) from None
     settings.listen = address
     print(f"{line} -> upstream {_fmt(settings.upstream)}", file=out, flush=True)
+    live = None
+    if settings.metrics is not None or settings.http is not None:
+        live = LiveServers(hub, report_dir, settings.metrics, settings.http)
+        try:
+            got = await live.start()
+        except OSError as exc:
+            await tcp.stop()
+            if udp is not None:
+                await udp.stop()
+            raise ListenError(exc.errno, f"--metrics/--http: {exc.strerror or exc}") from None
+        if "metrics" in got:
+            settings.metrics = got["metrics"]
+            print(f"metrics http://{_fmt(got['metrics'])}/metrics", file=out, flush=True)
+        if "http" in got:
+            settings.http = got["http"]
+            print(f"page http://{_fmt(got['http'])}/", file=out, flush=True)
     view.start(hub)
     loop = asyncio.get_running_loop()
     end = loop.time() + duration_s if duration_s else None
@@ -75,7 +92,10 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
             now = loop.time()
             if end is not None and now >= end:
                 break
+            hub.tick()
             view.tick()
+            if live is not None:
+                live.tick()
             if next_checkpoint is not None and now >= next_checkpoint:
                 next_checkpoint = now + checkpoint_s
                 try:
@@ -86,6 +106,8 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
                     view.line(f"isight-conformance monitor: checkpoint: cannot write the reports: {exc.strerror or exc}")
     finally:
         view.stop()
+        if live is not None:
+            await live.stop()
         await tcp.stop()
         if udp is not None:
             await udp.stop()
