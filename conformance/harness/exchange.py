@@ -115,6 +115,14 @@ def action_of(outcome: Outcome) -> int | None:
     return header.action if header is not None and header.start_word == START_WORD else None
 
 
+def error_code(outcome: Outcome | None) -> int | None:
+    """The error code of what the box sent: an answer, or malformed bytes with a readable header."""
+    if isinstance(outcome, Answer):
+        return outcome.frame.error_code
+    header = outcome.error.header if isinstance(outcome, Malformed) else None
+    return header.error_code if header is not None and header.start_word == START_WORD else None
+
+
 def answers_zero(outcome: Outcome, action: int) -> bool:
     """A well-formed 0000 answer with this action."""
     return isinstance(outcome, Answer) and outcome.frame.action == action and outcome.frame.error_code == 0
@@ -127,6 +135,8 @@ class Collected:
     outcomes: list[Outcome] = field(default_factory=list)  # the answers before the probe's, and late extras
     end: Outcome | None = None  # the answer with the probe's action (the probe's), a Closed or a Silence
     close: Closed | None = None  # a close or reset that came in the settle window
+    #: the probe's action came with an error and the wait for its 0000 behind it ran out (the wait's bound)
+    ran_out: bool = False
 
     @property
     def probe_answered(self) -> bool:
@@ -191,7 +201,9 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
             continue
         extra = _settle(conn, settle.window(outcome.latency_s, not answers_zero(outcome, probe)))
         if _maybe_refusal(outcome) and not answers_zero(outcome, probe):
-            extra += _await_probe(conn, probe, start, extra, timeout_s)
+            more = _await_probe(conn, probe, start, extra, timeout_s)
+            out.ran_out = not any(isinstance(o, Closed) or answers_zero(o, probe) for o in extra + more)
+            extra += more
         out.close = next((o for o in extra if isinstance(o, Closed)), None)
         extra = [o for o in extra if not isinstance(o, Closed)]
         late = next((k for k, o in enumerate(extra) if answers_zero(o, probe)), None)
@@ -204,6 +216,19 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
         return out
     out.end = Silence(time.monotonic() - start)
     return out
+
+
+def await_rest(conn: TcpConnection, probe: int, got: Collected, wait_s: float) -> Collected:
+    """After a wait for the probe's 0000 that ran out at a short bound (``got.ran_out``): wait ``wait_s``
+    more for it, and put what came where :func:`collect` would have (a late 0000 is the probe's answer,
+    the error answer before it answered the bytes)."""
+    more = _await_probe(conn, probe, time.monotonic(), [], wait_s)
+    close = got.close or next((o for o in more if isinstance(o, Closed)), None)
+    more = [o for o in more if not isinstance(o, Closed)]
+    late = next((k for k, o in enumerate(more) if answers_zero(o, probe)), None)
+    if late is None or got.end is None:
+        return Collected(got.outcomes + more, got.end, close, ran_out=close is None)
+    return Collected([*got.outcomes, got.end, *more[:late]] + more[late + 1:], more[late], close)
 
 
 def _maybe_refusal(outcome: Outcome) -> bool:

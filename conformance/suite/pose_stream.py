@@ -14,10 +14,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
+from ..harness.starvation import gauge, starved_verdict
 from ..protocol import Action, pose_blocks, request
 from ..stats import percentile
 from ..trajectory import PrimerTrajectory
-from .judge import Expect, answered, check, fail
+from .judge import Expect, Inconclusive, answered, check, fail
 from .verdicts import Level
 
 DEFAULT_POSE = PrimerTrajectory().home
@@ -50,6 +51,7 @@ class StreamResult:
     ended_by: Outcome | None = None
     max_send_lag_ms: float = 0.0
     elapsed_s: float = 0.0
+    started_at: float = 0.0  # monotonic: for the starvation gauge's stalls over the stream
 
     @property
     def lost(self) -> int:
@@ -111,9 +113,11 @@ class PoseStream:
         self._sent_at: list[float] = []
         self._frames: list[bytes] = []
         self._stop = threading.Event()
+        self._stopped_gauge = False
         self._thread = threading.Thread(target=self._run, name=f"isight-pose-stream-{conn.label}", daemon=True)
 
     def start(self) -> PoseStream:
+        gauge().start()  # the suite's own scheduling delay over the stream (timing verdicts on a loaded runner)
         self._thread.start()
         return self
 
@@ -128,6 +132,9 @@ class PoseStream:
         if self._thread.is_alive():  # never expected: every wait inside is bounded
             self._stop.set()
             self._thread.join(self.time_out_s + 2.0)
+        if not self._thread.is_alive() and not self._stopped_gauge:
+            self._stopped_gauge = True
+            gauge().stop()
         return self.result
 
     @property
@@ -138,7 +145,7 @@ class PoseStream:
         r, period = self.result, 1.0 / self.rate_hz
         count = None if self.duration_s is None else max(1, round(self.duration_s * self.rate_hz))
         codec, label = self.conn.codec, self.conn.label
-        t0 = time.monotonic()
+        t0 = r.started_at = time.monotonic()
         try:
             while not self._stop.is_set() and (count is None or r.sent < count):
                 due = t0 + r.sent * period
@@ -169,8 +176,13 @@ class PoseStream:
         while True:
             now = time.monotonic()
             if r.answered < r.sent and now - self._sent_at[r.answered] > self.time_out_s:
-                r.ended = "overdue"
-                return False
+                late = self.conn.next_outcome(0.0)  # one last look: the suite may have been kept from running
+                due = self._sent_at[r.answered] + self.time_out_s
+                if not isinstance(late, Answer) or self.conn.last_arrival > due:
+                    r.ended = "overdue"
+                    return False
+                self._take(late)
+                continue
             if now >= until:
                 return True
             outcome = self.conn.next_outcome(max(until - now, 0.0002))
@@ -179,16 +191,24 @@ class PoseStream:
             if not isinstance(outcome, Answer):
                 self._end(outcome)
                 return False
-            k = r.answered
-            if k >= r.sent:
-                r.extra += 1
-                if r.bad is None:
-                    r.bad, r.bad_index = outcome, k
+            if not self._take(outcome):
                 return False
-            r.latencies_ms.append((time.monotonic() - self._sent_at[k]) * 1000)
-            if r.bad is None and not self.expect.matches(outcome):
-                r.bad, r.bad_index, r.bad_sent = outcome, k, self._frames[k]
-            r.answered += 1
+
+    def _take(self, outcome: Answer) -> bool:
+        """Match an answer to the oldest pose unanswered (A1: in order); False for one beyond the poses sent.
+        Its latency runs to the kernel's receive time (not to when the suite got round to reading it)."""
+        r = self.result
+        k = r.answered
+        if k >= r.sent:
+            r.extra += 1
+            if r.bad is None:
+                r.bad, r.bad_index = outcome, k
+            return False
+        r.latencies_ms.append((min(time.monotonic(), self.conn.last_arrival) - self._sent_at[k]) * 1000)
+        if r.bad is None and not self.expect.matches(outcome):
+            r.bad, r.bad_index, r.bad_sent = outcome, k, self._frames[k]
+        r.answered += 1
+        return True
 
     def _end(self, outcome: Outcome) -> None:
         r = self.result
@@ -220,6 +240,10 @@ def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, ba
             judged=clauses)
     b = r.backlog() if backlog else None
     if b is not None and b[1] > b[2]:
+        starved = starved_verdict(b[1] - b[2], r.started_at, r.started_at + r.elapsed_s,
+                                  "the last quarter's p50 answer latency (T2 backlog)")
+        if starved is not None:
+            raise Inconclusive(starved, judged=clauses)
         raise fail(level, f"{what}: answer latency does not grow over the run (backlog)",
                    f"last-quarter p50 ≤ {b[2]:.1f} ms (first-quarter p50 {b[0]:.1f} ms + max(20 ms, 3×))",
                    f"backlog: last-quarter p50 {b[1]:.1f} ms", judged=clauses)

@@ -64,6 +64,12 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
     _bad("no-resync", ("R6",), "NON-STRICT"),
     _bad("nan-zero", ("B4",), "NON-STRICT"),
     _bad("drops-coalesced", ("R4", "A1")),
+    _ok("late-inside-timeout", note="every answer 100 ms late: legal (T1), and slow for every sequential wait"),
+    _bad("sticky-error", ("A4", "A1", "A3", "S1", "S2", "S3", "R1")),
+    _bad("drops-frames", ("A1", "T1", "S6")),
+    _bad("answers-some-actions", ("A1", "T1")),
+    _bad("quiet-after-n", ("T1", "A1", "R2")),
+    _bad("short-send-drops", ("S6", "A1", "F5")),
     # robots, conforming
     _ok("canonical", "robot"),
     _ok("karel-calls", "robot", note="poses (23/24) on the command connection are legal: PROTOCOL.md, robot side"),
