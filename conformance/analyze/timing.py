@@ -18,7 +18,8 @@ from __future__ import annotations
 from array import array
 from dataclasses import dataclass, field
 
-from ..observed.timing import judge_jitter, judge_rate, stream_stats
+from ..harness.starvation import starved_verdict
+from ..observed.timing import jitter_excess_ms, judge_jitter, judge_rate, rate_excess_ms, stream_stats
 from ..suite.pose_stream import StreamResult
 from .findings import Series
 
@@ -39,6 +40,7 @@ class StreamJudgement:
     jitter_ok: bool = True
     jitter_text: str = ""
     described: list[str] = field(default_factory=list)  # each block's figures
+    starved: str = ""  # a breach the monitoring side's own stalls could explain (INCONCLUSIVE, not FAIL)
     windows_hz: list[float] = field(default_factory=list)  # the first blocks' per-second rates
 
     @property
@@ -86,10 +88,11 @@ class PoseClock:
         stats = stream_stats(times, self.rate_hz)  # None below MIN_POSES
         if stats is not None:
             j.blocks += 1
-            ok, text = judge_rate(stats, self.rate_tolerance)
+            ok, text = self._unless_starved(judge_rate(stats, self.rate_tolerance), rate_excess_ms(stats, self.rate_tolerance), times)
             if j.rate_ok:
                 j.rate_ok, j.rate_text = ok, text
-            ok, text = judge_jitter(stats, self.jitter_tolerance)
+            ok, text = self._unless_starved(judge_jitter(stats, self.jitter_tolerance),
+                                            jitter_excess_ms(stats, self.jitter_tolerance), times)
             if j.jitter_ok:
                 j.jitter_ok, j.jitter_text = ok, text
             if len(j.described) < 8:
@@ -99,6 +102,16 @@ class PoseClock:
             if self.intervals is not None:
                 self.intervals.extend(stats.intervals_ms, peaks=False)
         self._carried = keep_last and bool(times)
+
+    def _unless_starved(self, judged: tuple[bool, str], excess_ms: float, times: array[float]) -> tuple[bool, str]:
+        """A breach the live monitor's own stalls could explain is not a FAIL (the gauge runs only while
+        ``monitor`` watches live traffic: a capture's time stamps are the wire's)."""
+        ok, text = judged
+        reason = None if ok else starved_verdict(excess_ms, times[0], times[-1], "the stream's timing", wall=True)
+        if reason is None:
+            return judged
+        self.judgement.starved = self.judgement.starved or f"{reason}. {text}"
+        return True, text
         self.times = array("d", [times[-1]]) if self._carried else array("d")
 
 

@@ -50,6 +50,7 @@ STARVED_TEXT = "the tester was starved"
 class Stall:
     at: float  # monotonic time the timer should have woken
     late_ms: float
+    wall: float = 0.0  # the same moment on the wall clock (time.time(): certify-robot's and monitor's clocks)
 
 
 class StarvationGauge:
@@ -98,25 +99,24 @@ class StarvationGauge:
             self.wakes += 1
             if late_ms >= NOISE_MS:
                 with self._lock:
-                    self._stalls.append(Stall(due, late_ms))
+                    self._stalls.append(Stall(due, late_ms, time.time() - late_ms / 1000))
             due = max(due + self.period_s, now)  # after a stall, the next wake is a period from now
 
     def note(self, at: float, late_ms: float) -> None:
         """Record a stall seen elsewhere (e.g. an event loop's timer that fired late)."""
         if late_ms >= NOISE_MS:
             with self._lock:
-                self._stalls.append(Stall(at, late_ms))
+                self._stalls.append(Stall(at, late_ms, time.time() - (time.monotonic() - at)))
 
-    def stalls(self, since: float = 0.0, until: float | None = None) -> list[Stall]:
-        end = time.monotonic() if until is None else until
+    def worst_ms(self, since: float = 0.0, until: float | None = None, wall: bool = False) -> float:
+        """The longest stall that overlaps ``since``..``until`` (monotonic seconds; ``wall``: time.time()
+        seconds, the clock certify-robot and monitor stamp frames with)."""
+        end = (time.time() if wall else time.monotonic()) if until is None else until
         with self._lock:
-            return [s for s in self._stalls if since - 1.0 <= s.at <= end]
-
-    def worst_ms(self, since: float = 0.0, until: float | None = None) -> float:
-        """The longest stall between ``since`` and ``until`` (monotonic seconds; a stall that began up to
-        its own length before ``since`` counts)."""
-        end = time.monotonic() if until is None else until
-        return max((s.late_ms for s in self.stalls(since, end) if s.at + s.late_ms / 1000 >= since), default=0.0)
+            stalls = list(self._stalls)
+        return max((s.late_ms for s in stalls
+                    if (s.wall if wall else s.at) <= end and (s.wall if wall else s.at) + s.late_ms / 1000 >= since),
+                   default=0.0)
 
 
 _GAUGE = StarvationGauge()
@@ -139,10 +139,10 @@ def starved_text(excess_ms: float, worst_ms: float, what: str) -> str:
 
 
 def starved_verdict(excess_ms: float, since: float, until: float | None = None, what: str = "the timing figure",
-                    source: StarvationGauge | None = None) -> str | None:
+                    source: StarvationGauge | None = None, wall: bool = False) -> str | None:
     """The INCONCLUSIVE reason when the gauge's stalls in the range could explain a breach of ``excess_ms``
     (None: they could not, and the breach stands)."""
-    worst = (source or _GAUGE).worst_ms(since, until)
+    worst = (source or _GAUGE).worst_ms(since, until, wall)
     return starved_text(excess_ms, worst, what) if explains(excess_ms, worst) else None
 
 

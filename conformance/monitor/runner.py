@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
+from ..harness.starvation import gauge
 from ..suite.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
 from .proxy import TcpProxy
@@ -64,6 +65,7 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
     settings.listen = address
     print(f"{line} -> upstream {_fmt(settings.upstream)}", file=out, flush=True)
     view.start(hub)
+    gauge().start()  # the monitor's own stalls: a T2 breach they could explain is INCONCLUSIVE (analyze.timing)
     loop = asyncio.get_running_loop()
     end = loop.time() + duration_s if duration_s else None
     next_checkpoint = loop.time() + checkpoint_s if checkpoint_s else None
@@ -90,6 +92,7 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
         if udp is not None:
             await udp.stop()
         hub.finish()
+        gauge().stop()
     suite, cases = write_monitor_reports(hub, report_dir, command)
     return MonitorOutcome(hub, suite, cases, checkpoints)
 

@@ -122,3 +122,29 @@ def judge_jitter(stats: StreamStats, tolerance: float) -> tuple[bool, str]:
             if stats.together else ""
         return False, text + extra
     return True, text
+
+
+def _span_excess_ms(intervals: int, span_ms: float, declared: float, tolerance: float) -> float:
+    """How far a span of ``intervals`` intervals is outside the spans the rate tolerance allows (ms; 0 inside)."""
+    if intervals <= 0:
+        return 0.0
+    longest = intervals / (declared * (1 - tolerance)) * 1000.0
+    shortest = intervals / (declared * (1 + tolerance)) * 1000.0
+    return max(0.0, span_ms - longest, shortest - span_ms)
+
+
+def rate_excess_ms(stats: StreamStats, tolerance: float) -> float:
+    """How much time the stream (or its worst one-second window) is off the rate tolerance: the delay a stall
+    of the measuring side would have to explain (ms; 0 when within)."""
+    worst = _span_excess_ms(len(stats.intervals_ms), stats.duration_s * 1000.0, stats.declared_hz, tolerance)
+    size = max(10, round(stats.declared_hz))
+    for start in range(0, len(stats.intervals_ms), size):
+        chunk = stats.intervals_ms[start : start + size]
+        if len(chunk) >= size / 2 or start == 0:
+            worst = max(worst, _span_excess_ms(len(chunk), sum(chunk), stats.declared_hz, tolerance))
+    return worst
+
+
+def jitter_excess_ms(stats: StreamStats, tolerance: float) -> float:
+    """How far the p99 interval deviation is above the jitter tolerance (ms; 0 when within)."""
+    return max(0.0, stats.dev_p99_ms - tolerance * stats.period_ms)

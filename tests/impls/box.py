@@ -103,6 +103,7 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "quiet-after-n": ("trust-header", "after 150 answers in all it answers nothing more (it still accepts and reads)"),
     "short-send-drops": ("trust-header", "a small send buffer and one non-blocking send() per answer: what did not "
                                          "fit is dropped"),
+    "latency-grows": ("trust-header", "each answer on a connection 2 ms later than the one before (a backlog)"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
 _BASE_FIXED: dict[str, dict[str, str]] = {

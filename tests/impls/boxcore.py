@@ -35,6 +35,7 @@ LINGER = 1.0  # seconds a closing box reads (and drops) what still comes before 
 DROP_EVERY = 7  # drops-frames: every 7th answer on a connection is never written
 QUIET_AFTER = 150  # quiet-after-n: after this many answers (the whole box) it answers nothing more
 SHORT_SNDBUF = 4096  # short-send-drops: its small send buffer (the kernel doubles it)
+GROW_S = 0.002  # latency-grows: each answer on a connection this much later than the one before
 
 
 class ThreadBox:
@@ -217,7 +218,8 @@ class ThreadBox:
                     continue
                 with self.lock:
                     self.answers += 1
-                answers.put((arrived + latency + reply.delay, Reply(data, reply.delay)))
+                grow = GROW_S * mangle.count if choices.defect == "latency-grows" else 0.0
+                answers.put((arrived + latency + grow + reply.delay, Reply(data, reply.delay)))
 
     def _write_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         """Answers in order, each at its due time; a close reply shuts the connection (the reader ends)."""

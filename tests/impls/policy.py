@@ -40,6 +40,7 @@ DEFECTS: dict[str, str] = {
     "answers-some-actions": "A1",
     "quiet-after-n": "T1",
     "short-send-drops": "S6",
+    "latency-grows": "T2",
 }
 
 _RESUME = ("resume+1", "resume+5", "resume+12")
