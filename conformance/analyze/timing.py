@@ -16,10 +16,10 @@ latencies.
 from __future__ import annotations
 
 from array import array
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ..harness.starvation import starved_verdict
-from ..observed.timing import jitter_excess_ms, judge_jitter, judge_rate, rate_excess_ms, stream_stats
+from ..observed.timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
 from ..suite.pose_stream import StreamResult
 from .findings import Series
 
@@ -88,11 +88,12 @@ class PoseClock:
         stats = stream_stats(times, self.rate_hz)  # None below MIN_POSES
         if stats is not None:
             j.blocks += 1
-            ok, text = self._unless_starved(judge_rate(stats, self.rate_tolerance), rate_excess_ms(stats, self.rate_tolerance), times)
+            ok, text = self._unless_starved(judge_rate(stats, self.rate_tolerance),
+                                            lambda: rate_starved(stats, times, self.rate_tolerance))
             if j.rate_ok:
                 j.rate_ok, j.rate_text = ok, text
             ok, text = self._unless_starved(judge_jitter(stats, self.jitter_tolerance),
-                                            jitter_excess_ms(stats, self.jitter_tolerance), times)
+                                            lambda: jitter_starved(stats, times, self.jitter_tolerance))
             if j.jitter_ok:
                 j.jitter_ok, j.jitter_text = ok, text
             if len(j.described) < 8:
@@ -102,17 +103,17 @@ class PoseClock:
             if self.intervals is not None:
                 self.intervals.extend(stats.intervals_ms, peaks=False)
         self._carried = keep_last and bool(times)
+        self.times = array("d", [times[-1]]) if self._carried else array("d")
 
-    def _unless_starved(self, judged: tuple[bool, str], excess_ms: float, times: array[float]) -> tuple[bool, str]:
+    def _unless_starved(self, judged: tuple[bool, str], starving: Callable[[], str | None]) -> tuple[bool, str]:
         """A breach the live monitor's own stalls could explain is not a FAIL (the gauge runs only while
         ``monitor`` watches live traffic: a capture's time stamps are the wire's)."""
         ok, text = judged
-        reason = None if ok else starved_verdict(excess_ms, times[0], times[-1], "the stream's timing", wall=True)
+        reason = None if ok else starving()
         if reason is None:
             return judged
         self.judgement.starved = self.judgement.starved or f"{reason}. {text}"
         return True, text
-        self.times = array("d", [times[-1]]) if self._carried else array("d")
 
 
 @dataclass(frozen=True)

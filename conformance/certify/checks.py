@@ -14,7 +14,6 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from ..harness.starvation import starved_verdict
 from ..observed.catalogue import (
     ANY_FRAME,
     APPLIES,
@@ -33,7 +32,7 @@ from ..observed.catalogue import (
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
 from ..observed.frames import FrameRecord, byte_order_evidence
 from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
-from ..observed.timing import jitter_excess_ms, judge_jitter, judge_rate, rate_excess_ms, stream_stats
+from ..observed.timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
@@ -218,17 +217,17 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
     note = (f"\n{unreadable} chunk(s) of the stream had no readable header and are not counted as poses"
             if unreadable else "")
     out = []
-    for spec, (ok, text), tolerance, excess in (
+    for spec, (ok, text), tolerance, starving in (
         (RATE_SPEC, judge_rate(stats, cfg.rate_tolerance), f"±{cfg.rate_tolerance * 100:g} % of the declared rate",
-         rate_excess_ms(stats, cfg.rate_tolerance)),
+         lambda: rate_starved(stats, times, cfg.rate_tolerance)),
         (JITTER_SPEC, judge_jitter(stats, cfg.jitter_tolerance), f"{cfg.jitter_tolerance * 100:g} % of the period",
-         jitter_excess_ms(stats, cfg.jitter_tolerance)),
+         lambda: jitter_starved(stats, times, cfg.jitter_tolerance)),
     ):
         details = {"interval_histogram": histogram, "stream": stats.describe(), "tolerance": tolerance,
                    "windows_hz": [round(w.rate_hz, 2) for w in stats.windows]}
         verdict = Verdict.PASS if ok else Verdict.FAIL
         # the frames' times are when the suite's event loop saw them: a stall of the suite's own can explain a breach
-        starved = None if ok else starved_verdict(excess, min(times), max(times), "the stream's timing", wall=True)
+        starved = None if ok else starving()
         if starved is not None:
             verdict, text = Verdict.INCONCLUSIVE, f"{starved}. {text}"
         out.append(ctx.result(spec, verdict, text, f"{text}\n{stats.describe()}{note}",

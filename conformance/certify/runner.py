@@ -18,7 +18,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..evidence.pcap import write_transcript
-from ..harness.starvation import gauge
+from ..harness.starvation import gauge, watch_loop
 from ..harness.transcript import ConnectionInfo, Transcript, WireEvent
 from ..observed.connections import SessionRecord
 from ..report import write_reports
@@ -111,7 +111,11 @@ async def certify(
     if listener_ready is not None:
         listener_ready(listener)
     with gauge():  # the suite's own scheduling delay while it stamps the robot's frames (T2 on a loaded runner)
-        run = await listener.run()
+        stop_watch = watch_loop(asyncio.get_running_loop())
+        try:
+            run = await listener.run()
+        finally:
+            stop_watch()
     if not run.sessions:
         return CertifyOutcome(EXIT_USAGE, run.end_note or "no robot connected", run)
     await asyncio.to_thread(write_pcaps, run)

@@ -139,6 +139,7 @@ class TcpConnection:
         self.wait_bound: Callable[[TcpConnection], float | None] | None = None
         self.on_cut: Callable[[bytes, float], None] | None = None
         self.on_ran_out: Callable[[int], None] | None = None  # called with the answers read before
+        self.stream_bound: float | None = None  # a pose stream's short wait for an overdue answer (suite.waits)
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:

@@ -25,12 +25,15 @@ one).
 
 from __future__ import annotations
 
+import asyncio
 import socket
 import struct
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 #: How often the gauge's timer wakes (seconds).
 PERIOD_S = 0.005
@@ -71,6 +74,7 @@ class StarvationGauge:
             self._users += 1
             if self._thread is None or not self._thread.is_alive():
                 self._stop.clear()
+                self._stalls.clear()  # a fresh watch (what it saw last time was judged when it stopped)
                 self.started_at = time.monotonic()
                 self._thread = threading.Thread(target=self._run, name="isight-starvation-gauge", daemon=True)
                 self._thread.start()
@@ -122,6 +126,23 @@ class StarvationGauge:
 _GAUGE = StarvationGauge()
 
 
+def watch_loop(loop: asyncio.AbstractEventLoop, source: StarvationGauge | None = None,
+               period_s: float = PERIOD_S) -> Callable[[], None]:
+    """Measure an event loop's own lateness into the gauge (a callback every ``period_s``; a frame's time
+    stamp there is when the loop got to it, so a loop kept busy or descheduled delays it). Returns stop()."""
+    target = source or _GAUGE
+    state: dict[str, Any] = {"due": time.monotonic() + period_s, "handle": None}
+
+    def tick() -> None:
+        now = time.monotonic()
+        target.note(state["due"], (now - state["due"]) * 1000)
+        state["due"] = now + period_s
+        state["handle"] = loop.call_later(period_s, tick)
+
+    state["handle"] = loop.call_later(period_s, tick)
+    return lambda: state["handle"].cancel()
+
+
 def gauge() -> StarvationGauge:
     """The process-wide gauge (start/stop it around timing work; it runs while anyone holds it)."""
     return _GAUGE
@@ -136,6 +157,16 @@ def starved_text(excess_ms: float, worst_ms: float, what: str) -> str:
     return (f"{STARVED_TEXT}: {what} exceeds its limit by {excess_ms:.1f} ms, and the suite itself was kept from "
             f"running for up to {worst_ms:.1f} ms meanwhile (its timer woke that late), which could explain it; "
             "not judged")
+
+
+def starved_share(windows: list[tuple[float, float]], excess_ms: float, source: StarvationGauge | None = None,
+                  wall: bool = False) -> float:
+    """The share of ``windows`` (start, end) that overlap a stall of at least ``excess_ms``: a median-type
+    figure (a p50 latency) is explained only when at least half its samples could have been delayed so."""
+    if not windows or excess_ms < NOISE_MS:
+        return 0.0 if windows else 1.0
+    gauge_ = source or _GAUGE
+    return sum(1 for a, b in windows if gauge_.worst_ms(a, b, wall) >= excess_ms) / len(windows)
 
 
 def starved_verdict(excess_ms: float, since: float, until: float | None = None, what: str = "the timing figure",

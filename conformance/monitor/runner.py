@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-from ..harness.starvation import gauge
+from ..harness.starvation import gauge, watch_loop
 from ..suite.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
 from .proxy import TcpProxy
@@ -67,6 +67,7 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
     view.start(hub)
     gauge().start()  # the monitor's own stalls: a T2 breach they could explain is INCONCLUSIVE (analyze.timing)
     loop = asyncio.get_running_loop()
+    stop_watch = watch_loop(loop)
     end = loop.time() + duration_s if duration_s else None
     next_checkpoint = loop.time() + checkpoint_s if checkpoint_s else None
     checkpoints = 0
@@ -92,6 +93,7 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
         if udp is not None:
             await udp.stop()
         hub.finish()
+        stop_watch()
         gauge().stop()
     suite, cases = write_monitor_reports(hub, report_dir, command)
     return MonitorOutcome(hub, suite, cases, checkpoints)

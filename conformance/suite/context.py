@@ -54,6 +54,7 @@ from .record import CaseRecord
 from .session import UNREACHABLE_AT_CONNECT, SessionState
 from .signature import Sig, Signature
 from .verdicts import Level, Verdict
+from .waits import STREAM
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
 #: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).
@@ -129,6 +130,7 @@ class CaseContext:
 
         conn.on_answered = answered
         conn.wait_bound = lambda c: ran_out.bound(c.answers, self.time_out_s)
+        conn.stream_bound = ran_out.bound(STREAM, self.time_out_s)
         conn.on_cut = cut
         conn.on_ran_out = lambda place: ran_out.ran_out(self.info.id, place)
 

@@ -14,12 +14,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
-from ..harness.starvation import gauge, starved_verdict
+from ..harness.liveness import check_alive, responsive
+from ..harness.starvation import gauge, starved_share, starved_text
 from ..protocol import Action, pose_blocks, request
 from ..stats import percentile
 from ..trajectory import PrimerTrajectory
 from .judge import Expect, Inconclusive, answered, check, fail
+from .signature import Sig, Signature
 from .verdicts import Level
+from .waits import STREAM
 
 DEFAULT_POSE = PrimerTrajectory().home
 
@@ -52,6 +55,8 @@ class StreamResult:
     max_send_lag_ms: float = 0.0
     elapsed_s: float = 0.0
     started_at: float = 0.0  # monotonic: for the starvation gauge's stalls over the stream
+    cut_s: float = 0.0  # the overdue answer was awaited only this long (bounded time: suite.waits), the box alive
+    sent_at: list[float] = field(default_factory=list)  # monotonic send time of each pose
 
     @property
     def lost(self) -> int:
@@ -110,7 +115,7 @@ class PoseStream:
         self.expect = expect or answered(Action.POSE, [0])
         self.first_index = first_index
         self.result = StreamResult(rate_hz, time_out_s)
-        self._sent_at: list[float] = []
+        self._sent_at: list[float] = self.result.sent_at
         self._frames: list[bytes] = []
         self._stop = threading.Event()
         self._stopped_gauge = False
@@ -175,11 +180,13 @@ class PoseStream:
         r = self.result
         while True:
             now = time.monotonic()
-            if r.answered < r.sent and now - self._sent_at[r.answered] > self.time_out_s:
+            limit = min(self.conn.stream_bound or self.time_out_s, self.time_out_s)
+            if r.answered < r.sent and now - self._sent_at[r.answered] > limit:
                 late = self.conn.next_outcome(0.0)  # one last look: the suite may have been kept from running
-                due = self._sent_at[r.answered] + self.time_out_s
+                due = self._sent_at[r.answered] + limit
                 if not isinstance(late, Answer) or self.conn.last_arrival > due:
                     r.ended = "overdue"
+                    self._overdue(limit)
                     return False
                 self._take(late)
                 continue
@@ -193,6 +200,16 @@ class PoseStream:
                 return False
             if not self._take(outcome):
                 return False
+
+    def _overdue(self, limit: float) -> None:
+        """A pose unanswered for ``limit``: noted for the session's wait patterns (:mod:`.waits`) after a
+        full time_out; after a short bound, kept as a cut (INCONCLUSIVE) if a fresh connection is answered."""
+        conn = self.conn
+        if limit >= self.time_out_s:
+            if conn.on_ran_out is not None:
+                conn.on_ran_out(STREAM)
+        elif responsive(check_alive(conn.transcript, conn.target, conn.profile)):
+            self.result.cut_s = limit
 
     def _take(self, outcome: Answer) -> bool:
         """Match an answer to the oldest pose unanswered (A1: in order); False for one beyond the poses sent.
@@ -231,6 +248,11 @@ def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, ba
     if r.ended == "malformed" and r.ended_by is not None:
         check(r.ended_by, answered(Action.POSE), level, f"{what}: every pose is answered with a well-formed frame",
               judged=clauses)
+    if r.lost > max_lost and r.cut_s:
+        raise Inconclusive(
+            f"{what}: pose {r.answered + 1} was not answered within {r.cut_s * 1000:.0f} ms; streams of earlier "
+            "cases left a pose unanswered for the whole time_out (and the box still answers a fresh connection), "
+            "so this stream ended there, not judged", judged=clauses, signature=Signature(Sig.SILENCE, "POSE"))
     if r.lost > max_lost:
         why = {"overdue": f"pose {r.answered + 1} got no answer within time_out ({r.time_out_s * 1000:.0f} ms)",
                "closed": "the box closed the connection", "reset": "the box reset the connection",
@@ -240,10 +262,12 @@ def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, ba
             judged=clauses)
     b = r.backlog() if backlog else None
     if b is not None and b[1] > b[2]:
-        starved = starved_verdict(b[1] - b[2], r.started_at, r.started_at + r.elapsed_s,
-                                  "the last quarter's p50 answer latency (T2 backlog)")
-        if starved is not None:
-            raise Inconclusive(starved, judged=clauses)
+        n = len(r.latencies_ms) // 4  # the last quarter's poses: was each one's wait overlapped by a stall that long?
+        last = [(r.sent_at[k], r.sent_at[k] + r.latencies_ms[k] / 1000) for k in range(len(r.latencies_ms) - n,
+                                                                                     len(r.latencies_ms))]
+        if len(r.sent_at) >= len(r.latencies_ms) and starved_share(last, b[1] - b[2]) >= 0.5:
+            raise Inconclusive(starved_text(b[1] - b[2], gauge().worst_ms(last[0][0], last[-1][1]),
+                                            "the last quarter's p50 answer latency (T2 backlog)"), judged=clauses)
         raise fail(level, f"{what}: answer latency does not grow over the run (backlog)",
                    f"last-quarter p50 ≤ {b[2]:.1f} ms (first-quarter p50 {b[0]:.1f} ms + max(20 ms, 3×))",
                    f"backlog: last-quarter p50 {b[1]:.1f} ms", judged=clauses)

@@ -261,7 +261,8 @@ class SessionState:
         signature = error.signature if isinstance(error, CaseVerdict) and error.verdict is Verdict.FAIL else None
         if signature is not None and signature.kind is Sig.SILENCE:
             self.late.setdefault(signature.subject, []).append(case_id)
-        self.ran_out.case_ended(case_id, signature is not None and signature.kind is Sig.SILENCE)
+        self.ran_out.case_ended(case_id, signature is not None and signature.kind is Sig.SILENCE,
+                                isinstance(error, CaseVerdict) and error.verdict is Verdict.FAIL)
         refused = isinstance(error, Inconclusive) and error.signature == UNREACHABLE_AT_CONNECT
         if (not (malformed_input or transcript.timeouts or refused) or (isinstance(error, Inconclusive) and not refused)
                 or self.health.dead_since_case is not None):  # already known unreachable: nothing to learn

@@ -26,6 +26,10 @@ from .quiet import CUT_S
 
 #: After this many cases FAILed on a silence at one place, later requests there are cut short.
 REPEAT = 2
+#: The place of a pose stream's overdue answer (any pose: a stream's answers are read as they come).
+STREAM = -1
+#: ... whose short wait is longer: a stream's answers may trail its poses (S6).
+STREAM_CUT_S = 1.0
 
 
 @dataclass
@@ -43,11 +47,12 @@ class RanOut:
         with self._lock:
             self.pending.setdefault(case_id, []).append(place)
 
-    def case_ended(self, case_id: str, failed_on_silence: bool) -> None:
+    def case_ended(self, case_id: str, failed_on_silence: bool, failed: bool = False) -> None:
+        """Count the case's ran-out waits if it FAILed on a silence (a stream's: if it FAILed)."""
         with self._lock:
             places = self.pending.pop(case_id, [])
-            if failed_on_silence:
-                for place in places:
+            for place in places:
+                if failed_on_silence or (failed and place == STREAM):
                     seen = self.cases.setdefault(place, [])
                     if case_id not in seen:
                         seen.append(case_id)
@@ -64,4 +69,6 @@ class RanOut:
 
     def bound(self, place: int, time_out_s: float) -> float | None:
         """The short first wait for a request at ``place`` (None: wait in full)."""
-        return min(CUT_S, time_out_s) if self.known(place) is not None else None
+        if self.known(place) is None:
+            return None
+        return min(STREAM_CUT_S if place == STREAM else CUT_S, time_out_s)
