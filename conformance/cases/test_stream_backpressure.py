@@ -17,10 +17,13 @@ from conformance.suite.backpressure import ANSWER_LEN, Backlog, burst, judge_ans
 from conformance.suite.context import CaseContext
 from conformance.suite.record import Requirement, case
 from conformance.suite.sequence import DEFAULT_POSE
+from conformance.suite.signature import Sig, Signature
 from conformance.suite.verdicts import Level
 
 #: how many poses a burst pipelines (each answer 14 bytes: about 40 KB of answers behind a 2 KB window)
 BURST = 3000
+#: one root cause for the backpressure verdicts: answers the box never delivered whole once the robot read late
+LOST = Signature(Sig.SILENCE, "every POSE when the robot reads late (S6)")
 CHECKS = {"F5": Requirement(("F5", "S6"), "every answer the box writes is a whole frame, however late the robot reads"),
           "A1": Requirement(("A1", "S6"), "one answer per request, in request order, each 0000"),
           "S6": Requirement(("S6", "A1"), "the box keeps every answer however late the robot reads them")}
@@ -41,7 +44,7 @@ def _judge(isight: CaseContext, out: Backlog, what: str) -> None:
     bad = judge_answers(out, int(Action.POSE), out.requests)
     if bad is not None:
         raise isight.broken(bad.clause, expected=bad.expected, observed=f"{what}: {bad.observed}",
-                            received=bad.received, sent=_pose(isight))
+                            received=bad.received, sent=_pose(isight), signature=LOST)
 
 
 @case("S6-02", ["S6", "A1", "F5", "T2"], Level.MUST, "A stream read late: every answer kept, intact and in order",
