@@ -168,7 +168,7 @@ class Collected:
 
 def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_bytes: bytes, note: str,
                      settle: Settle, timeout_s: float | None = None, splits: tuple[int, ...] = (),
-                     gap_s: float = 0.0) -> Collected:
+                     gap_s: float = 0.0, await_s: float | None = None) -> Collected:
     """``data`` and the probe behind it in one write (the box sees them as one segment, every time:
     R4 requires it to answer both), or cut at the offsets ``splits`` with ``gap_s`` between the
     pieces (R3), then :func:`collect`. If the write fails, what had already arrived and the close."""
@@ -180,16 +180,17 @@ def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_
     if not sent:
         arrived: list[Outcome] = [o for o in conn.poll() if not isinstance(o, Closed)]
         return Collected(arrived, conn.closed_by_peer or Closed(False, time.monotonic() - start))
-    return collect(conn, probe, start, settle, timeout_s)
+    return collect(conn, probe, start, settle, timeout_s, await_s)
 
 
 def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle,
-            timeout_s: float | None = None) -> Collected:
+            timeout_s: float | None = None, await_s: float | None = None) -> Collected:
     """Everything the box sends until an answer with the probe's action (then the settle
     window), a close, or silence (``timeout_s`` since ``start``; None: the connection's
     time_out, a wait that runs it out counted in the transcript). If a second answer with
     the probe's action follows the first at once and answers it 0000, the first answered
-    the bytes (A5 lets a refusal carry any action) and the second is the probe's."""
+    the bytes (A5 lets a refusal carry any action) and the second is the probe's. ``await_s``: how long
+    to wait for that 0000 (default ``timeout_s``; ``ran_out`` says it did not come)."""
     out = Collected()
     while len(out.outcomes) < MAX_DRAIN:
         outcome = conn.next_outcome(timeout_s, since=start)
@@ -201,7 +202,7 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
             continue
         extra = _settle(conn, settle.window(outcome.latency_s, not answers_zero(outcome, probe)))
         if _maybe_refusal(outcome) and not answers_zero(outcome, probe):
-            more = _await_probe(conn, probe, start, extra, timeout_s)
+            more = _await_probe(conn, probe, start, extra, timeout_s if await_s is None else await_s)
             out.ran_out = not any(isinstance(o, Closed) or answers_zero(o, probe) for o in extra + more)
             extra += more
         out.close = next((o for o in extra if isinstance(o, Closed)), None)
