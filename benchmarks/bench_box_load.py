@@ -41,9 +41,9 @@ sys.path.insert(0, str(ROOT))
 
 from conformance.endpoints.loop import new_event_loop  # noqa: E402
 from conformance.endpoints.serve import raise_fd_limit  # noqa: E402
+from conformance.harness.trajectory import PrimerTrajectory  # noqa: E402
+from conformance.model.percentiles import percentile  # noqa: E402
 from conformance.protocol import Action, answer, encode, pose_blocks, request  # noqa: E402
-from conformance.stats import percentile  # noqa: E402
-from conformance.trajectory import PrimerTrajectory  # noqa: E402
 
 ANSWER = encode(answer(Action.POSE))  # 14 bytes: the only right answer to a valid pose
 ANSWER_LEN = len(ANSWER)

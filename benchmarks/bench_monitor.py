@@ -44,8 +44,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from conformance.model.percentiles import percentile  # noqa: E402
 from conformance.protocol import Action, encode_tcp, pose_blocks, request  # noqa: E402
-from conformance.stats import percentile  # noqa: E402
 
 POSE = encode_tcp(request(Action.POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)])))
 ANSWER = bytes.fromhex("fefe000110230000000000000000")

@@ -10,7 +10,7 @@ Steps (all on loopback; each bounded in time):
    leaves a run: ~150 FAIL under one root cause, 60 NON-STRICT, 10 INCONCLUSIVE, each with
    hex, expected/observed text and a wire log (``tests/reportruns.py``); printed with its
    root cause, and again without (a suite that reports no root cause);
-4. the synthetic runs of the print test (tests/test_report_print.py), for comparison.
+4. the synthetic runs of the print test (tests/e2e/test_report_print.py), for comparison.
 
     python benchmarks/bench_report_print.py
     python benchmarks/bench_report_print.py --summary reports/20260509-073525
@@ -32,9 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from conformance import i18n  # noqa: E402
+from conformance.model.verdicts import CaseResult, RootCause, SuiteInfo  # noqa: E402
 from conformance.report.html import write_html  # noqa: E402
 from conformance.report.load import cases_of, load_summary, root_causes_of, suite_of  # noqa: E402
-from conformance.suite.verdicts import CaseResult, RootCause, SuiteInfo  # noqa: E402
 from tests.reportruns import (  # noqa: E402
     chromium,
     conforming_run,

@@ -1,6 +1,6 @@
 """The flaky test of issue 9, run 50 times in a row while two other processes load both cores.
 
-``tests/test_client.py::test_close_and_reset_are_outcomes_not_exceptions`` once failed on a
+``tests/integration/test_client.py::test_close_and_reset_are_outcomes_not_exceptions`` once failed on a
 loaded 2-core machine: the box's reset at accept reached ``create_connection`` itself
 (ECONNRESET), which the harness took for an unreachable target. This loop shows it no
 longer does::
@@ -34,7 +34,7 @@ def main() -> int:
     parser.add_argument("--runs", type=int, default=50)
     parser.add_argument("--burners", type=int, default=2, help="busy processes loading the cores (default 2)")
     args = parser.parse_args()
-    from tests.test_client import test_close_and_reset_are_outcomes_not_exceptions as the_test
+    from tests.integration.test_client import test_close_and_reset_are_outcomes_not_exceptions as the_test
 
     stop = multiprocessing.Event()
     burners = [multiprocessing.Process(target=_burn, args=(stop,), daemon=True) for _ in range(args.burners)]

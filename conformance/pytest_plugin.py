@@ -4,11 +4,11 @@ Options live in one group (``isight``) and are resolved once, in ``pytest_config
 into :class:`~conformance.suite.settings.SuiteSettings` (``isight-conformance run``
 passes its settings as the same flags). Every hook forwards:
 
-* the ``isight`` fixture makes the case's :class:`~conformance.suite.context.CaseContext`
+* the ``isight`` fixture makes the case's :class:`~conformance.suite.case_context.CaseContext`
   (its transcript recorded to a pcap) and asks the session whether the case may run
-  (:meth:`~conformance.suite.session.SessionState.before_case`);
+  (:meth:`~conformance.suite.run_state.SessionState.before_case`);
 * ``pytest_pyfunc_call`` closes the case's connections and hands what it raised to
-  :meth:`~conformance.suite.session.SessionState.after_case` (liveness, R2/S5);
+  :meth:`~conformance.suite.run_state.SessionState.after_case` (liveness, R2/S5);
 * ``pytest_runtest_makereport`` turns it into a CaseResult (:mod:`conformance.suite.results`)
   and shapes pytest's report (verdict words, the evidence section);
 * ``pytest_sessionfinish`` finds the root causes and writes the reports, also for a run
@@ -35,8 +35,12 @@ import pytest
 
 from . import __version__, i18n
 from .harness.transcript import Transcript
+from .model.verdicts import CaseResult, RootCause, Verdict
 from .suite import signals
+from .suite.case_context import CaseContext
 from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
+    BASELINE,
+    BASELINE_DIFF,
     CAUSES,
     FACTS,
     RESULTS,
@@ -52,15 +56,30 @@ from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root
     target_keys,
     wants_suite,
 )
-from .suite.context import CaseContext
 from .suite.record import info_of
 from .suite.results import attach_evidence, result_of, safe_name
-from .suite.session import SessionState
+from .suite.run_state import SessionState
 from .suite.settings import SuiteSettings, add_suite_options
-from .suite.verdicts import CaseResult, RootCause, Verdict
 
 CTX = pytest.StashKey[CaseContext]()
 CASE_START = pytest.StashKey[float]()
+
+
+#: the catalogue's package: its modules are named by clause family (``frame.py``, ``blocks.py``...), not ``test_*.py``
+CATALOGUE = Path(__file__).resolve().parent / "cases"
+
+
+def pytest_collect_file(file_path: Path, parent: pytest.Collector) -> pytest.Module | None:
+    """Collect the catalogue's modules whatever ``python_files`` says (``--pyargs conformance.cases``).
+
+    A module pytest collects anyway (named on the command line, or matching ``python_files``) is
+    left to pytest, so no case is collected twice."""
+    if file_path.suffix != ".py" or file_path.name == "__init__.py" or file_path.parent.resolve() != CATALOGUE:
+        return None
+    if parent.session.isinitpath(file_path) or any(
+            fnmatch.fnmatch(file_path.name, pattern) for pattern in parent.config.getini("python_files")):
+        return None
+    return pytest.Module.from_parent(parent, path=file_path)
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -297,5 +316,6 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         report_dir = Path(state.settings.report_dir) / (safe_name(key) if key else "")
         with signals.deferred():  # a second signal does not cut the reports short
             info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED, key=key)
-            write_reports(report_dir, info, cases, causes[key])
+            diff = write_reports(report_dir, info, cases, causes[key], baseline=config.stash.get(BASELINE, None))
+        config.stash.setdefault(BASELINE_DIFF, diff)
     config.stash[CAUSES] = next(iter(causes.values()), [])

@@ -18,9 +18,9 @@ from typing import Any
 import pytest
 
 from .harness.target import Target
+from .model.verdicts import CaseResult
 from .suite.rootcause import SessionFacts
 from .suite.settings import SuiteSettings
-from .suite.verdicts import CaseResult
 
 OUTPUT = "isight"
 

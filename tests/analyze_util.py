@@ -28,7 +28,7 @@ from scapy.utils import wrpcap, wrpcapng
 
 from conformance.endpoints.behaviour import BoxConfig
 from conformance.endpoints.robot import RobotSession
-from conformance.endpoints.robot_result import RobotResult
+from conformance.endpoints.robot.robot_result import RobotResult
 from conformance.endpoints.server import ReferenceBox
 from conformance.evidence.pcap import write_transcript
 from conformance.harness.transcript import Endpoint, Kind, Transcript

@@ -6,8 +6,8 @@ from pathlib import Path
 
 from conformance.fleet.children import BoxRun
 from conformance.fleet.spec import BoxSpec
+from conformance.model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from conformance.report.summary import write_summary
-from conformance.suite.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 
 
 def case(case_id: str, verdict: Verdict, root_cause: str | None = None) -> CaseResult:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from conformance.analyze.context import AnalyzeConfig
+from conformance.analyze.analysis_context import AnalyzeConfig
 from conformance.monitor.hub import MonitorSettings
 from conformance.monitor.runner import MonitorOutcome, run_monitor
 from conformance.monitor.view import View

@@ -19,7 +19,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from conformance.suite.verdicts import CaseResult, Level, RootCause, Verdict, WireLine
+from conformance.model.verdicts import CaseResult, Level, RootCause, Verdict, WireLine
 
 CHROMIUM_CANDIDATES = ("/usr/bin/chromium", "/usr/bin/chromium-browser", "chromium", "chromium-browser",
                        "google-chrome", "google-chrome-stable")

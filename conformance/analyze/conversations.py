@@ -20,17 +20,17 @@ from __future__ import annotations
 from typing import Any
 
 from ..harness.transcript import Endpoint, Transcript
+from ..model.verdicts import Verdict
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord
-from ..protocol import TransferType
-from ..suite.verdicts import Verdict
-from .context import Context
+from ..protocol import TransferType, peek_transfer_type
+from .analysis_context import Context
+from .capture_packets import ACK, SYN, endpoints, format_endpoint, reverse_key
 from .exchanges import ConnJudge
 from .findings import BOX, ROBOT
 from .framing import FrameReader, plausible_header
-from .packets import ACK, SYN, endpoints, format_endpoint, reverse_key
 from .reassembly import RESTART, TcpStream
 from .sessions import ConnOutcome, SessionTracker
-from .udp import UdpConversation
+from .udp_conversation import UdpConversation
 
 __all__ = ["Conversations", "TcpConversation"]
 
@@ -218,7 +218,7 @@ class Conversations:
                 robot_dir = 1
             else:
                 pos = plausible_header(payload, 0, None, self.profile) if payload else -1
-                robot_dir = 1 if pos >= 0 and payload[pos + 4] == TransferType.BOX_TO_ROBOT else 0
+                robot_dir = 1 if pos >= 0 and peek_transfer_type(payload, pos) == TransferType.BOX_TO_ROBOT else 0
             self._start(key, robot_dir, [packet], bool(flags & SYN))
             return
         if not self.heuristic:
@@ -255,7 +255,7 @@ class Conversations:
                 del self.candidates[canon]
                 robot_dir = cand.robot_dir
                 if robot_dir is None:
-                    robot_dir = d if payload[pos + 4] == TransferType.ROBOT_TO_BOX else d ^ 1
+                    robot_dir = d if peek_transfer_type(payload, pos) == TransferType.ROBOT_TO_BOX else d ^ 1
                 self._start(cand.key, robot_dir, cand.packets, bool(cand.packets[0][3] & SYN))
                 return
         if cand.payloads >= CANDIDATE_PAYLOADS or len(cand.packets) >= CANDIDATE_PACKETS or cand.size > CANDIDATE_BYTES:
@@ -306,7 +306,7 @@ class Conversations:
             elif sport in self.ports and dport not in self.ports:
                 robot_dir = 1
             elif pos == 0 and (sport in self.ports or dport in self.ports or self.heuristic):
-                robot_dir = 0 if payload[4] == TransferType.ROBOT_TO_BOX else 1
+                robot_dir = 0 if peek_transfer_type(payload) == TransferType.ROBOT_TO_BOX else 1
             else:
                 self._ignore(key)
                 return

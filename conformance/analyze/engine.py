@@ -15,11 +15,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from .analysis_context import AnalyzeConfig, Context
 from .capture import CaptureError, CaptureReader
-from .context import AnalyzeConfig, Context
+from .capture_packets import TCP, PacketDecoder
 from .conversations import Conversations
 from .findings import Findings
-from .packets import TCP, PacketDecoder
 from .sessions import SessionTracker
 
 __all__ = ["Analysis", "CaptureError", "Feed", "analyze"]

@@ -25,14 +25,15 @@ from array import array
 from collections import deque
 from typing import Any
 
+from ..model.verdicts import Verdict, broken_verdict
 from ..observed.connections import Exchange
-from ..observed.frames import FrameRecord
+from ..observed.robot_frames import FrameRecord
 from ..protocol import Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
-from ..suite.verdicts import Verdict, broken_verdict
-from .catalogue import spec_for
-from .context import Context
+from .analysis_context import Context
+from .capture_catalogue import spec_for
+from .capture_timing import BLOCK, PoseClock
 from .findings import BOX, ROBOT, Series, frames_text
 from .judging import (
     BAD_DATAGRAM,
@@ -46,7 +47,6 @@ from .judging import (
     judge_backlog,
     judge_pair,
 )
-from .timing import BLOCK, PoseClock
 
 __all__ = ["ConnJudge", "action_name"]
 

@@ -6,7 +6,7 @@ codec judges each frame, so a frame is framed and judged here exactly as the sui
 does it everywhere else. Fast path: while no partial frame is waiting, a segment that
 holds whole frames is cut where each header says (the decoder's own rule: start word,
 version, at most the largest legal frame) and each frame goes straight to the codec's
-parser; anything else goes through the decoder (tests/test_analyze_framing.py checks
+parser; anything else goes through the decoder (tests/unit/test_analyze_framing.py checks
 that both give the same events for every split). A well-formed 14-byte frame (an
 answer without blocks: the stream's answers are all alike) is parsed once per reader.
 
@@ -30,23 +30,19 @@ from ..protocol import (
     CLOSED,
     DEFAULT_PROFILE,
     NEED_DATA,
-    Action,
     Profile,
     ProtocolError,
     StreamDecoder,
     TransferType,
     Transport,
     codec_for,
+    find_plausible_header,
+    frame_spanner,
 )
-from ..protocol.constants import MAX_BLOCK_COUNT, MAX_BLOCK_LEN, START_BYTES
 
 __all__ = ["FrameReader", "plausible_header"]
 
-_MAX_BODY = MAX_BLOCK_COUNT * MAX_BLOCK_LEN
-_MAX_FRAME = _MAX_BODY + 14
 _TCP = Transport.TCP
-_ACTIONS = frozenset(int(a) for a in Action)
-_TRANSFER = frozenset(int(t) for t in TransferType)
 _CARRY = 5
 
 Emit = Callable[[Any, bytes, int, int, int, float], None]
@@ -55,14 +51,7 @@ Emit = Callable[[Any, bytes, int, int, int, float], None]
 def plausible_header(data: bytes, start: int = 0, expect: int | None = None, profile: Profile = DEFAULT_PROFILE) -> int:
     """Index of the first plausible iSight header at or after ``start``: the start word, version 1
     in the profile's byte order, transfer type ``expect`` (or either), a known action. -1 if none."""
-    head = codec_for(profile).start
-    pos = data.find(START_BYTES, start)
-    while 0 <= pos <= len(data) - 6:
-        if data[pos : pos + 4] == head and (data[pos + 4] == expect if expect is not None
-                                            else data[pos + 4] in _TRANSFER) and data[pos + 5] in _ACTIONS:
-            return pos
-        pos = data.find(START_BYTES, pos + 1)
-    return -1
+    return find_plausible_header(data, start, expect, profile.byte_order)
 
 
 class FrameReader:
@@ -74,8 +63,7 @@ class FrameReader:
         self.emit = emit
         codec = codec_for(profile)
         self._parse = codec.parse
-        self._start = codec.start
-        self._length = codec.frame_length
+        self._span = frame_spanner(profile.byte_order)  # the one framing rule (protocol/splitter.py)
         self._known: dict[bytes, Any] = {}  # 14-byte frames already parsed (immutable Frames)
         self.decoder = StreamDecoder(profile, expect)
         self.offset = 0  # stream offset of the next byte to read (of the carry, while resynchronising)
@@ -103,7 +91,7 @@ class FrameReader:
     # -- input -------------------------------------------------------------------------------------
     def feed(self, data: bytes, no: int, ts: float) -> None:
         n = len(data)
-        if (self._simple and n >= 14 and data[:4] == self._start and self._length(data) == n and n <= _MAX_FRAME):
+        if self._simple and n >= 14 and self._span(data, 0) == n:
             # one whole frame, no partial frame waiting: the codec judges it
             offset = self.offset
             self.offset = offset + n
@@ -130,11 +118,10 @@ class FrameReader:
         if not self._buf:
             n = len(data)
             pos = 0
-            start, length, parse, expect, emit, offset = \
-                self._start, self._length, self._parse, self.expect, self.emit, self.offset
-            while n - pos >= 14 and data[pos : pos + 4] == start:
-                total = length(data, pos)
-                if total > _MAX_BODY + 14 or pos + total > n:
+            span, parse, expect, emit, offset = self._span, self._parse, self.expect, self.emit, self.offset
+            while pos < n:
+                total = span(data, pos)
+                if total <= 0 or pos + total > n:
                     break
                 raw = data if total == n else data[pos : pos + total]
                 try:

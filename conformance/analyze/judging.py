@@ -19,7 +19,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..observed.frames import FrameRecord, byte_order_evidence
+from ..model.verdicts import Level, Verdict, broken_verdict
+from ..observed.robot_frames import FrameRecord, byte_order_evidence
 from ..protocol import Action, Frame, Transport, action_name
 from ..protocol.answers import (
     Cycle,
@@ -31,9 +32,8 @@ from ..protocol.answers import (
     rule_for_error,
     rule_for_frame,
 )
-from ..suite.verdicts import Level, Verdict, broken_verdict
+from .capture_timing import backlog
 from .findings import BOX, ROBOT
-from .timing import backlog
 
 #: ``j`` below is the connection's :class:`~.exchanges.ConnJudge` (not imported: no import circle)
 ConnJudge = Any

@@ -37,7 +37,7 @@ from __future__ import annotations
 from collections import deque
 from typing import Any
 
-from .packets import ACK, FIN, RST, SYN
+from .capture_packets import ACK, FIN, RST, SYN
 
 __all__ = ["DONE", "RESTART", "TcpStream", "REORDER_PACKETS", "REORDER_S", "STALL_PACKETS", "OOO_LIMIT", "RECENT"]
 

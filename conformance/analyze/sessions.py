@@ -20,14 +20,14 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..model.verdicts import Verdict
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, ConnRecord, SessionRecord
-from ..observed.frames import FrameRecord
+from ..observed.robot_frames import FrameRecord
 from ..observed.session import Cut, SessionView, awaited, build_view, judge_order
 from ..protocol import Action, action_name
-from ..suite.verdicts import Verdict
-from .context import Context
+from .analysis_context import Context
+from .capture_timing import StreamJudgement
 from .findings import ROBOT
-from .timing import StreamJudgement
 
 __all__ = ["ConnOutcome", "ObservedView", "Session", "SessionTracker"]
 

@@ -1,6 +1,6 @@
-"""The judgments of ``certify-robot``: for each case of the catalogue (:mod:`.catalogue`)
+"""The judgments of ``certify-robot``: for each case of the catalogue (:mod:`conformance.observed.robot_catalogue`)
 a function from a session's :class:`~.session.SessionView` to
-:class:`~conformance.suite.verdicts.CaseResult` objects, with the evidence (the
+:class:`~conformance.model.verdicts.CaseResult` objects, with the evidence (the
 offending bytes, the session's wire log, the interval histogram, the pcap).
 
 With ``--sessions N`` above 1 every ID gets the session as a parameter (``RB-S1-01[s2]``).
@@ -14,7 +14,10 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from ..observed.catalogue import (
+from ..model.signature import Sig, Signature
+from ..model.verdicts import CaseResult, Verdict, WireLine, broken_verdict
+from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
+from ..observed.robot_catalogue import (
     ANY_FRAME,
     APPLIES,
     AWAIT_SPEC,
@@ -29,17 +32,14 @@ from ..observed.catalogue import (
     S1_SPEC,
     catalogue,
 )
-from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
-from ..observed.frames import FrameRecord, byte_order_evidence
+from ..observed.robot_frames import FrameRecord, byte_order_evidence
 from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
-from ..observed.timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
+from ..observed.stream_timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
-from ..suite.signature import Sig, Signature
-from ..suite.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from .records import RunRecord
-from .wire import frame_wire, session_wire
+from .wire_log import frame_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
 HISTOGRAM_BINS = 40

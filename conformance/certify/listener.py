@@ -26,8 +26,8 @@ from ..evidence.pcap import PcapRecorder
 from ..harness.transcript import Endpoint, Kind, Transcript
 from ..observed.connections import ConnRecord, SessionRecord
 from ..protocol import Frame, ProtocolError
-from .connection import CertifyTcpProtocol, CertifyUdpProtocol, endpoint, exchange_of
 from .records import CertifyConfig, RunRecord, monotonic_wall
+from .robot_connection import CertifyTcpProtocol, CertifyUdpProtocol, endpoint, exchange_of
 
 TICK_S = 0.05
 

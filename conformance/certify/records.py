@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..endpoints.behaviour import BoxConfig
 from ..observed.connections import SessionRecord
-from ..observed.timing import check_tolerances
+from ..observed.stream_timing import check_tolerances
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile, ResultCode
 
 #: ``--inject`` choices: box behaviours that show how the robot copes (INFORMATIONAL).

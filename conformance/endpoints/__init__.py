@@ -8,7 +8,7 @@ The box:
 * :mod:`.server` — :class:`ReferenceBox`, the box over asyncio TCP + UDP;
 * :mod:`.framelog` — ``--log FILE``, one JSON line per frame in and out;
 * :mod:`.loop` — event-loop helpers and :class:`BoxThread`, a box for synchronous code;
-* :mod:`.serve` — the ``isight-conformance serve`` command;
+* :mod:`.serve` — the ``isight-conformance serve`` command's body (its parser: :mod:`conformance.commands.serve`);
 * :mod:`.bundled` — the box a run starts on loopback when it names no target.
 
 The robot (``isight-conformance robot``):
@@ -19,17 +19,17 @@ The robot (``isight-conformance robot``):
 * :mod:`.robot_io` — its connections, clock and record on asyncio;
 * :mod:`.robot` — :class:`RobotSession`, the asyncio driver that plays the steps.
 
-The primer trajectory the simulated robot streams is :mod:`conformance.trajectory`.
+The primer trajectory the simulated robot streams is :mod:`conformance.harness.trajectory`.
 """
 
-from ..trajectory import PrimerTrajectory, RoundedRectangle
+from ..harness.trajectory import PrimerTrajectory, RoundedRectangle
 from .behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
-from .connection import BoxConnection
+from .box_connection import BoxConnection
 from .framelog import FrameLog
 from .loop import BoxThread
 from .robot import RobotSession, parse_target, run_robot
-from .robot_result import RobotResult, TimelineEntry
-from .robot_steps import RobotFaults
+from .robot.robot_result import RobotResult, TimelineEntry
+from .robot.robot_steps import RobotFaults
 from .server import ReferenceBox
 
 __all__ = [

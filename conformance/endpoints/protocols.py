@@ -25,7 +25,7 @@ from typing import Any, cast
 from ..harness.target import Target
 from ..protocol import Frame, ProtocolError
 from .behaviour import BoxBehaviour, Decision
-from .connection import BoxConnection
+from .box_connection import BoxConnection
 from .framelog import FrameLog
 
 DEFAULT_MAX_CONNECTIONS = 2000

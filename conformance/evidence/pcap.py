@@ -42,11 +42,11 @@ A transcript does not say who opened a TCP connection; the recorder assumes we d
 ``"accepted"`` is drawn as a passive open (the SYN comes from the remote end).
 
 Packets are built with ``struct`` rather than scapy: the result is the same bytes
-(``tests/test_pcap.py`` compares them with scapy's ``Ether()/IP()/TCP()/Raw``) at a
+(``tests/e2e/test_pcap.py`` compares them with scapy's ``Ether()/IP()/TCP()/Raw``) at a
 small fraction of the cost, so a 5,000-pose case is not slowed down by its evidence.
 
 The container is :mod:`.pcapng`; the packets of one connection (addresses, seq/ack,
-checksums) are :mod:`.packets`. This module turns transcript events into them.
+checksums) are :mod:`.packet_builder`. This module turns transcript events into them.
 """
 
 from __future__ import annotations
@@ -59,8 +59,8 @@ from pathlib import Path
 
 from conformance.harness.transcript import ConnectionInfo, Kind, Transcript, WireEvent
 
-from . import packets
-from .packets import MAX_SEGMENT, Flow
+from . import packet_builder
+from .packet_builder import MAX_SEGMENT, Flow
 from .pcapng import LINKTYPE_ETHERNET, LINKTYPE_WIRESHARK_UPPER_PDU, PcapNgFile, pad4
 
 __all__ = ["PcapNgFile", "PcapRecorder", "write_transcript", "MAX_SEGMENT", "LINKTYPE_ETHERNET"]
@@ -191,7 +191,7 @@ class PcapRecorder:
     def _conn(self, info: ConnectionInfo) -> _Conn:
         conn = self._conns.get(info.conn)
         if conn is None:
-            conn = self._conns[info.conn] = _Conn(packets.new_flow(info, self.case_id))
+            conn = self._conns[info.conn] = _Conn(packet_builder.new_flow(info, self.case_id))
         return conn
 
     def _take_comments(self, conn: _Conn, event_note: str = "") -> list[str]:
@@ -224,7 +224,7 @@ class PcapRecorder:
             if kind in (Kind.SEND, Kind.RECV):
                 out = kind == Kind.SEND
                 comments = self._take_comments(conn, ev.note)
-                self._write(self._epb(packets.udp(flow, out, ev.data), ev.t, comments))
+                self._write(self._epb(packet_builder.udp(flow, out, ev.data), ev.t, comments))
             elif ev.note:
                 conn.notes.append(f"{kind}: {ev.note}")
             return
@@ -237,7 +237,7 @@ class PcapRecorder:
             if not flow.opened and not flow.reset:
                 comments = self._take_comments(conn, ev.note or "connect failed")
                 note = ev.note.lower()
-                frames = packets.connect_failed(flow, refused="refused" in note or "reset" in note)
+                frames = packet_builder.connect_failed(flow, refused="refused" in note or "reset" in note)
                 self._write(b"".join(self._packets(frames, t, comments)))
             elif ev.note:
                 conn.notes.append(ev.note)
@@ -252,14 +252,14 @@ class PcapRecorder:
             passive = kind == Kind.CONNECT and ev.note.lower().startswith("accepted")
             if kind != Kind.CONNECT:
                 comments.insert(0, self._comment("handshake not in the transcript; drawn here"))
-            blocks += self._packets(packets.handshake(flow, passive), t, comments)
+            blocks += self._packets(packet_builder.handshake(flow, passive), t, comments)
             comments = []
         if kind in (Kind.SEND, Kind.RECV):
-            blocks += self._packets(packets.data(flow, kind == Kind.SEND, ev.data, self.max_segment), t, comments)
+            blocks += self._packets(packet_builder.data(flow, kind == Kind.SEND, ev.data, self.max_segment), t, comments)
         elif kind in (Kind.CLOSE, Kind.PEER_CLOSE):
-            blocks += self._packets(packets.fin(flow, kind == Kind.CLOSE), t, comments)
+            blocks += self._packets(packet_builder.fin(flow, kind == Kind.CLOSE), t, comments)
         elif kind in (Kind.ABORT, Kind.PEER_RESET):
-            blocks.append(self._epb(packets.rst(flow, kind == Kind.ABORT), t, comments))
+            blocks.append(self._epb(packet_builder.rst(flow, kind == Kind.ABORT), t, comments))
         self._write(b"".join(blocks))
 
 

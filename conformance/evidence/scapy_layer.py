@@ -45,6 +45,7 @@ from conformance.protocol.constants import (
     BLOCK_LEN,
     CHECK_LEN,
     DEFAULT_PORT,
+    HEADER_FIELDS,
     HEADER_LEN,
     MAX_BLOCK_COUNT,
     START_BYTES,
@@ -92,7 +93,7 @@ _LAYOUT = codec_for(DEFAULT_PROFILE)
 MAX_CHAIN = 128
 
 # Offsets at which a header field ends: a short frame is cut back to one of these.
-_HEADER_FIELD_ENDS = (0, 2, 4, 5, 6, 7, 8, 10, HEADER_LEN)
+_HEADER_FIELD_ENDS = (*(offset for offset, _width in HEADER_FIELDS.values()), HEADER_LEN)
 
 
 # -- blocks ------------------------------------------------------------------------

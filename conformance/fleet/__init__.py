@@ -2,12 +2,12 @@
 
 * :mod:`.spec`: the fleet file (TOML, a ``[[box]]`` table per box), checked with line numbers;
 * :mod:`.children`: the child processes, ``jobs`` at a time, stopped together on a signal;
-* :mod:`.results`, :mod:`.html`: fleet.json and fleet.html;
-* :mod:`.command`: the command itself (:func:`main_fleet`).
+* :mod:`.fleet_results`, :mod:`.fleet_page`: fleet.json and fleet.html;
+* :mod:`.fleet_run`: the run itself (:func:`run_fleet`); its handler is :mod:`conformance.commands.fleet`.
 """
 
 from __future__ import annotations
 
-from .command import main_fleet
+from .fleet_run import run_fleet
 
-__all__ = ["main_fleet"]
+__all__ = ["run_fleet"]

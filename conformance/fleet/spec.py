@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..options import PROFILE_OPTIONS
+from ..suite.profile_options import PROFILE_OPTIONS
 from ..suite.settings import SUITE_OPTIONS, SuiteSettings, add_suite_options
 
 if sys.version_info >= (3, 11):

@@ -35,8 +35,8 @@ from .. import __version__
 from ..evidence.pcap import PcapRecorder
 from ..harness.client import Silence
 from ..harness.transcript import Transcript
-from ..options import profile_flags
-from ..suite.verdicts import Verdict
+from ..model.verdicts import Verdict
+from ..suite.profile_options import profile_flags
 from .budget import Budget
 from .config import CampaignConfig, new_seed
 from .coverage import Coverage

@@ -23,8 +23,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..protocol import HEADER_LEN, MAX_FRAME_LEN, Action, BlockType, Profile
-from ..protocol.constants import START_WORD
+from ..protocol import HEADER_LEN, MAX_FRAME_LEN, Action, BlockType, Profile, peek_header
+from ..protocol.constants import HEADER_FIELDS, START_WORD
 from .strategies import BLOCK_ACTIONS, FuzzCase
 
 
@@ -41,16 +41,16 @@ def _edges(bits: int) -> tuple[int, ...]:
 EDGES_U8 = _edges(8)
 EDGES_U16 = _edges(16)
 #: Header fields: (name, offset, width, values the protocol defines).
-FIELDS: tuple[tuple[str, int, int, tuple[int, ...]], ...] = (
-    ("start_word", 0, 2, (START_WORD, 0xFEFF, 0xFFFE, 0x00FE, 0xFE00)),
-    ("version", 2, 2, (0x0001, 0x0100, 0x0002)),
-    ("transfer_type", 4, 1, (0x01, 0x10, 0x11)),
-    ("action", 5, 1, tuple(int(a) for a in Action)),
-    ("block_type", 6, 1, tuple(int(b) for b in BlockType)),
-    ("block_count", 7, 1, ()),
-    ("block_length", 8, 2, (5, 24, 25, 26)),
-    ("error_code", 10, 2, (0x0001, 0x0002, 0x03E9, 0x03EA, 0x0194, 0x0199)),
-)
+FIELDS: tuple[tuple[str, int, int, tuple[int, ...]], ...] = tuple((name, *HEADER_FIELDS[name], defined) for name, defined in (
+    ("start_word", (START_WORD, 0xFEFF, 0xFFFE, 0x00FE, 0xFE00)),
+    ("version", (0x0001, 0x0100, 0x0002)),
+    ("transfer_type", (0x01, 0x10, 0x11)),
+    ("action", tuple(int(a) for a in Action)),
+    ("block_type", tuple(int(b) for b in BlockType)),
+    ("block_count", ()),
+    ("block_length", (5, 24, 25, 26)),
+    ("error_code", (0x0001, 0x0002, 0x03E9, 0x03EA, 0x0194, 0x0199)),
+))
 #: The float32 classes (``float_class``), most ordinary first.
 VALUE_CLASSES = ("zero", "-zero", "normal", "-normal", "subnormal", "-subnormal", "min-normal", "huge", "-huge",
                  "max-finite", "-max-finite", "inf", "-inf", "qnan", "snan", "-nan")
@@ -109,18 +109,18 @@ class Coverage:
     def observe(self, case: FuzzCase) -> None:
         data = case.data
         self.sizes.add(size_point(len(case.wire)))
-        if len(data) < HEADER_LEN:
+        head = peek_header(data, 0, self.order)
+        if head is None:
             return
-        for name, off, width, _defined in FIELDS:
-            self.fields[name].add(int.from_bytes(data[off : off + width], self.order))
-        action, block_type, n = data[5], data[6], data[7]
+        for name, *_ in FIELDS:
+            self.fields[name].add(getattr(head, name))
+        action, n = head.action, head.block_count
         if case.valid and action in self.counts and len(case.expects) == 1:
             self.counts[action].add(n)
-        if block_type in (BlockType.POSE, BlockType.TOLERANCE):
-            self._floats(data, block_type, n)
+        if head.block_type in (BlockType.POSE, BlockType.TOLERANCE):
+            self._floats(data, head.block_length, n)
 
-    def _floats(self, data: bytes, block_type: int, n: int) -> None:
-        length = int.from_bytes(data[8:10], self.order)
+    def _floats(self, data: bytes, length: int, n: int) -> None:
         if length not in (5, 25):
             return
         end = min(len(data), HEADER_LEN + min(n, 16) * length)

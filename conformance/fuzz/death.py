@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 from ..harness.transcript import Transcript
 from ..i18n import N_
+from ..protocol import peek_header
 from .config import CampaignConfig
 from .evidence import Failure, clauses_of
 from .executor import Executor, Result, alive
@@ -119,8 +120,9 @@ def death_key(failure: Failure) -> str:
     if len(failure.cases) != 1:
         return "R2/death/sequence"
     case = failure.cases[0]
-    if case.valid and len(case.expects) == 1 and len(case.data) >= 8:
-        return f"R2/death/{case.data[5]:02X}x{case.data[7]}"
+    head = peek_header(case.data)
+    if case.valid and len(case.expects) == 1 and head is not None:
+        return f"R2/death/{head.action:02X}x{head.block_count}"
     return f"R2/death/{case.first_clause or case.kind}"
 
 

@@ -19,10 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from ..evidence.pcap import write_transcript
+from ..evidence.vectors_file import frame_to_dict, write
 from ..harness.transcript import Transcript
 from ..protocol import Frame, Profile, ProtocolError, TransferType, Transport, parse_frame
 from ..suite.record import _CLAUSE
-from ..vectors import frame_to_dict, write
 from .strategies import FuzzCase
 
 

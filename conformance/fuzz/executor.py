@@ -43,11 +43,11 @@ from ..harness.exchange import (
 from ..harness.liveness import check_alive, responsive, unreachable_outcome
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
+from ..model.verdicts import Verdict
 from ..protocol import Action, Frame, Profile, Transport, codec_for
 from ..protocol.framings import End
 from ..suite.quiet import CUT_S
 from ..suite.quiet import HANG_CASES as REFUSED_REPEAT
-from ..suite.verdicts import Verdict
 from .oracle import Finding, Judgement, judge
 from .strategies import FuzzCase
 

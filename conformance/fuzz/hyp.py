@@ -10,7 +10,7 @@ test; both are set through attributes hypothesis reads internally:
 * ``_hypothesis_internal_add_digest`` on the inner test: bytes mixed into the test's
   database key (``@given`` tests built from the same function share a key).
 
-``tests/test_fuzz_hyp.py`` checks, for the installed hypothesis, that the attributes
+``tests/unit/test_fuzz_hyp.py`` checks, for the installed hypothesis, that the attributes
 still do what this module says (the same seed repeats the examples, the digest
 changes the key) and that the version is one this adapter was checked against
 (:data:`CHECKED`); a hypothesis upgrade that breaks them fails that test, not a campaign.

@@ -34,9 +34,9 @@ from hypothesis.stateful import RuleBasedStateMachine, precondition, rule
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
+from ..model.verdicts import Verdict
 from ..protocol import BLOCK_LEN, REQUEST_SHAPE, Action, BlockType, Header, codec_for
 from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes
-from ..suite.verdicts import Verdict
 from .config import CampaignConfig
 from .executor import Executor, FuzzConnection, alive
 from .oracle import Expectation, Finding, Rule, judge

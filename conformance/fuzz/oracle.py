@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, replace
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
 from ..harness.exchange import seen_of
+from ..model.verdicts import Verdict, broken_verdict
 from ..protocol import (
     HEADER_LEN,
     Frame,
@@ -33,6 +34,7 @@ from ..protocol import (
     TransferType,
     Transport,
     decode_datagram,
+    peek_header,
 )
 from ..protocol.answers import (
     CONFLICT,
@@ -46,7 +48,6 @@ from ..protocol.answers import (
 from ..protocol.answers import Finding as RawFinding
 from ..protocol.explain import explain, explain_events
 from ..protocol.framings import End, Explanation
-from ..suite.verdicts import Verdict, broken_verdict
 
 __all__ = ["CONFLICT", "NOT_UNDERSTOOD", "Expectation", "Finding", "Judgement", "Rule", "expectations", "judge",
            "request_action", "seen_of"]
@@ -91,10 +92,9 @@ def _completion(decoder: StreamDecoder) -> int:
     buffered = decoder.buffered
     if buffered < HEADER_LEN:
         return HEADER_LEN - buffered
-    tail = decoder._buf[decoder._pos : decoder._pos + HEADER_LEN]  # noqa: SLF001 - the header it waits on
-    order = "big" if decoder.profile.byte_order == "big" else "little"
-    total = HEADER_LEN + tail[7] * int.from_bytes(tail[8:10], order) + 2  # type: ignore[arg-type]
-    return max(1, total - buffered)
+    head = peek_header(decoder._buf, decoder._pos, decoder.profile.byte_order)  # noqa: SLF001 - the header it waits on
+    assert head is not None  # at least HEADER_LEN bytes are buffered
+    return max(1, head.frame_length - buffered)
 
 
 def expectations(

@@ -22,12 +22,12 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..evidence.vectors_file import Vector, load
 from ..harness.liveness import responsive
 from ..harness.target import Target
 from ..harness.transcript import Transcript
-from ..protocol import HEADER_LEN, Profile, TransferType, Transport
-from ..suite.verdicts import Verdict
-from ..vectors import Vector, load
+from ..model.verdicts import Verdict
+from ..protocol import Profile, TransferType, Transport, peek_header
 from .evidence import splits_of
 from .executor import Executor
 from .oracle import expectations
@@ -58,7 +58,8 @@ def _skip_reason(v: Vector, profile: Profile, udp_target: Target | None) -> str:
         return "a box→robot vector: for robot-side decoders, not sent to a box"
     if v.transport is Transport.UDP and udp_target is None:
         return "UDP vector and no --udp-target"
-    has_blocks = len(v.data) >= HEADER_LEN and v.data[7] > 0
+    head = peek_header(v.data)
+    has_blocks = head is not None and head.block_count > 0
     if has_blocks and v.profile.first_index != profile.first_index:
         return f"written for first index {v.profile.first_index}; this run uses --first-index {profile.first_index}"
     if v.transport is Transport.UDP and (v.profile.crc, v.profile.crc_byte_order) != (profile.crc, profile.crc_byte_order):

@@ -30,6 +30,7 @@ from ..protocol import (
     Profile,
     Transport,
     codec_for,
+    peek_header,
 )
 from ..protocol.constants import MAX_BLOCK_COUNT, MAX_FRAME_LEN, START_WORD
 from .case import FuzzCase, _finite
@@ -371,21 +372,22 @@ def _mutated(draw: st.DrawFn, s: Strategies) -> FuzzCase:
         done.append(f"{op}@{at}" + (f"={value:02x}" if op in ("set", "insert") else ""))
     recount = _recount(s, header, body, bytes(data))
     if recount is not None:
+        count = getattr(peek_header(recount), "block_count", 0)
         return s.case("mutation", "", recount, f"a valid request mutated: {', '.join(done)}; "
-                      f"its blocks rebuilt for count {recount[7]} (a well-formed frame of that count)")
+                      f"its blocks rebuilt for count {count} (a well-formed frame of that count)")
     return s.case("mutation", "", bytes(data), "a valid request mutated: " + ", ".join(done))
 
 
 def _recount(s: Strategies, header: Header, body: bytes, data: bytes) -> bytes | None:
     """When the edits changed only the block count of a block request: a well-formed frame of the new
     count (its blocks indexed and filled like the first ones), not a header whose body is zero filler."""
-    old = s.raw(header, body)
-    if len(data) < 12 or data[:7] != old[:7] or data[8:12] != old[8:12] or data[7] in (old[7], 0) \
-            or header.action not in BLOCK_ACTIONS:
+    new, old = peek_header(data), peek_header(s.raw(header, body))
+    if new is None or old is None or new.block_count in (old.block_count, 0) \
+            or dataclasses.replace(new, block_count=old.block_count) != old or header.action not in BLOCK_ACTIONS:
         return None
-    per = header.block_length - 1
+    per, count = header.block_length - 1, new.block_count
     values = b"".join(body[i * (per + 1) + 1 : (i + 1) * (per + 1)] for i in range(min(header.block_count, SMALL_COUNT)))
-    return s.raw(dataclasses.replace(header, block_count=data[7]), s.blocks(header.block_type, data[7], values))
+    return s.raw(dataclasses.replace(header, block_count=count), s.blocks(header.block_type, count, values))
 
 
 @st.composite

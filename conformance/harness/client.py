@@ -28,6 +28,7 @@ from ..protocol import (
     Transport,
     codec_for,
     decode_datagram,
+    peek_action,
 )
 from .starvation import enable_rx_timestamps, recv_stamped
 from .target import Refused, Target, Unreachable, connect_failure, dial
@@ -346,9 +347,8 @@ class TcpConnection:
         outcome = self.next_outcome(timeout_s, since=start) if isinstance(outcome, Silence) else outcome
         if isinstance(outcome, Silence) and timeout_s is None and self.on_ran_out is not None:
             self.on_ran_out(self.answers)
-        if self.on_answered is not None and isinstance(outcome, Answer) and len(raw) > 5 \
-                and outcome.frame.action == raw[5]:
-            self.on_answered(raw[5])
+        if self.on_answered is not None and isinstance(outcome, Answer) and outcome.frame.action == peek_action(raw):
+            self.on_answered(outcome.frame.action)
         return outcome
 
     def drain(self, quiet_s: float = 0.05) -> list[Outcome]:

@@ -1,6 +1,6 @@
 """One probed exchange: bytes, a probe behind them, what the box sent back, attributed.
 
-The catalogue (:meth:`conformance.suite.context.CaseContext.send_malformed`), the
+The catalogue (:meth:`conformance.suite.case_context.CaseContext.send_malformed`), the
 fuzzer (:class:`conformance.fuzz.executor.Executor`) and ``replay`` all send some
 bytes followed by a valid *probe* request. Answers come in order (A1), so the probe's
 answer bounds the wait without sleeping. This module is what they share:

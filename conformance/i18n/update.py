@@ -7,7 +7,7 @@
 3. ``pybabel compile``: the ``.mo`` files the package reads (entries without a translation are left out, so the
    English text shows).
 
-Then translate the new (empty) entries of the ``.po`` and run it again; ``tests/test_i18n_catalogue.py`` fails
+Then translate the new (empty) entries of the ``.po`` and run it again; ``tests/unit/test_i18n_catalogue.py`` fails
 until every string has its translation and the ``.mo`` matches the ``.po``. ``--check`` only reports what is
 missing, changing nothing.
 """

@@ -28,14 +28,17 @@ import random
 from dataclasses import dataclass, field
 
 from ..protocol import HEADER_LEN, Action
+from ..protocol.constants import HEADER_FIELDS
 
 __all__ = ["FIELDS", "KINDS", "Fault", "FaultPlan", "corrupt", "parse_fault"]
 
 KINDS = ("delay", "drop", "error", "corrupt", "close", "stall")
 #: field name -> (offset from the frame's start, or from its end when negative; width)
 FIELDS: dict[str, tuple[int, int]] = {
-    "start": (0, 2), "version": (2, 2), "type": (4, 1), "action": (5, 1), "blocktype": (6, 1), "count": (7, 1),
-    "length": (8, 2), "error": (10, 2), "body": (HEADER_LEN, 1), "check": (-2, 2),
+    **{short: HEADER_FIELDS[name] for short, name in (
+        ("start", "start_word"), ("version", "version"), ("type", "transfer_type"), ("action", "action"),
+        ("blocktype", "block_type"), ("count", "block_count"), ("length", "block_length"), ("error", "error_code"))},
+    "body": (HEADER_LEN, 1), "check": (-2, 2),
 }
 #: what each kind imitates, for the report: the clause a real box would break
 CLAUSE = {"delay": "T1", "drop": "A1", "error": "A3", "corrupt": "F1", "close": "S5", "stall": "T1"}

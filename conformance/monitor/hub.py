@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..analyze.context import AnalyzeConfig, Context
+from ..analyze.analysis_context import AnalyzeConfig, Context
 from ..analyze.engine import Feed
 from ..analyze.findings import Observation
 from .faults import Fault, FaultPlan

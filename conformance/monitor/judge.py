@@ -24,7 +24,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from ..analyze.findings import BOX, Findings, Observation
-from ..suite.verdicts import Verdict
+from ..model.verdicts import Verdict
 
 __all__ = ["MAX_CAUSES", "Cause", "LiveFindings", "RootCauses", "signature"]
 
@@ -82,7 +82,7 @@ class RootCauses:
 
     def ordered(self) -> list[Cause]:
         """Worst first (FAIL before NON-STRICT ...), then the most frequent."""
-        from ..suite.verdicts import VERDICT_ORDER
+        from ..model.verdicts import VERDICT_ORDER
 
         rank = {v: i for i, v in enumerate(VERDICT_ORDER)}
         return sorted(self.causes.values(), key=lambda c: (rank.get(c.verdict, 99), -c.count, c.first_seen))

@@ -24,14 +24,14 @@ import contextlib
 import socket
 from typing import Any
 
-from ..protocol import TransferType
+from ..protocol import DEFAULT_PROFILE, Header, TransferType, codec_for, peek_header, peek_transfer_type
 from .faults import Fault, corrupt
 from .hub import Conn, Hub
 from .split import Splitter
 
 __all__ = ["CHUNK", "TcpProxy"]
 
-CHUNK = 65000  # one synthesised segment at most (evidence.packets.MAX_SEGMENT)
+CHUNK = 65000  # one synthesised segment at most (evidence.packet_builder.MAX_SEGMENT)
 _ANSWER = int(TransferType.BOX_TO_ROBOT)
 
 
@@ -194,7 +194,7 @@ class TcpProxy:
         hub, loop = self.hub, asyncio.get_running_loop()
         pending = bytearray()
         for piece, action in pieces:
-            answer = action is not None and len(piece) > 4 and piece[4] == _ANSWER
+            answer = action is not None and peek_transfer_type(piece) == _ANSWER
             request = hub.answered(conn, action) if answer and action is not None else None
             fault = hub.pick(action) if answer and action is not None else None
             held = self.stall_until - loop.time() if answer else 0.0
@@ -257,4 +257,8 @@ class TcpProxy:
 
     def _error_answer(self, piece: bytes, code: int) -> bytes:
         """The answer's header with no blocks and ``code`` (in the profile's byte order), check 00 00."""
-        return piece[:6] + b"\x00\x00\x00\x00" + code.to_bytes(2, "big" if self.hub.big_endian else "little") + b"\x00\x00"
+        order = "big" if self.hub.big_endian else "little"
+        head = peek_header(piece, 0, order)  # a whole frame's: the splitter cut it
+        assert head is not None
+        return codec_for(DEFAULT_PROFILE.replace(byte_order=order)).encode_raw(
+            Header(transfer_type=head.transfer_type, action=head.action, error_code=code))

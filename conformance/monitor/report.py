@@ -2,7 +2,7 @@
 
 ``summary.json``, ``junit.xml`` and ``report.html`` are the suite's (written atomically
 by :func:`conformance.report.write_reports`), their cases ``analyze``'s
-(:func:`conformance.analyze.report.build_cases`: ``OBS-<clause>-box`` /
+(:func:`conformance.analyze.analysis_report.build_cases`: ``OBS-<clause>-box`` /
 ``OBS-<clause>-robot``), plus one INFORMATIONAL case per ``--fault`` spec
 (``MON-FAULT-<n>``) listing its injections, what the robot did after each, and the box
 findings the fault caused (not filed against the box). Root causes are the monitor's
@@ -18,11 +18,11 @@ import json
 from pathlib import Path
 from typing import Any
 
+from ..analyze.analysis_report import build_cases, suite_info
 from ..analyze.engine import Analysis
-from ..analyze.report import build_cases, suite_info
+from ..model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from ..report import write_reports
 from ..report.summary import atomic_write_bytes
-from ..suite.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from .hub import Hub
 from .judge import Cause
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import IO
 
 from ..harness.starvation import gauge, watch_loop
-from ..suite.verdicts import CaseResult, SuiteInfo
+from ..model.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
 from .proxy import TcpProxy
 from .report import write_monitor_reports

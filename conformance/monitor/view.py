@@ -19,7 +19,7 @@ from typing import IO, Any
 
 from ..analyze.findings import Observation
 from ..i18n import _
-from ..stats import percentile
+from ..model.percentiles import percentile
 from .hub import Hub
 from .judge import Cause
 

@@ -3,7 +3,7 @@
 The monitor holds two sockets per robot connection (robot ↔ monitor, monitor ↔ box).
 What it records is one TCP connection from the robot's address and port to the box's:
 the bytes the robot sent and the bytes the robot received (after any injected fault),
-as packets with real time stamps (:mod:`conformance.evidence.packets` draws them: a
+as packets with real time stamps (:mod:`conformance.evidence.packet_builder` draws them: a
 handshake, data segments, FIN or RST). Each packet gets the next frame number, goes into
 the pcapng ring and into the judging engine (:class:`~conformance.analyze.engine.Feed`,
 the one ``analyze`` runs), so ``analyze`` on the ring's file finds what the monitor found.
@@ -16,7 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from ..analyze.engine import Feed
-from ..evidence import packets as pk
+from ..evidence import packet_builder as pk
 from ..evidence.pcapng import LINKTYPE_ETHERNET
 from ..harness.transcript import ConnectionInfo, Endpoint
 from .ring import Ring

@@ -1,7 +1,7 @@
 """Connections as observed: who opened them, what crossed them, how they ended.
 
 The listener of ``certify-robot`` fills these in as the robot talks to it, and
-``analyze`` builds them from a capture; the judgement (:mod:`.session`, :mod:`.timing`,
+``analyze`` builds them from a capture; the judgement (:mod:`.session`, :mod:`.stream_timing`,
 and each command's own checks) reads them afterwards and never touches a socket. A
 connection's bytes live in its :class:`~conformance.harness.transcript.Transcript`
 (``local`` is the box; ``remote`` the robot; ``recv`` is what the robot sent);

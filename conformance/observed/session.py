@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 from ..protocol import Action, ErrorCode, Profile, ResultCode, action_name
 from .connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, ConnRecord, Exchange, SessionRecord
-from .frames import FrameRecord, decode_conn
+from .robot_frames import FrameRecord, decode_conn
 
 S1_STEPS: tuple[str, ...] = (
     "command connect", "stream connect", "CycleOn", "CycleOff", "stream close", "command disconnect",

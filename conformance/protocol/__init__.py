@@ -60,6 +60,20 @@ from .frames import (
     value_blocks,
 )
 from .profile import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc16_names, crc_function
+from .splitter import (
+    HeaderPeek,
+    Piece,
+    PieceKind,
+    Splitter,
+    find_plausible_header,
+    frame_span,
+    frame_spanner,
+    header_field_bytes,
+    peek_action,
+    peek_header,
+    peek_transfer_type,
+    split_bytes,
+)
 from .stream import CLOSED, NEED_DATA, Event, StreamDecoder
 
 __all__ = [
@@ -72,4 +86,6 @@ __all__ = [
     "answer", "codec_for", "crc16_names", "crc_function", "decode_datagram", "encode", "encode_block",
     "encode_body", "encode_header", "encode_raw", "encode_tcp", "encode_udp", "parse_frame",
     "parse_header", "pose_blocks", "request", "tolerance_blocks", "value_blocks",
+    "HeaderPeek", "Piece", "PieceKind", "Splitter", "find_plausible_header", "frame_span", "frame_spanner",
+    "header_field_bytes", "peek_action", "peek_header", "peek_transfer_type", "split_bytes",
 ]

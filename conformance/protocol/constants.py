@@ -22,6 +22,11 @@ MAX_BLOCK_COUNT = 255  # one byte
 MAX_BLOCK_LEN = POSE_BLOCK_LEN  # the longest legal block
 #: The largest frame any legal header can announce: 255 pose blocks.
 MAX_FRAME_LEN = HEADER_LEN + MAX_BLOCK_COUNT * MAX_BLOCK_LEN + CHECK_LEN  # 6389
+#: Where each header field lies: name -> (offset in the header, width in bytes), in wire order.
+HEADER_FIELDS: dict[str, tuple[int, int]] = {
+    "start_word": (0, 2), "version": (2, 2), "transfer_type": (4, 1), "action": (5, 1),
+    "block_type": (6, 1), "block_count": (7, 1), "block_length": (8, 2), "error_code": (10, 2),
+}
 #: Default TCP/UDP port seen in the field (extension install guide).
 DEFAULT_PORT = 9004
 

@@ -123,7 +123,7 @@ class Frame:
 # field puts the decoder over twice the struct baseline of benchmarks/bench_codec.py. The
 # decoder builds Frame and PoseBlock by storing each slot through its descriptor (the store
 # object.__setattr__ ends in). The objects are born Frame and PoseBlock: they compare, hash,
-# print and refuse assignment like constructor-built ones (tests/test_frames.py checks it).
+# print and refuse assignment like constructor-built ones (tests/unit/test_frames.py checks it).
 def _slot_setters(cls: type, *names: str) -> tuple[Callable[[object, Any], None], ...]:
     """The descriptor stores of a slotted dataclass's fields, which must be ``names``, in order."""
     if names != tuple(f.name for f in fields(cls)):

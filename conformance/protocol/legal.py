@@ -10,7 +10,7 @@ and ``flag`` names it for each non-default alternative).
 
 ``knob`` names the setting of the independent implementations in ``tests/impls`` that
 takes exactly these alternatives (the box's :class:`Choices`, the robot's
-``RobotChoices``); tests/test_impls_legal.py fails when a row has an alternative that is
+``RobotChoices``); tests/unit/test_impls_legal.py fails when a row has an alternative that is
 no knob value, or a knob has no row. docs/LEGAL-CHOICES.md is :func:`render_markdown`
 (a test keeps it in step): ``python -m conformance.protocol.legal > docs/LEGAL-CHOICES.md``.
 """
@@ -199,17 +199,17 @@ def render_markdown() -> str:
 
 
 _DIFFERENCES = [
-    "## Where the readings differ",
+    "## Readings the rows rest on",
     "",
-    "- `/work/shared/PROTOCOL.md` (the team's reading) states \"a robot may prime several parts in one",
-    "  session\" (CycleOn → CycleOff pairs repeated); docs/PROTOCOL.md's robot side does not say it, but",
-    "  forbids it nowhere either. Both are read as *robot-cycles* above, and certify-robot's S1 accepts it.",
+    "- S1 lets a robot prime several parts in one session: CycleOn → CycleOff pairs may repeat between",
+    "  stream on and stream off, each CycleOn closed by its CycleOff before the next (docs/PROTOCOL.md, the",
+    "  robot side and \"What a tester must accept\"). That is *robot-cycles* above; certify-robot's S1 accepts it.",
     "- R6 (a) lets a receiver trust only a header whose start word **and version** are right: a header",
     "  with another version is rejected (resume) or closes the connection, never trusted. The transfer",
     "  type, the action and the block shape may each be trusted or rejected independently.",
     "- A5 names three reactions to a frame that is not a request (silence, a non-zero error, a close);",
-    "  neither document says which action byte a refusal carries: both the echoed action and `00` are",
-    "  read as legal (*refusal-action*).",
+    "  it does not say which action byte a refusal carries: both the echoed action and `00` are read as",
+    "  legal (*refusal-action*).",
 ]
 
 

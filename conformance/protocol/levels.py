@@ -15,11 +15,3 @@ class Level(str, enum.Enum):
 
     def __str__(self) -> str:  # f-strings and joins print the word, on every Python
         return self.value
-
-    @property
-    def strength(self) -> int:
-        """0 for MUST, 1 for SHOULD, 2 for MAY: sort by it for strongest first."""
-        return _ORDER.index(self)
-
-
-_ORDER = tuple(Level)

@@ -17,8 +17,8 @@ import re
 from dataclasses import dataclass
 
 from ..i18n import _, current
+from ..model.verdicts import CaseResult
 from ..protocol.clauses import all_clauses
-from ..suite.verdicts import CaseResult
 
 #: "A4/T1: ..." or "R1, B4 (MUST): ..." at the start of a requirement or message
 _PREFIX = re.compile(r"^\s*((?:[A-Z]\d+)(?:\s*[/,]\s*[A-Z]\d+)*)\s*(?:\([A-Z]+\))?\s*:")

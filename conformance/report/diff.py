@@ -20,7 +20,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from ..i18n import N_, _
-from ..suite.verdicts import Verdict
+from ..model.verdicts import Verdict
 from .load import cases_of, suite_of
 from .summary import one_line, overall_line, rank
 

@@ -31,11 +31,11 @@ from markupsafe import Markup
 
 from .. import i18n
 from ..i18n import N_, _
-from ..options import PROFILE_OPTIONS
+from ..model.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict, broken_verdict
 from ..protocol import DEFAULT_PROFILE
 from ..protocol.clauses import all_clauses
 from ..protocol.clauses import families as registry_families
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict, broken_verdict
+from ..suite.profile_options import PROFILE_OPTIONS
 from .clausetext import clause_text
 from .diff import SECTIONS, RunDiff, summary_line
 from .html_cases import (

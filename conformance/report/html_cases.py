@@ -19,7 +19,7 @@ from urllib.parse import quote
 
 from markupsafe import Markup
 
-from ..suite.verdicts import CaseResult, SuiteInfo, Verdict, WireLine
+from ..model.verdicts import CaseResult, SuiteInfo, Verdict, WireLine
 from .clausetext import judged_texts
 from .summary import clean_text, format_duration, group_hex, hex_bytes
 from .svg import histogram_svg, latency_svg

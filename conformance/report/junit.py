@@ -37,7 +37,7 @@ from typing import Any
 
 from .. import i18n
 from ..i18n import N_, _
-from ..suite.verdicts import CaseResult, RootCause, SuiteInfo, Verdict
+from ..model.verdicts import CaseResult, RootCause, SuiteInfo, Verdict
 from .clausetext import judged_texts
 from .summary import (
     atomic_write_bytes,

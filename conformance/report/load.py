@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from ..suite.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
+from ..model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 
 SUMMARY_NAME = "summary.json"
 MAX_SUMMARY_BYTES = 256 * 1024 * 1024  # a summary of 10,000 cases is a few MB

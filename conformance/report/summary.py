@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from ..i18n import _, current
+from ..model.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
 from ..protocol.clauses import REGISTRY_VERSION, all_clauses, families
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteInfo, Verdict
 
 #: Every clause of docs/PROTOCOL.md, in document order, with its short title for tables:
 #: a view of the clause registry (conformance/protocol/clauses.json).

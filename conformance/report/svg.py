@@ -19,7 +19,7 @@ import math
 from collections.abc import Callable, Sequence
 from xml.sax.saxutils import escape
 
-from ..stats import percentile
+from ..model.percentiles import percentile
 from .summary import clean_text
 
 FONT = "DejaVu Sans, Helvetica, Arial, sans-serif"

@@ -26,7 +26,7 @@ from rich.table import Table
 from rich.text import Text
 
 from ..i18n import LEVEL_NAMES, N_, _, ngettext
-from ..suite.verdicts import VERDICT_ORDER, CaseResult, RootCause, SuiteInfo, Verdict
+from ..model.verdicts import VERDICT_ORDER, CaseResult, RootCause, SuiteInfo, Verdict
 from .clausetext import clause_text, judged_texts
 from .summary import format_duration, one_line, overall_line, overall_state, rank, totals
 

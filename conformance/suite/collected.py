@@ -16,11 +16,11 @@ from typing import Any
 import pytest
 
 from .. import __version__
+from ..model.signature import DeathKind
+from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from .rootcause import SessionFacts, find_root_causes
-from .session import SessionState
+from .run_state import SessionState
 from .settings import SuiteSettings
-from .signature import DeathKind
-from .verdicts import CaseResult, RootCause, SuiteInfo
 
 STATE = pytest.StashKey[SessionState]()  # the first box's session (the settings every session shares)
 SESSIONS = pytest.StashKey[dict[str, SessionState]]()  # target key ("" for one box) -> session
@@ -29,6 +29,9 @@ FACTS = pytest.StashKey[dict[str, SessionFacts]]()  # the controller's: what the
 STARTED = pytest.StashKey[float]()
 SELECTED = pytest.StashKey[list[str]]()
 CAUSES = pytest.StashKey[list[RootCause]]()
+#: ``run --baseline``: the report.Baseline the run driver hands the plugin's report writers, and their comparison
+BASELINE = pytest.StashKey[Any]()
+BASELINE_DIFF = pytest.StashKey[Any]()
 
 
 def target_keys(settings: SuiteSettings) -> dict[str, Any]:

@@ -2,7 +2,7 @@
 
 * **A field wrong the same way in every answer** (:func:`field_causes`): the action
   never echoed (A2), one error code whatever the action (A3/A4). Read from the answers'
-  header fields that the judging routine keeps in each verdict's :class:`~.signature.Reply`.
+  header fields that the judging routine keeps in each verdict's :class:`~conformance.model.signature.Reply`.
   A malformed field the decoder names (a constant transfer type, F3; a version, F2) is
   already one signature, grouped by :mod:`.rootcause`.
 * **Acceptance that changes at a block position** (:func:`block_position_cause`): valid
@@ -18,10 +18,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from ..i18n import gettext
+from ..model.signature import Reply, Sig
+from ..model.verdicts import CaseResult, RootCause, Verdict
 from ..protocol import Action, parse_header
 from ..protocol.constants import CHECK_LEN, HEADER_LEN, POSE_BLOCK_LEN, START_WORD, TOLERANCE_BLOCK_LEN, TransferType
-from .signature import Reply, Sig
-from .verdicts import CaseResult, RootCause, Verdict
 
 #: A field-wide root cause needs at least this many verdicts, about at least two actions.
 MIN_FIELD = 3

@@ -16,12 +16,12 @@ from typing import Any
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
 from ..harness.liveness import check_alive, responsive
 from ..harness.starvation import gauge, starved_share, starved_text
+from ..harness.trajectory import PrimerTrajectory
+from ..model.percentiles import percentile
+from ..model.signature import Sig, Signature
+from ..model.verdicts import Level
 from ..protocol import Action, pose_blocks, request
-from ..stats import percentile
-from ..trajectory import PrimerTrajectory
-from .judge import Expect, Inconclusive, answered, check, fail
-from .signature import Sig, Signature
-from .verdicts import Level
+from .case_judge import Expect, Inconclusive, answered, check, fail
 from .waits import STREAM
 
 DEFAULT_POSE = PrimerTrajectory().home

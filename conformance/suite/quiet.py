@@ -19,7 +19,7 @@ A pattern is withdrawn as soon as the box answers a probe in it (the silences th
 another cause), and never applies to a case that judges R6 at MUST or SHOULD level: the
 cases that report the hang always wait the full time_out. The same bound applies to a
 case's second connection on a box that serves one connection at a time
-(:meth:`~conformance.suite.context.CaseContext.connect`).
+(:meth:`~conformance.suite.case_context.CaseContext.connect`).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ sequence is a :class:`CaseRecord`: a stable ID, its clauses, its level, a title,
 acceptable outcomes in words, and its *requirements* as data (like Autobahn's
 ``expected[...]`` and h2spec's ``Requirement``): for each thing the case judges, the
 requirement's words, the outcomes that meet it, those a conforming box SHOULD show, and
-those that make it unjudgeable. One routine (:func:`conformance.suite.judge.judge`)
+those that make it unjudgeable. One routine (:func:`conformance.suite.case_judge.judge`)
 turns an outcome into a verdict; a case body only sends, collects and names what it
 judges (``isight.judge(outcome, "answer")``), never restating a level or the words.
 
@@ -24,8 +24,8 @@ from typing import Any, TypeVar
 import pytest
 
 from ..harness.client import Outcome
+from ..model.verdicts import Level
 from ..protocol.clauses import clause_ids
-from .verdicts import Level
 
 F = TypeVar("F", bound=Callable[..., Any])
 MARKER = "isight_case"

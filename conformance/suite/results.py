@@ -13,12 +13,12 @@ from typing import Any
 
 from ..harness.target import Unreachable
 from ..harness.transcript import Kind, Transcript
-from .context import CaseContext
-from .judge import CaseVerdict
+from ..model.signature import Signature
+from ..model.verdicts import CaseResult, Verdict, broken_verdict
+from .case_context import CaseContext
+from .case_judge import CaseVerdict
 from .record import CaseRecord
 from .settings import SuiteSettings
-from .signature import Signature
-from .verdicts import CaseResult, Verdict, broken_verdict
 from .wirelog import wire_lines
 
 

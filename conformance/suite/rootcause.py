@@ -9,7 +9,7 @@ marks every explained case with its root cause's id.
 
 Sources, in this order:
 
-1. session facts (:mod:`.session`): the box never answered a NONE request (A4/T1);
+1. session facts (:mod:`.run_state`): the box never answered a NONE request (A4/T1);
    it serves one connection at a time (S4: explains the non-PASS cases that held two
    connections at once); it stopped accepting connections (S5) or died after a case's
    input (R2: explains that case and every later case left INCONCLUSIVE by it);
@@ -30,9 +30,9 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from ..i18n import gettext  # titles in the language of the run (the .format placeholders are named)
+from ..model.signature import Death, DeathKind, Sig, Signature
+from ..model.verdicts import CaseResult, Level, RootCause, Verdict
 from .patterns import Claim, block_position_cause, evidence_of, field_causes
-from .signature import Death, DeathKind, Sig, Signature
-from .verdicts import CaseResult, Level, RootCause, Verdict
 
 #: A signature shared by at least this many non-PASS cases is reported as a root cause.
 MIN_GROUP = 2

@@ -15,8 +15,9 @@ from collections.abc import Iterator
 from typing import Any
 
 from ..harness.client import Answer, Outcome, Silence, TcpConnection
-from ..protocol import Action, Frame, pose_blocks, request, tolerance_blocks, value_blocks
-from .judge import Expect, Inconclusive, answered, answered_error, check, fail
+from ..model.verdicts import Level
+from ..protocol import Action, Frame, peek_action, pose_blocks, request, tolerance_blocks, value_blocks
+from .case_judge import Expect, Inconclusive, answered, answered_error, check, fail
 from .pose_stream import (
     DEFAULT_POSE,
     PoseStream,
@@ -40,7 +41,6 @@ from .sequence_format import (
     shipped,
     verb_of,
 )
-from .verdicts import Level
 
 __all__ = [
     "DEFAULT_POSE", "FORMAT", "SHIPPED_DIR", "STEP_SPEC", "PoseStream", "Sequence", "SequenceError", "SequenceRunner",
@@ -314,7 +314,8 @@ class SequenceRunner:
 
 def _action_byte(data: bytes) -> Action | None:
     try:
-        return Action(data[5]) if len(data) > 5 else None
+        action = peek_action(data)
+        return None if action is None else Action(action)
     except ValueError:
         return None
 

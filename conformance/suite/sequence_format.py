@@ -16,11 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..evidence.vectors_file import REPO_VECTORS
+from ..model.verdicts import Level
 from ..protocol import DEFAULT_PROFILE, HEADER_LEN, MAX_FRAME_LEN, Action, codec_for
-from ..vectors import REPO_VECTORS
-from .judge import CLOSED, NOT_OK, SILENCE, Expect
+from .case_judge import CLOSED, NOT_OK, SILENCE, Expect
 from .record import _CLAUSE, CaseRecord, record
-from .verdicts import Level
 
 FORMAT = "isight-sequence-1"
 SHIPPED_DIR = REPO_VECTORS / "sequences"

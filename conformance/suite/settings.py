@@ -15,8 +15,8 @@ from typing import Any
 
 from ..harness.target import Target
 from ..i18n import N_, gettext
-from ..options import add_profile_options, profile_flags, profile_from_options
 from ..protocol import DEFAULT_PORT, Profile
+from .profile_options import add_profile_options, profile_flags, profile_from_options
 
 #: (flag, argparse/pytest keyword arguments); dests all start with "isight_".
 SUITE_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
@@ -169,7 +169,10 @@ def add_suite_options(add: Callable[..., Any], pytest: bool = False) -> None:
     """Register the suite options and the profile options (argparse's add_argument,
     or pytest's addoption with ``pytest=True``, where ``--target`` may repeat)."""
     for flag, kwargs in SUITE_OPTIONS:
-        kwargs = {**kwargs, "help": gettext(kwargs["help"])}  # in the language active when the parser is built
+        # translated in the language active when the parser is built; the text is read out of the dict first so
+        # that no string literal sits inside gettext() (Babel <= 2.18 extracted the key "help" as a message)
+        text = kwargs["help"]
+        kwargs = {**kwargs, "help": gettext(text)}
         if pytest and flag == "--target":
             kwargs = {**kwargs, "action": "append"}
         add(PYTEST_RENAMES.get(flag, flag) if pytest else flag, **kwargs)

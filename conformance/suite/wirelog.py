@@ -5,8 +5,8 @@ from __future__ import annotations
 from collections import deque
 
 from ..harness.transcript import Kind, Transcript, WireEvent
+from ..model.verdicts import WireLine
 from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, decode_datagram
-from .verdicts import WireLine
 
 #: Reports keep the first MAX_LINES lines of a case and its last TAIL_LINES (the pcap has everything).
 MAX_LINES = 300

@@ -15,7 +15,7 @@
 --   ..  2   check          TCP: 00 00 [F6] / UDP: CRC-16 [F7]
 --
 -- Written for the Wireshark Lua API of 3.x/4.x; tested with tshark 4.0 (Lua 5.2) by
--- tests/test_wireshark_dissector.py. Install and preferences: README.md next to this file.
+-- tests/e2e/test_wireshark_dissector.py. Install and preferences: README.md next to this file.
 
 -- bit32 (Lua 5.2, and Wireshark's shim for 5.4), BitOp "bit" (LuaJIT / Wireshark 1.x-3.x),
 -- else the native operators of Lua 5.3+ (compiled with load() so 5.1/5.2 never parse them).

@@ -24,7 +24,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from .wire import HEADER_LEN, MAX_BODY, ROBOT_TO_BOX, START, Header, known
+from .wire_format import HEADER_LEN, MAX_BODY, ROBOT_TO_BOX, START, Header, known
 
 
 @dataclass(frozen=True)

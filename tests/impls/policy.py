@@ -14,9 +14,9 @@ import random
 import threading
 from dataclasses import dataclass, fields, replace
 
-from . import wire
+from . import wire_format as wire
 from .framers import Close, Event, Frame, Framing, Garbage, Rejected
-from .wire import Check, Header
+from .wire_format import Check, Header
 
 #: The planted defects (one per broken box) and the clause each breaks.
 DEFECTS: dict[str, str] = {

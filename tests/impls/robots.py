@@ -22,8 +22,8 @@ import threading
 import time
 from dataclasses import dataclass, replace
 
-from . import wire
-from .wire import Answer, encode_request, split_answers
+from . import wire_format as wire
+from .wire_format import Answer, encode_request, split_answers
 
 HOME = (800.0, 0.0, 500.0, 180.0, 0.0, 0.0)
 SPIN = 0.0015  # seconds before each pose's due time the stream thread stops sleeping and spins

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from conformance.harness.starvation import Stall, StarvationGauge, explains, starved_verdict
-from conformance.observed.timing import jitter_excess_ms, rate_excess_ms, stream_stats
+from conformance.observed.stream_timing import jitter_excess_ms, rate_excess_ms, stream_stats
 from conformance.suite.quiet import CUT_S, Hangs, refused_key
 from conformance.suite.waits import REPEAT, RanOut
 

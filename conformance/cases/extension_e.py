@@ -1,0 +1,161 @@
+"""E: the optional extension (program index 26, vision result 27, type-03 blocks).
+
+Every case first calls ``isight.require_extension()``: a box without 26/27 SKIPs
+them (detected once per session on positive evidence, see
+:mod:`conformance.suite.extension`, or forced by ``--extension on|off``). A box whose
+answer to 26 or 27 carries a type-03 block counts as implementing E even when the
+answer does not parse (e.g. result code 404): the E cases then judge it.
+
+Profile settings honoured: ``progidx_conflict`` (E2: a 409 travels in the block
+with error 0000, or in the error field), ``vision_time_out_ms`` (E3, E4) and
+``time_out_ms`` (E5), ``first_index`` (B3, the type-03 block's index).
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from conformance.harness.client import Answer, Closed, Malformed, Silence
+from conformance.harness.trajectory import PrimerTrajectory
+from conformance.protocol import (
+    Action,
+    ErrorCode,
+    Frame,
+    pose_blocks,
+    request,
+    tolerance_blocks,
+)
+from conformance.protocol.answers import Cycle
+from conformance.suite import CaseContext, Expect, Inconclusive, Level, Requirement, answered, answered_allowed, case
+from conformance.suite.extension_checks import (
+    POSE,
+    err,
+    judge_prog_idx,
+    prog_idx,
+    prog_idx_checks,
+    request_result,
+    stream_poses,
+)
+
+# -- E1 ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("value", [-1, -(2**31), 2**31 - 1, 0x01020304], ids=["negative", "int32-min", "int32-max", "bytes"])
+@case("E1-01", ["E1", "E2"], Level.MUST, "A ProgIdx block holds any signed big-endian int32",
+      "a ProgIdx with a negative or large int32 is well-formed: answered with one type-03 block holding the "
+      "same value (or 409 per the profile's progidx_conflict)", checks=prog_idx_checks("E1", "E2"))
+def test_prog_idx_int32_range(isight: CaseContext, value: int) -> None:
+    isight.require_extension()
+    frame = prog_idx(isight, value)
+    outcome = isight.exchange(frame, f"ProgIdx with int32 {value} ({value & 0xFFFFFFFF:08x})")
+    if judge_prog_idx(isight, outcome, value, isight.last_sent):
+        isight.inform(f"the box answered ProgIdx {value} with 409 (conflict); the int32 echo was not seen")
+
+
+# -- E2 ------------------------------------------------------------------------------------
+
+
+@case("E2-01", ["E2", "E1"], Level.MUST, "ProgIdx is answered with the same index or 409",
+      "one type-03 block holding the index sent, or 409 (in the block with error 0000, or in the error "
+      "field when the profile's progidx_conflict is error-code)", checks=prog_idx_checks("E2"))
+def test_prog_idx_answer(isight: CaseContext) -> None:
+    isight.require_extension()
+    outcome = isight.exchange(prog_idx(isight, 7), "ProgIdx: program index 7")
+    if judge_prog_idx(isight, outcome, 7, isight.last_sent):
+        isight.inform("the box answered ProgIdx with 409 (resource conflict / not ready)")
+
+
+# -- E3 ------------------------------------------------------------------------------------
+
+
+@case("E3-01", ["E3", "E1"], Level.MUST, "A result request is answered with a ResultCode within vision_time_out",
+      "one type-03 block holding 1, 2, 10, 20, 202, 400 or 409 (never 0 or 404), within vision_time_out",
+      checks={"": Requirement(("E3",), "a result request is answered within vision_time_out ({vision_ms:.0f} ms) with one "
+                              "type-03 block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; "
+                              "never 0 or 404)", accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
+def test_vision_result(isight: CaseContext) -> None:
+    isight.require_extension()
+    vision_s = isight.profile.vision_time_out_ms / 1000
+    conn = isight.connect()
+    frame = request(Action.VISION_RESULT)
+    outcome = conn.request(frame, "result request (27)", timeout_s=vision_s)
+    isight.judge(outcome, sent=isight.transcript.sent(conn.conn_id), vision_ms=vision_s * 1000)
+    assert isinstance(outcome, Answer)
+    isight.latencies_ms.append(outcome.latency_s * 1000)
+    isight.details["result_code"] = outcome.frame.blocks[0].value  # type: ignore[union-attr]
+    isight.details["error_code"] = err(outcome.frame.error_code)
+
+
+# -- E4 ------------------------------------------------------------------------------------
+
+
+@case("E4-01", ["E4", "E2", "E3", "S1"], Level.MUST, "The extended canonical session completes",
+      "ProgIdx → stream on → CycleOn → trajectory → CycleOff → stream off → 1 s → result request: ProgIdx "
+      "echoed, every other answer 0000, a ResultCode within vision_time_out (202 retried; still busy is "
+      "INFORMATIONAL; ProgIdx 409, CycleOn 0001 or CycleOff 0002 make the rest INCONCLUSIVE)",
+      checks={**prog_idx_checks("E4", "E2"),
+              "pose": Requirement(("E4", "S3"), "every pose of the stream is answered 0000 ({phase})",
+                                  accept=answered_allowed(Action.POSE)),
+              "on": Requirement(("E4", "S2"), "CycleOn is answered 0000 (or 0001)", accept=answered_allowed(Action.CYCLE_ON, Cycle.IDLE),
+                                inconclusive=answered(Action.CYCLE_ON, [ErrorCode.NOT_READY]),
+                                inconclusive_text="CycleOn answered 0001 (box not ready): the rest of the session is "
+                                                  "not judged (S2)"),
+              "off": Requirement(("E4", "S1"), "CycleOff is answered 0000", accept=answered_allowed(Action.CYCLE_OFF, Cycle.ON),
+                                 inconclusive=answered(Action.CYCLE_OFF, [ErrorCode.CYCLE_OFF_FAILED]),
+                                 inconclusive_text="CycleOff answered 0002 (detection not closed): the result is not "
+                                                   "judged (A3)"),
+              "result": Requirement(("E4", "E3"), "the result request is answered within vision_time_out with a ResultCode "
+                                    "(1, 2, 10, 20, 202, 400, 409)",
+                                    accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
+def test_extended_session(isight: CaseContext) -> None:
+    isight.require_extension()
+    conn = isight.connect("command")
+    outcome = conn.request(prog_idx(isight, 3), "ProgIdx: program index 3")
+    if judge_prog_idx(isight, outcome, 3, isight.transcript.sent(conn.conn_id)):
+        raise Inconclusive("ProgIdx answered 409 (conflict / not ready): the session cannot go on (E2)")
+    stream = isight.connect("stream", target=isight.session.stream_target())
+    path = PrimerTrajectory(duration=0.3)
+    rate = isight.profile.pose_rate_hz
+    samples = [pose for _, pose in path.samples(rate)]
+    stream_poses(isight, stream, [path.home] * 3, "stream on, before CycleOn")
+    isight.judge(conn.request(request(Action.CYCLE_ON), "CycleOn"), "on", sent=b"")
+    stream_poses(isight, stream, samples, "trajectory")
+    isight.judge(conn.request(request(Action.CYCLE_OFF), "CycleOff"), "off", sent=b"")
+    stream.close("Send_Pos_Off")
+    time.sleep(1.0)  # E4: the robot waits 1 s before it asks for the result
+    isight.details["result_code"] = request_result(isight, conn)
+    conn.close()
+
+
+# -- E5 ------------------------------------------------------------------------------------
+
+
+@case("E5-01", ["E5", "T1"], Level.MUST, "time_out bounds every action except 27",
+      "ProgIdx and every core action (00, 01, 23, 24, 25, 02) are answered within time_out",
+      checks={"": Requirement(("E5", "T1"), "time_out ({time_out_ms:.0f} ms) bounds {name}: it is answered within time_out",
+                              accept=Expect("an answer within time_out",
+                                            lambda o: not isinstance(o, (Silence, Closed))))})
+def test_time_out_bounds_actions(isight: CaseContext) -> None:
+    isight.require_extension()
+    first = isight.profile.first_index
+    steps: list[tuple[str, Frame]] = [
+        ("NONE", request(Action.NONE)),
+        ("PROG_IDX", prog_idx(isight, 1)),
+        ("CYCLE_ON", request(Action.CYCLE_ON)),
+        ("POSE", request(Action.POSE, pose_blocks([POSE], first))),
+        ("REGISTER_POSE", request(Action.REGISTER_POSE, pose_blocks([POSE], first))),
+        ("TOLERANCE", request(Action.TOLERANCE, tolerance_blocks([0.5], first))),
+        ("CYCLE_OFF", request(Action.CYCLE_OFF)),
+    ]
+    conn = isight.connect()
+    latencies: dict[str, float] = {}
+    for name, frame in steps:
+        outcome = conn.request(frame, f"{name} request (E5: bounded by time_out)")
+        isight.judge(outcome, sent=conn.codec.encode(frame), name=name, time_out_ms=isight.time_out_s * 1000)
+        assert isinstance(outcome, (Answer, Malformed))
+        latency = outcome.latency_s
+        latencies[name] = round(latency * 1000, 3)
+        isight.latencies_ms.append(latency * 1000)
+    isight.details["latency_ms"] = latencies

@@ -1,0 +1,113 @@
+"""F: the frame (start word, version, direction, byte order, length, check fields)."""
+
+from __future__ import annotations
+
+from conformance.harness.client import Answer, Malformed
+from conformance.protocol import Action, Header, Transport, encode, encode_raw, header_field_bytes, pose_blocks, request
+from conformance.protocol.constants import START_BYTES
+from conformance.suite import (
+    ANSWERED,
+    ANSWERED_0,
+    NOT_0000,
+    NOT_OK,
+    CaseContext,
+    Level,
+    Requirement,
+    answered,
+    answered_allowed,
+    case,
+)
+from conformance.suite.frame_checks import (
+    POSE,
+    answer_bytes,
+)
+
+
+@case("F1-01", ["F1"], Level.MUST, "Answers start with FE FE", "every answer's first two bytes are fe fe",
+      checks={"answered": ANSWERED_0, "": Requirement(("F1",), "the start word is FE FE")})
+def test_answer_start_word(isight: CaseContext) -> None:
+    _, raw = answer_bytes(isight)
+    got = header_field_bytes(raw, "start_word")
+    if got != START_BYTES:
+        raise isight.broken(expected="fe fe", observed=got.hex(" "), received=raw)
+
+
+@case("F1-02", ["F1", "A5", "R1"], Level.MUST, "A frame with a wrong start word is not answered 0000",
+      "silence, a non-zero error, or a close; never 0000",
+      checks={"": Requirement(("A5",), f"a frame that is not a request {NOT_0000}", accept=NOT_OK)})
+def test_wrong_start_word(isight: CaseContext) -> None:
+    bad = bytearray(encode(POSE))
+    bad[0:2] = b"\xfe\xff"
+    isight.judge(isight.send_malformed(bytes(bad), "pose with start word fe ff"))
+
+
+@case("F2-01", ["F2"], Level.MUST, "Answers carry version 00 01", "bytes 2-3 of every answer are 00 01",
+      checks={"answered": ANSWERED_0, "": Requirement(("F2",), "the version is 00 01")})
+def test_answer_version(isight: CaseContext) -> None:
+    _, raw = answer_bytes(isight)
+    got = header_field_bytes(raw, "version")
+    if got != b"\x00\x01":
+        raise isight.broken(expected="00 01", observed=got.hex(" "), received=raw)
+
+
+@case("F2-02", ["F2", "A5", "R1"], Level.MUST, "A frame with version 00 02 is not answered 0000",
+      "silence, a non-zero error, or a close; never 0000",
+      checks={"": Requirement(("A5",), f"a frame with version ≠ 00 01 {NOT_0000}", accept=NOT_OK)})
+def test_wrong_version(isight: CaseContext) -> None:
+    bad = encode_raw(Header(version=0x0002, action=Action.NONE))
+    isight.judge(isight.send_malformed(bad, "NONE request with version 00 02"))
+
+
+@case("F3-01", ["F3"], Level.MUST, "Answers carry transfer type 10", "byte 4 of every answer is 10",
+      checks={"answered": ANSWERED, "": Requirement(("F3",), "box→robot frames carry transfer type 10")})
+def test_answer_transfer_type(isight: CaseContext) -> None:
+    for action in (Action.NONE, Action.POSE):
+        outcome = isight.exchange(request(action) if action is Action.NONE else POSE, f"{action.name} request")
+        header = outcome.error.header if isinstance(outcome, Malformed) else None
+        if isinstance(outcome, Malformed) and header is not None and header.transfer_type != 0x10:  # F3 first
+            raise isight.broken(expected="10", observed=f"{header.transfer_type:02x}", received=outcome.error.raw)
+        isight.judge(outcome, "answered", action=action)
+
+
+@case("F3-02", ["F3", "A5", "R1"], Level.MUST, "A request with transfer type 10 (box→robot) is not answered 0000",
+      "silence, a non-zero error, or a close; never 0000",
+      checks={"": Requirement(("A5",), f"transfer type ≠ 01 is not a request and {NOT_0000}", accept=NOT_OK)})
+def test_request_with_box_direction(isight: CaseContext) -> None:
+    bad = encode_raw(Header(transfer_type=0x10, action=Action.CYCLE_ON))
+    isight.judge(isight.send_malformed(bad, "CycleOn with transfer type 10"))
+
+
+@case("F5-01", ["F5", "A2"], Level.MUST, "An answer is exactly 12 + N×L + 2 bytes",
+      "the NONE answer is 14 bytes and nothing else follows",
+      checks={"none": Requirement(("A4",), "NONE is answered 0000", accept=answered_allowed(Action.NONE)),
+              "": Requirement(("F5", "A1"), "one answer of exactly 12+N×L+2 bytes")})
+def test_answer_length(isight: CaseContext) -> None:
+    conn = isight.connect()
+    isight.judge(conn.request(request(Action.NONE), "NONE request"), "none", sent=b"")
+    trailing = conn.drain(isight.settings.settle_s)
+    if trailing:
+        raise isight.broken(expected="nothing after the answer", observed="; ".join(o.describe() for o in trailing),
+                            received=isight.transcript.received())
+
+
+@case("F6-01", ["F6"], Level.MUST, "Over TCP the box sends check 00 00", "the last two bytes of every answer are 00 00",
+      checks={"answered": Requirement(("A1",), "{action.name} is answered", accept=lambda action, **_: answered(action)),
+              "": Requirement(("F6",), "a TCP sender MUST send check 00 00")})
+def test_tcp_check_zero(isight: CaseContext) -> None:
+    conn = isight.connect()
+    for action, frame in ((Action.NONE, request(Action.NONE)), (Action.POSE, POSE), (Action.CYCLE_OFF, request(Action.CYCLE_OFF))):
+        outcome = conn.request(frame, f"{action.name} request")
+        if isinstance(outcome, Answer) and outcome.raw[-2:] != b"\x00\x00":
+            raise isight.broken(expected="00 00", observed=outcome.raw[-2:].hex(" "), received=outcome.raw)
+        isight.judge(outcome, "answered", sent=b"", action=action)
+
+
+@case("F6-02", ["F6"], Level.SHOULD, "A TCP receiver accepts a correct CRC in the check field",
+      "the request with a CRC in its check field is answered like one with 00 00",
+      checks={"": Requirement(("F6",), "a TCP receiver SHOULD ignore the check field (accept a correct CRC as well as 00 00)",
+                              accept=answered_allowed(Action.POSE))})
+def test_tcp_check_crc_accepted(isight: CaseContext) -> None:
+    # indexed from the profile's first index: a box taking 01 first refuses a block indexed 00 (B3), not the CRC
+    frame = request(Action.POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)], isight.profile.first_index))
+    data = encode(frame, isight.profile, Transport.UDP)  # same bytes, CRC in the check field
+    isight.judge(isight.exchange(data, "pose request whose check field holds its CRC"), sent=b"")

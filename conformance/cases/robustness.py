@@ -1,0 +1,152 @@
+"""R: robustness (garbage, split and coalesced delivery, bounded resources, resynchronisation).
+
+R1 is covered by the vector replay and R7 (UDP) by the UDP cases.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from conformance.harness.client import Answer
+from conformance.protocol import Action, Header, encode_raw
+from conformance.suite import NOT_OK, CaseContext, Level, Requirement, answered_allowed, case
+from conformance.suite.robustness_probes import (
+    ALIVE,
+    GARBAGE,
+    LIKE_WHOLE,
+    RESYNC_GARBAGE,
+    WHOLE,
+    assert_alive,
+    fresh_answered,
+    hold_connections,
+    like_whole,
+    resynced,
+    valid_frames,
+)
+from conformance.suite.sequence import latency_figures, pieces_of
+
+# -- R2 ---------------------------------------------------------------------------------------------------
+
+
+@case("R2-01", ["R2", "A5"], Level.MUST, "After garbage, new connections are still accepted and answered",
+      "the garbage is not answered 0000, and a fresh connection gets NONE answered 0000",
+      checks={"": Requirement(("A5",), "bytes that are not a request MUST NOT be answered 0000", accept=NOT_OK),
+              "alive": ALIVE})
+@pytest.mark.parametrize("kind", list(GARBAGE))
+def test_garbage_then_fresh_connection(isight: CaseContext, kind: str) -> None:
+    bad = GARBAGE[kind]
+    isight.judge(isight.send_malformed(bad, f"{kind}: {len(bad)} bytes that are not a frame"), sent=bad[:64])
+    assert_alive(isight, kind)
+
+
+@case("R2-02", ["R2"], Level.MUST, "A header then a reset leaves the box answering new connections",
+      "after a connection sends a pose header (12 bytes) and resets, a fresh connection gets NONE answered 0000",
+      checks={"alive": ALIVE})
+def test_header_then_reset(isight: CaseContext) -> None:
+    conn = isight.connect("abuser")
+    header = conn.codec.encode(valid_frames(isight)["pose"])[:12]
+    isight.last_sent = header
+    conn.send(header, "a pose header, no body")
+    conn.abort("reset with the frame unfinished")
+    assert_alive(isight, "a header then RST")
+
+
+# -- R3 / R4 ----------------------------------------------------------------------------------------------
+
+
+@case("R3-01", ["R3", "A1"], Level.MUST, "A frame sent one byte per segment is answered like the whole frame",
+      "the same action and error code as for the whole frame, within time_out",
+      checks={"whole": WHOLE, "": Requirement(("R3",), "a frame split down to one byte per segment is handled like the whole "
+                                              "frame", accept=LIKE_WHOLE)})
+@pytest.mark.parametrize("name", ["none", "pose", "tolerance"])
+def test_one_byte_segments(isight: CaseContext, name: str) -> None:
+    frame = valid_frames(isight)[name]
+    whole = like_whole(isight, frame)
+    conn = isight.connect()
+    data = conn.codec.encode(frame)
+    start = time.monotonic()
+    conn.send_pieces(pieces_of(data, {"pieces": "bytes"}), 0.001, "one byte per segment")
+    isight.judge(conn.next_outcome(since=start), sent=data, action=frame.action, code=whole.frame.error_code)
+
+
+@case("R3-02", ["R3", "A1"], Level.MUST, "Frames cut at random points over time are each answered like whole frames",
+      "four requests sent as one byte stream cut into random 1-8 byte pieces (2 ms apart) get four answers in order, "
+      "each like the whole request's",
+      checks={"whole": WHOLE, "": Requirement(("R3",), "request {n} of a randomly split stream is answered like the whole",
+                                              accept=LIKE_WHOLE)})
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_random_splits(isight: CaseContext, seed: int) -> None:
+    frames = list(valid_frames(isight).values())
+    expected = [like_whole(isight, f).frame.error_code for f in frames]
+    conn = isight.connect()
+    data = b"".join(conn.codec.encode(f) for f in frames)
+    isight.last_sent = data
+    start = time.monotonic()
+    conn.send_pieces(pieces_of(data, {"pieces": "random", "seed": seed}), 0.002, f"random split (seed {seed})")
+    for i, (frame, code) in enumerate(zip(frames, expected)):
+        isight.judge(conn.next_outcome(since=start), sent=data, n=i + 1, action=frame.action, code=code)
+
+
+@case("R4-01", ["R4", "A1"], Level.MUST, "Ten frames in one segment are each answered, in order",
+      "ten answers, echoing each request's action in order, each 0000",
+      checks={"": Requirement(("R4",), "request {n} of 10 in one segment is answered, in order",
+                              accept=lambda action, **_: answered_allowed(action))})
+def test_coalesced(isight: CaseContext) -> None:
+    frames = list(valid_frames(isight).values())
+    batch = [frames[i % len(frames)] for i in range(10)]
+    conn = isight.connect()
+    data = b"".join(conn.codec.encode(f) for f in batch)
+    isight.last_sent = data
+    start = time.monotonic()
+    conn.send(data, "10 requests in one segment")
+    for i, frame in enumerate(batch):
+        outcome = conn.next_outcome(since=start)
+        if isinstance(outcome, Answer):
+            isight.latencies_ms.append(outcome.latency_s * 1000)
+        isight.judge(outcome, sent=data, n=i + 1, action=frame.action)
+
+
+# -- R5 ---------------------------------------------------------------------------------------------------
+
+
+@case("R5-01", ["R5", "T1"], Level.MUST, "Partial frames, a 255×65535 announcement and 300 idle connections "
+      "do not stop the box answering others",
+      "while 200 connections hold half a frame, one announces 255×65535 bytes and 300 are idle, a fresh connection "
+      "gets NONE and a pose answered 0000 within time_out; again after they are released",
+      checks={"": Requirement(("R5",), "partial frames, a 255×65535 header and idle connections do not stop the box "
+                              "answering others ({when})", accept=lambda action, **_: answered_allowed(action))})
+def test_bounded_resources(isight: CaseContext) -> None:
+    deadline = time.monotonic() + 10 + 2 * isight.time_out_s
+    pose = encode_raw(Header(action=Action.POSE, block_type=1, block_count=1, block_length=25))
+    huge = encode_raw(Header(action=Action.POSE, block_type=1, block_count=255, block_length=65535))[:12]
+    isight.last_sent = huge
+    held = {
+        "partial": hold_connections(isight, "partial frame", 200, pose[:19], deadline),
+        "huge": hold_connections(isight, "255×65535 header", 1, huge, deadline),
+        "idle": hold_connections(isight, "idle", 300, b"", deadline),
+    }
+    isight.details["opened"] = {k: len(v) for k, v in held.items()}
+    fresh_answered(isight, "while they are held")
+    for conns in held.values():
+        for conn in conns:
+            conn.close("release")
+    fresh_answered(isight, "after they are released")
+    isight.details["latency"] = latency_figures(isight.latencies_ms)
+
+
+# -- R6 ---------------------------------------------------------------------------------------------------
+
+
+@case("R6-01", ["R6"], Level.SHOULD, "After garbage the box resynchronises on the next valid frame, or closes",
+      "the valid request right after the garbage, on the same connection, is answered 0000, or the connection is "
+      "closed; staying silent is NON-STRICT",
+      checks={"": Requirement(("R6",), "after garbage the box SHOULD resynchronise on the next valid header or close the "
+                              "connection", accept=resynced)})
+@pytest.mark.parametrize("kind", list(RESYNC_GARBAGE))
+def test_resynchronise(isight: CaseContext, kind: str) -> None:
+    bad = RESYNC_GARBAGE[kind]
+    isight.send_malformed(bad, f"garbage ({kind}) then a valid request on the same connection")
+    assert isight.last_probe is not None  # send_malformed always records what became of the probe
+    isight.judge(isight.last_probe, action=isight.last_probe_action)

@@ -1,0 +1,56 @@
+"""The FUZZ cases' campaign (conformance/cases/fuzzing.py): a short, bounded campaign run for a case, and its verdict."""
+
+from __future__ import annotations
+
+from ..suite import CaseContext, Level, Requirement, Signature
+from .campaign import Campaign, CampaignConfig, CampaignResult
+
+FRAMES_S = 2.0
+SESSION_S = 1.0
+
+
+def run_campaign(isight: CaseContext, name: str, seconds: float, stateful_share: float) -> CampaignResult:
+    settings = isight.settings
+    extension = isight.session.detect_extension(isight.transcript)
+    isight.needs_liveness = True
+    config = CampaignConfig(
+        target=isight.target, profile=isight.profile, udp_target=isight.session.udp_target(),
+        stream_target=isight.session.stream_target(), seed=settings.seed, duration_s=seconds, stateful_share=stateful_share,
+        report_dir=settings.report_dir / "fuzz" if settings.report_dir is not None else None,
+        pcap_dir=settings.pcap_dir, capture="failures" if settings.pcap_dir is not None else "off",
+        database=None, extension=extension, settle_s=settings.settle_s, log=lambda line: None,
+        transcript=isight.transcript, name=f"{name}-failure",
+    )
+    result = Campaign(config).run()
+    summary = result.to_dict()
+    isight.details["fuzz"] = {k: summary[k] for k in ("seed", "examples", "examples_per_s", "stateful", "connections",
+                                                      "liveness_checks", "by_kind", "stopped", "coverage",
+                                                      "failures", "non_strict")}
+    return result
+
+
+#: what a campaign's failures judge: the words and the clauses come from the oracle's findings
+FINDINGS = {"failure": Requirement((), "{finding}", judged_from="clauses"),
+            "non-strict": Requirement((), "{finding}", level=Level.SHOULD, judged_from="clauses")}
+
+
+def judge_campaign(isight: CaseContext, result: CampaignResult) -> None:
+    failures = result.failures
+    if failures:
+        first = failures[0]
+        more = f" (and {len(failures) - 1} more distinct failures)" if len(failures) > 1 else ""
+        where = f"; vector {first.vector}" if first.vector else ""
+        sent = first.cases[0].wire if first.cases else b""
+        clause = first.clauses[0] if first.clauses else "R1"
+        # a malformed answer found by fuzzing groups with the cases that found the same malformation
+        signature = Signature.fuzz(clause, malformed_answer=first.malformed_answer)
+        raise isight.broken("failure", expected="no failure: every example answered as PROTOCOL.md allows",
+                            observed=f"fuzz failure ({first.kind}, seed {result.seed}){where}", sent=sent,
+                            signature=signature, finding=f"{', '.join(first.clauses)}: {first.message}{more}",
+                            clauses=tuple(first.clauses))
+    if result.non_strict:
+        obs = result.non_strict[0]
+        raise isight.broken("non-strict", expected="every SHOULD of PROTOCOL.md kept",
+                            observed=f"the box {obs.observed} (×{obs.count})", sent=bytes.fromhex(obs.hex),
+                            signature=Signature.fuzz(obs.clause, key=obs.key), finding=f"[{obs.clause}] {obs.requirement}",
+                            clauses=(obs.clause,))
