@@ -13,9 +13,10 @@ import random
 
 from conformance.harness.client import TcpConnection
 from conformance.protocol import Action, encode, pose_blocks, request
-from conformance.suite import CaseContext, Level, Requirement, Sig, Signature, case
+from conformance.suite import CaseContext, Inconclusive, Level, Requirement, Sig, Signature, case, responsive
 from conformance.suite.backpressure import ANSWER_LEN, Backlog, burst, judge_answers, late_stream, small_rcvbuf
 from conformance.suite.sequence import DEFAULT_POSE
+from conformance.suite.waits import STREAM
 
 #: how many poses a burst pipelines (each answer 14 bytes: about 40 KB of answers behind a 2 KB window)
 BURST = 3000
@@ -34,11 +35,25 @@ def _pose(isight: CaseContext) -> bytes:
     return encode(request(Action.POSE, pose_blocks([DEFAULT_POSE], isight.profile.first_index)), isight.profile)
 
 
-def _judge(isight: CaseContext, out: Backlog, what: str) -> None:
+def _quiet_s(isight: CaseContext, conn: TcpConnection) -> float:
+    """How long to wait for answers still due: time_out, or 1 s once streams of two FAILed cases left a pose
+    unanswered for the whole time_out (bounded time, suite.waits)."""
+    return min(conn.stream_bound or isight.time_out_s, isight.time_out_s)
+
+
+def _judge(isight: CaseContext, conn: TcpConnection, out: Backlog, what: str, quiet_s: float) -> None:
     isight.details[what] = {"requests": out.requests, "sent_bytes": out.sent_bytes, "received_bytes": len(out.received),
                             "reads": out.reads, "unread_s": round(out.unread_s, 3), "elapsed_s": round(out.elapsed_s, 3),
                             "ended": out.ended or "normally"}
     bad = judge_answers(out, int(Action.POSE), out.requests)
+    if bad is not None and out.ended == "silent" and quiet_s < isight.time_out_s:
+        isight.close_all()
+        if responsive(isight.check_alive()):
+            raise Inconclusive(f"{what}: {bad.observed} within {quiet_s * 1000:.0f} ms; streams of earlier cases "
+                               "left a pose unanswered for the whole time_out (the box still answers a fresh "
+                               "connection), so the wait ended there, not judged", signature=LOST, judged=("S6",))
+    if bad is not None and out.ended == "silent" and conn.on_ran_out is not None:
+        conn.on_ran_out(STREAM)  # a stream left unanswered for time_out: the pattern counts if this case FAILs
     if bad is not None:
         raise isight.broken(bad.clause, expected=bad.expected, observed=f"{what}: {bad.observed}",
                             received=bad.received, sent=_pose(isight), signature=LOST)
@@ -50,9 +65,10 @@ def _judge(isight: CaseContext, out: Backlog, what: str) -> None:
 def test_stream_read_late(isight: CaseContext) -> None:
     conn = _connect(isight, "stream (read late)")
     pose = _pose(isight)
+    quiet = _quiet_s(isight, conn)
     out = late_stream(conn, lambda i: pose, isight.profile.pose_rate_hz, isight.time_out_s, ANSWER_LEN,
-                      isight.time_out_s, "stream read late")
-    _judge(isight, out, "stream read late")
+                      isight.time_out_s, "stream read late", quiet)
+    _judge(isight, conn, out, "stream read late", quiet)
 
 
 @case("S6-03", ["S6", "R4", "A1", "F5"], Level.MUST, "A burst of pipelined poses behind a small receive window",
@@ -60,8 +76,9 @@ def test_stream_read_late(isight: CaseContext) -> None:
       "box's send buffer fills): one intact 0000 answer per pose, in order", checks=CHECKS)
 def test_burst(isight: CaseContext) -> None:
     conn = _connect(isight, "stream (burst)")
-    out = burst(conn, [_pose(isight)] * BURST, BURST * ANSWER_LEN, isight.time_out_s, note="burst")
-    _judge(isight, out, "burst")
+    quiet = _quiet_s(isight, conn)
+    out = burst(conn, [_pose(isight)] * BURST, BURST * ANSWER_LEN, isight.time_out_s, note="burst", quiet_s=quiet)
+    _judge(isight, conn, out, "burst", quiet)
 
 
 @case("S6-04", ["S6", "R4", "A1", "F5"], Level.MUST, "The burst read in random small pieces",
@@ -70,5 +87,6 @@ def test_burst(isight: CaseContext) -> None:
 def test_split_reads(isight: CaseContext) -> None:
     conn = _connect(isight, "stream (split reads)")
     rng = random.Random(isight.settings.seed)
-    out = burst(conn, [_pose(isight)] * BURST, BURST * ANSWER_LEN, isight.time_out_s, rng, "burst, split reads")
-    _judge(isight, out, "split reads")
+    quiet = _quiet_s(isight, conn)
+    out = burst(conn, [_pose(isight)] * BURST, BURST * ANSWER_LEN, isight.time_out_s, rng, "burst, split reads", quiet)
+    _judge(isight, conn, out, "split reads", quiet)

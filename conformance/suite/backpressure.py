@@ -85,10 +85,10 @@ def _piece(rng: random.Random | None) -> int:
 
 
 def burst(conn: TcpConnection, frames: list[bytes], expect_bytes: int, time_out_s: float,
-          rng: random.Random | None = None, note: str = "") -> Backlog:
+          rng: random.Random | None = None, note: str = "", quiet_s: float | None = None) -> Backlog:
     """Send every frame back to back, reading only when a send would block (so the box's send buffer fills),
-    then read until ``expect_bytes`` arrived, the box closed, or nothing came for ``time_out_s``.
-    ``rng``: every read takes a random 1..24 bytes (split reads)."""
+    then read until ``expect_bytes`` arrived, the box closed, or nothing came for ``quiet_s`` (default
+    ``time_out_s``). ``rng``: every read takes a random 1..24 bytes (split reads)."""
     assert conn.sock is not None
     out, start = Backlog(), time.monotonic()
     sock, data = conn.sock, b"".join(frames)
@@ -114,13 +114,13 @@ def burst(conn: TcpConnection, frames: list[bytes], expect_bytes: int, time_out_
     conn.sent_bytes += sent
     out.sent_bytes = sent
     out.requests = _whole(frames, sent)
-    _read_rest(conn, out, expect_bytes, time_out_s, rng)
+    _read_rest(conn, out, expect_bytes, time_out_s if quiet_s is None else quiet_s, rng)
     out.elapsed_s = time.monotonic() - start
     return out
 
 
 def late_stream(conn: TcpConnection, frame_at: Callable[[int], bytes], rate_hz: float, unread_s: float,
-                expect_len: int, time_out_s: float, note: str = "") -> Backlog:
+                expect_len: int, time_out_s: float, note: str = "", quiet_s: float | None = None) -> Backlog:
     """Stream one request every 1/rate for ``unread_s`` seconds reading nothing (the box's answers back up),
     then read everything (``expect_len`` bytes per request sent) until it all came, a close, or time_out."""
     assert conn.sock is not None
@@ -136,7 +136,7 @@ def late_stream(conn: TcpConnection, frame_at: Callable[[int], bytes], rate_hz: 
         out.requests += 1
         out.sent_bytes += len(data)
     out.unread_s = time.monotonic() - start
-    _read_rest(conn, out, out.requests * expect_len, time_out_s, None)
+    _read_rest(conn, out, out.requests * expect_len, time_out_s if quiet_s is None else quiet_s, None)
     out.elapsed_s = time.monotonic() - start
     return out
 

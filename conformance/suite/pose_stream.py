@@ -270,5 +270,5 @@ def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, ba
                                             "the last quarter's p50 answer latency (T2 backlog)"), judged=clauses)
         raise fail(level, f"{what}: answer latency does not grow over the run (backlog)",
                    f"last-quarter p50 ≤ {b[2]:.1f} ms (first-quarter p50 {b[0]:.1f} ms + max(20 ms, 3×))",
-                   f"backlog: last-quarter p50 {b[1]:.1f} ms", judged=clauses)
+                   f"backlog: last-quarter p50 {b[1]:.1f} ms", judged=clauses, signature=Signature(Sig.BACKLOG))
 
