@@ -194,10 +194,6 @@ def _from_signature(sig: Signature, members: list[CaseResult]) -> RootCause:
     if kind is Sig.CODE:
         return RootCause("", clauses, gettext("The box answers {action} with error 0x{code} where the cases expect "
                                               "another code").format(action=rest, code=sig.value.upper()), evidence, kind="wrong-code")
-    if kind is Sig.BACKLOG:
-        return RootCause("", ("T2", *[c for c in clauses if c != "T2"][:1]), gettext(
-            "The box's answer latency grows through a pose stream at the profile rate (a backlog)"), evidence,
-            kind="backlog")
     if kind is Sig.LEFT_OPEN:  # certify-robot: a connection the robot never closed (S5), so S1's last steps miss
         return RootCause("", ("S5", "S1"), gettext("The robot leaves its {what} connection open when its session "
                                                    "ends").format(what=rest.replace("+", " and ")), evidence, kind="left-open")
