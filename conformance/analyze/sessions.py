@@ -278,6 +278,9 @@ def _streams(ctx: Context, outcomes: list[ConnOutcome]) -> None:
         if len(tally.details.setdefault("streams", [])) < 20:
             tally.details["streams"].append({"connection": o.label, "figures": j.described[:2],
                                              "windows_hz": j.windows_hz[:120]})
+        if j.ok and j.starved:
+            f.add("T2", ROBOT, Verdict.INCONCLUSIVE, f"{o.label}: {j.starved}")
+            continue
         if j.ok:
             f.check("T2", ROBOT)
             tally.note(f"{o.label}: {j.rate_text}; {j.jitter_text}")

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
+from ..harness.starvation import gauge, watch_loop
 from ..model.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
 from .liveserve import LiveServers
@@ -81,7 +82,9 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
             settings.http = got["http"]
             print(f"page http://{_fmt(got['http'])}/", file=out, flush=True)
     view.start(hub)
+    gauge().start()  # the monitor's own stalls: a T2 breach they could explain is INCONCLUSIVE (analyze.timing)
     loop = asyncio.get_running_loop()
+    stop_watch = watch_loop(loop)
     end = loop.time() + duration_s if duration_s else None
     next_checkpoint = loop.time() + checkpoint_s if checkpoint_s else None
     checkpoints = 0
@@ -112,6 +115,8 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
         if udp is not None:
             await udp.stop()
         hub.finish()
+        stop_watch()
+        gauge().stop()
     suite, cases = write_monitor_reports(hub, report_dir, command)
     return MonitorOutcome(hub, suite, cases, checkpoints)
 

@@ -27,7 +27,6 @@ import argparse
 import json
 import os
 import random
-import shutil
 import signal
 import subprocess
 import sys
@@ -64,11 +63,9 @@ class Row:
 
 
 def suite_command() -> list[str]:
-    exe = Path(sys.executable).with_name("isight-conformance")
-    if exe.exists():
-        return [str(exe)]
-    found = shutil.which("isight-conformance")
-    return [found] if found else [sys.executable, "-m", "conformance"]
+    """The suite of this checkout: ``python -m conformance`` run with the checkout as its working directory
+    (an installed ``isight-conformance`` script imports whichever checkout was installed, not this one)."""
+    return [sys.executable, "-m", "conformance"]
 
 
 class Proc:

@@ -61,6 +61,8 @@ _LIST = [
                  "one pose in the middle of the trajectory has x = NaN", "B4", "NON-STRICT"),
     RobotVariant("slow-stream", replace(_CANONICAL, rate_factor=0.7),
                  "streams 30 % below the declared rate (35 Hz for 50 Hz)", "T2"),
+    RobotVariant("stream-45hz", replace(_CANONICAL, rate_factor=0.9),
+                 "streams 10 % below the declared rate (45 Hz for 50 Hz): judged at --rate-tolerance 5", "T2"),
     RobotVariant("stream-open", replace(_CANONICAL, leave_stream_open=True),
                  "never closes the stream connection (holds it until the box closes it, at most 30 s)", "S5"),
     RobotVariant("little-floats", replace(_CANONICAL, float_order="<"),
