@@ -1,28 +1,35 @@
-"""Fuzz examples per second against the bundled box, with and without pcap evidence.
+"""Fuzz cases per second against the bundled box, beside boofuzz on the same box in the same run.
 
-Run on demand: ``python benchmarks/bench_fuzz.py [--seconds S] [--seed N]``. The box is
-``python -m conformance serve --port 0 --no-udp`` in a child process. In the same run,
-one after the other, for ``--seconds`` each:
+Run on demand: ``python benchmarks/bench_fuzz.py [--seconds S] [--repeats R] [--seed N]``. The
+box is ``python -m conformance serve --port 0 --no-udp`` in a child process. In the same run:
 
 * **baseline**: a raw socket ping-pong on one connection (send a 14-byte NONE frame,
   read its 14-byte answer), the ceiling for one request/answer round trip;
 * **generation only**: hypothesis drawing the same fuzz cases (batches of up to 32)
   with no I/O at all: what hypothesis and the oracle's expectations cost;
-* **fuzz**: a frame campaign (``stateful_share=0``) where every example is a fuzz case
-  plus its probe, judged by the oracle, with a liveness check on a fresh connection
-  every 64 cases and after every anomaly; pcaps only for failures (none here);
-* **fuzz + pcap**: the same with ``capture="all"``: every packet of the campaign
-  written to pcapng as it happens.
+* then ``--repeats`` rounds, each one tool after the other, back to back, for
+  ``--seconds`` each (the machine's load moves between rounds, not within one):
+  - **fuzz**: a campaign as ``fuzz`` runs it (session share 0.2, the schedule, the
+    mutants of :mod:`conformance.fuzz.mutants`): every case plus its probe judged by
+    the oracle, liveness on a fresh connection every 64 cases and after every anomaly;
+    its rate is every case it sent (frame cases and session steps) per second;
+  - **fuzz, frames only**: the same without sessions (``stateful_share=0``);
+  - **fuzz, no mutants**: sessions 0.2, every frame case drawn by hypothesis or the
+    schedule (``mutants=0``: the campaign's loop of the previous release);
+  - **boofuzz**: ``benchmarks/boofuzz_isight.py`` (its cases/s, a new connection each);
+* **fuzz + pcap**: once, frames only with ``capture="all"``.
 
-It prints the rates side by side, the cost of the pcap evidence, and the machine's
-load average (other processes skew the figures: run it twice).
+It prints each round, the medians, fuzz's median over boofuzz's, and the machine's
+load average (other processes skew the figures: compare within a run).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import socket
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -91,46 +98,101 @@ def generation_only(seconds: float, seed_value: int) -> float:
     return count[0] / (time.perf_counter() - start)
 
 
-def campaign(port: int, seconds: float, seed_value: int, capture: str, tmp: Path) -> dict[str, object]:
+#: The previous release's figures on this machine (issue 28: one tool at a time in the same session).
+PREVIOUS = {"fuzz": 752.0, "boofuzz": 559.0}
+HERE = Path(__file__).resolve().parent
+
+
+def campaign(port: int, seconds: float, seed_value: int, capture: str, tmp: Path, *, share: float = 0.0,
+             mutants: int | None = None, name: str = "") -> dict[str, object]:
+    """One campaign's summary, with ``cases_per_s``: every case it sent (frames and session steps) per second."""
+    tag = name or capture
+    extra = {} if mutants is None else {"mutants": mutants}
     config = CampaignConfig(
-        target=Target("127.0.0.1", port), seed=seed_value, duration_s=seconds, stateful_share=0,
-        report_dir=tmp / f"report-{capture}", pcap_dir=tmp / f"pcaps-{capture}", capture=capture, log=lambda _: None,
+        target=Target("127.0.0.1", port), seed=seed_value, duration_s=seconds, stateful_share=share,
+        report_dir=tmp / f"report-{tag}", pcap_dir=tmp / f"pcaps-{tag}", capture=capture, log=lambda _: None,
+        database=None, **extra,  # type: ignore[arg-type]
     )
     summary = Campaign(config).run().to_dict()
-    size = sum(p.stat().st_size for p in (tmp / f"pcaps-{capture}").glob("*.pcapng")) if capture == "all" else 0
+    size = sum(p.stat().st_size for p in (tmp / f"pcaps-{tag}").glob("*.pcapng")) if capture == "all" else 0
     summary["pcap_bytes"] = size
+    steps = int(summary["stateful"]["steps"])  # type: ignore[index]
+    summary["cases_per_s"] = (int(summary["examples"]) + steps) / float(summary["duration_s"])  # type: ignore[call-overload, arg-type]
     return summary
+
+
+def boofuzz(port: int, seconds: float, tmp: Path) -> float | None:
+    """boofuzz's cases/s against the box (``boofuzz_isight.py`` in a child process; None: boofuzz is missing)."""
+    out = tmp / "boofuzz.json"
+    out.unlink(missing_ok=True)
+    done = subprocess.run([sys.executable, str(HERE / "boofuzz_isight.py"), "--port", str(port), "--duration",
+                           str(seconds), "--result", str(out)], capture_output=True, text=True,
+                          timeout=seconds * 4 + 60, check=False)
+    if not out.exists():
+        print(f"  boofuzz did not run: {(done.stderr or done.stdout).strip().splitlines()[-1:]}")
+        return None
+    return float(json.loads(out.read_text())["cases_per_s"] or 0)
+
+
+def rounds(port: int, args: argparse.Namespace, tmp: Path) -> dict[str, list[float]]:
+    """``--repeats`` rounds of the four tools back to back; each tool's rates."""
+    rates: dict[str, list[float]] = {"fuzz": [], "frames": [], "no-mutants": [], "boofuzz": []}
+    for r in range(args.repeats):
+        seed_value = args.seed + r
+        full = campaign(port, args.seconds, seed_value, "failures", tmp, share=0.2, name=f"full-{r}")
+        frames = campaign(port, args.seconds, seed_value, "failures", tmp, name=f"frames-{r}")
+        plain = campaign(port, args.seconds, seed_value, "failures", tmp, share=0.2, mutants=0, name=f"plain-{r}")
+        boo = boofuzz(port, args.seconds, tmp)
+        for key, value in (("fuzz", full["cases_per_s"]), ("frames", frames["cases_per_s"]),
+                           ("no-mutants", plain["cases_per_s"])):
+            rates[key].append(float(value))  # type: ignore[arg-type]
+        if boo is not None:
+            rates["boofuzz"].append(boo)
+        states = full["stateful"]["coverage"].get("fraction")  # type: ignore[index]
+        before = plain["stateful"]["coverage"].get("fraction")  # type: ignore[index]
+        print(f"  round {r + 1}: fuzz {full['cases_per_s']:,.0f}/s (states {states}, coverage "
+              f"{full['coverage']['fraction']}), frames only {frames['cases_per_s']:,.0f}/s, "  # type: ignore[index]
+              f"no mutants {plain['cases_per_s']:,.0f}/s (states {before}, coverage "
+              f"{plain['coverage']['fraction']}), boofuzz {boo or 0:,.0f}/s; "  # type: ignore[index]
+              f"failures {len(full['failures']) + len(frames['failures']) + len(plain['failures'])}; "  # type: ignore[arg-type]
+              f"load {os.getloadavg()[0]:.1f}", flush=True)
+    return rates
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seconds", type=float, default=5.0, help="per measurement (default: 5)")
+    ap.add_argument("--repeats", type=int, default=3, help="rounds of the tools back to back (default: 3)")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     load_before = os.getloadavg()[0]
     proc, port = start_box()
+    print(f"box: pid {proc.pid}, python -m conformance serve --port 0 --no-udp (child process), {args.seconds:g} s "
+          f"each, {args.repeats} rounds", flush=True)
     try:
         with tempfile.TemporaryDirectory() as d:
             tmp = Path(d)
             base = baseline(port, args.seconds)
             gen = generation_only(args.seconds, args.seed)
-            plain = campaign(port, args.seconds, args.seed, "failures", tmp)
+            rates = rounds(port, args, tmp)
             pcap = campaign(port, args.seconds, args.seed, "all", tmp)
     finally:
         proc.terminate()
         proc.wait(10)
-    rate_plain = float(plain["examples_per_s"] or 0)  # type: ignore[arg-type]
-    rate_pcap = float(pcap["examples_per_s"] or 0)  # type: ignore[arg-type]
-    print(f"box: pid {proc.pid}, python -m conformance serve --port 0 --no-udp (child process), {args.seconds:g} s each")
+    med = {k: statistics.median(v) if v else 0.0 for k, v in rates.items()}
     print(f"  baseline raw socket ping-pong (NONE, 14 B each way): {base:>10,.0f} round trips/s")
     print(f"  hypothesis generation only (no I/O):                 {gen:>10,.0f} cases/s")
-    print(f"  fuzz, oracle + liveness, pcaps for failures only:    {rate_plain:>10,.0f} examples/s "
-          f"({plain['examples']:,} examples, {plain['liveness_checks']:,} liveness checks, "
-          f"{len(plain['failures'])} failures)")  # type: ignore[arg-type]
-    print(f"  fuzz, oracle + liveness, every packet to pcapng:      {rate_pcap:>10,.0f} examples/s "
-          f"({pcap['examples']:,} examples, {int(pcap['pcap_bytes']) / 1e6:.1f} MB of pcapng)")  # type: ignore[call-overload]
-    if rate_plain:
-        print(f"  pcap evidence costs {100 * (1 - rate_pcap / rate_plain):.1f} % of the examples/s")
+    print(f"  median of {args.repeats} rounds, cases/s:")
+    print(f"    fuzz (sessions 0.2, schedule, mutants):          {med['fuzz']:>10,.0f}")
+    print(f"    fuzz, frames only:                               {med['frames']:>10,.0f}")
+    print(f"    fuzz, no mutants (the previous release's loop):  {med['no-mutants']:>10,.0f}")
+    print(f"    boofuzz (boofuzz_isight.py):                     {med['boofuzz']:>10,.0f}")
+    if med["boofuzz"]:
+        print(f"  fuzz / boofuzz: {med['fuzz'] / med['boofuzz']:.2f}x (previous release: {PREVIOUS['fuzz']:,.0f} vs "
+              f"{PREVIOUS['boofuzz']:,.0f} cases/s, {PREVIOUS['fuzz'] / PREVIOUS['boofuzz']:.2f}x)")
+    rate_pcap = float(pcap["cases_per_s"])  # type: ignore[arg-type]
+    print(f"  fuzz, frames only, every packet to pcapng:         {rate_pcap:>10,.0f} cases/s "
+          f"({int(pcap['pcap_bytes']) / 1e6:.1f} MB of pcapng)")  # type: ignore[call-overload]
     print(f"  machine load average (1 min): {load_before:.2f} before, {os.getloadavg()[0]:.2f} after "
           f"({os.cpu_count()} cores; other processes skew the figures)")
 

@@ -11,13 +11,19 @@ time and peak resident memory (VmHWM) by :class:`tests.impls.matrix.Proc`:
   ``flood-random``, ``flood-headers``, ``leaky``, and the boxes that go quiet (issue 17:
   bounded time for every box that answers at all): ``no-resync`` (silent after garbage,
   R6), ``drops-coalesced`` (answers only the first frame of a read, R4),
-  ``one-at-a-time`` (S4). Each is started by ``python -m tests.impls.box NAME``, exactly
-  as the matrix does.
+  ``one-at-a-time`` (S4), and the boxes of issue 25 (every box judged in bounded time,
+  whatever it does): ``sticky-error`` (after an error every answer repeats its code),
+  ``drops-frames`` (every 7th answer never written), ``answers-some-actions`` (Tolerance
+  and RegisterPose never answered), ``quiet-after-n`` (silent after 150 answers),
+  ``short-send-drops`` (drops what a short non-blocking send left, S6), ``latency-grows``
+  (T2 backlog) and the legal ``late-inside-timeout`` (every answer 100 ms late). Each is
+  started by ``python -m tests.impls.box NAME``, exactly as the matrix does.
 
 It prints one line per endpoint: exit code, wall time, peak RSS, the judgement against
 ``tests/impls/expectations.py`` and the first root cause the run reported. The load
 average before and after is printed too: the figures measure the machine as much as the
-suite.
+suite. The last lines give the goals of issue 25: the longest run, the median over the
+broken boxes and the longest conforming run (reference and late-inside-timeout).
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import sys
 import tempfile
 import time
@@ -36,7 +43,12 @@ from tests.impls.expectations import EXPECTATIONS  # noqa: E402
 from tests.impls.matrix import Proc, run_box, suite_command  # noqa: E402
 
 ENDPOINTS = ["reference", "no-resync", "drops-coalesced", "one-at-a-time", "dead", "swapped-version",
-             "late-cycle-on", "flood-random", "flood-headers", "leaky"]
+             "late-cycle-on", "flood-random", "flood-headers", "leaky",
+             # issue 25: bounded time whatever the box does
+             "sticky-error", "drops-frames", "answers-some-actions", "quiet-after-n", "short-send-drops",
+             "latency-grows", "late-inside-timeout"]
+#: the conforming endpoints (the rest are broken)
+CONFORMING = ("reference", "late-inside-timeout")
 
 
 def run_reference(out: Path, limit: float) -> dict[str, object]:
@@ -72,6 +84,19 @@ def run_impl(name: str, out: Path, limit: float) -> dict[str, object]:
             "judgement": row.judgement, "root_cause": (row.root_causes or ["-"])[0][:90]}
 
 
+def goals(walls: dict[str, float]) -> None:
+    """Issue 25's goals beside the figures: max <= 120 s, median broken <= 60 s, conforming <= 30 s."""
+    broken = sorted(w for n, w in walls.items() if n not in CONFORMING)
+    conforming = [w for n, w in walls.items() if n in CONFORMING]
+    if walls:
+        name = max(walls, key=walls.__getitem__)
+        print(f"max {walls[name]:.1f} s ({name}; goal <= 120 s)")
+    if broken:
+        print(f"median broken {statistics.median(broken):.1f} s over {len(broken)} boxes (goal <= 60 s)")
+    if conforming:
+        print(f"conforming max {max(conforming):.1f} s (goal <= 30 s)")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--only", nargs="+", choices=ENDPOINTS, metavar="NAME", help="only these endpoints")
@@ -80,16 +105,19 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     names = args.only or ENDPOINTS
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}  cores: {os.cpu_count()}")
-    print(f"{'endpoint':<16} {'exit':>4} {'wall s':>7} {'peak MB':>8}  {'judgement':<24} first root cause")
+    print(f"{'endpoint':<20} {'exit':>4} {'wall s':>7} {'peak MB':>8}  {'judgement':<24} first root cause")
     with tempfile.TemporaryDirectory(prefix="bench-verdicts-") as tmp:
         out = args.out or Path(tmp)
         out.mkdir(parents=True, exist_ok=True)
         ok = True
+        walls: dict[str, float] = {}
         for name in names:
             r = run_reference(out, args.limit) if name == "reference" else run_impl(name, out, args.limit)
             ok = ok and r["judgement"] == "ok"
-            print(f"{r['name']:<16} {r['exit']!s:>4} {r['wall_s']:>7.1f} {r['peak_rss_mb']:>8.1f}  "
+            walls[name] = float(r["wall_s"])  # type: ignore[arg-type]
+            print(f"{r['name']:<20} {r['exit']!s:>4} {r['wall_s']:>7.1f} {r['peak_rss_mb']:>8.1f}  "
                   f"{r['judgement']!s:<24} {r['root_cause']}", flush=True)
+    goals(walls)
     print(f"load average after:  {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0 if ok else 1
 

@@ -19,7 +19,7 @@ from typing import Any
 
 from conformance.analyze.analysis_context import AnalyzeConfig
 from conformance.monitor.hub import MonitorSettings
-from conformance.monitor.runner import MonitorOutcome, run_monitor
+from conformance.monitor.monitor_loop import MonitorOutcome, run_monitor
 from conformance.monitor.view import View
 from conformance.protocol import DEFAULT_PROFILE, Profile
 

@@ -16,9 +16,10 @@ latencies.
 from __future__ import annotations
 
 from array import array
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ..observed.stream_timing import judge_jitter, judge_rate, stream_stats
+from ..observed.stream_timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
 from ..suite.pose_stream import StreamResult
 from .findings import Series
 
@@ -39,6 +40,7 @@ class StreamJudgement:
     jitter_ok: bool = True
     jitter_text: str = ""
     described: list[str] = field(default_factory=list)  # each block's figures
+    starved: str = ""  # a breach the monitoring side's own stalls could explain (INCONCLUSIVE, not FAIL)
     windows_hz: list[float] = field(default_factory=list)  # the first blocks' per-second rates
 
     @property
@@ -86,10 +88,12 @@ class PoseClock:
         stats = stream_stats(times, self.rate_hz)  # None below MIN_POSES
         if stats is not None:
             j.blocks += 1
-            ok, text = judge_rate(stats, self.rate_tolerance)
+            ok, text = self._unless_starved(judge_rate(stats, self.rate_tolerance),
+                                            lambda: rate_starved(stats, times, self.rate_tolerance))
             if j.rate_ok:
                 j.rate_ok, j.rate_text = ok, text
-            ok, text = judge_jitter(stats, self.jitter_tolerance)
+            ok, text = self._unless_starved(judge_jitter(stats, self.jitter_tolerance),
+                                            lambda: jitter_starved(stats, times, self.jitter_tolerance))
             if j.jitter_ok:
                 j.jitter_ok, j.jitter_text = ok, text
             if len(j.described) < 8:
@@ -100,6 +104,16 @@ class PoseClock:
                 self.intervals.extend(stats.intervals_ms, peaks=False)
         self._carried = keep_last and bool(times)
         self.times = array("d", [times[-1]]) if self._carried else array("d")
+
+    def _unless_starved(self, judged: tuple[bool, str], starving: Callable[[], str | None]) -> tuple[bool, str]:
+        """A breach the live monitor's own stalls could explain is not a FAIL (the gauge runs only while
+        ``monitor`` watches live traffic: a capture's time stamps are the wire's)."""
+        ok, text = judged
+        reason = None if ok else starving()
+        if reason is None:
+            return judged
+        self.judgement.starved = self.judgement.starved or f"{reason}. {text}"
+        return True, text
 
 
 @dataclass(frozen=True)
@@ -114,6 +128,12 @@ class Backlog:
 
 
 def backlog(latencies: Series, rate_hz: float) -> Backlog | None:
-    """The active suite's T2 backlog figure on the stream's latency sample (None below 8 answers)."""
+    """The active suite's T2 backlog figure on the stream's latency sample (None below 8 answers), with a
+    threshold of at least one stream period above the first quarter's p50: seen from the wire, a backlog is
+    a box at least one pose behind, not a loaded machine's scheduling (issue 26's pairs, at 20 Hz)."""
     b = StreamResult(rate_hz=rate_hz, latencies_ms=latencies.sample).backlog()
-    return None if b is None else Backlog(*b)
+    if b is None:
+        return None
+    first, last, threshold = b
+    period_ms = 1000.0 / rate_hz if rate_hz > 0 else 0.0
+    return Backlog(first, last, max(threshold, first + period_ms))

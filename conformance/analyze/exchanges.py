@@ -28,7 +28,7 @@ from typing import Any
 from ..model.verdicts import Verdict, broken_verdict
 from ..observed.connections import Exchange
 from ..observed.robot_frames import FrameRecord
-from ..protocol import Action, Frame, ProtocolError, action_name
+from ..protocol import EXTENSION_ACTIONS, Action, Frame, ProtocolError, action_name
 from ..protocol.answers import Cycle, unanswered
 from ..protocol.constants import START_WORD, VERSION
 from .analysis_context import Context
@@ -84,6 +84,9 @@ class ConnJudge:
         self.robot_counts: dict[int, int] = {}  # well-formed non-pose requests per action
         self.box_counts: dict[int, int] = {}  # well-formed answers per action (but the short path's poses)
         self.robot_errors = self.box_errors = 0
+        self.answer_codes: dict[int, int] = {}  # answers per error code (but the short path's poses: 0000)
+        #: the monitor's live histogram of the poses' answer latencies (ms), when it watches (else None)
+        self.observe_pose: Any = getattr(ctx, "observe_pose", None)
         self.poses = self.box_poses = 0  # well-formed poses; well-formed pose answers on the short path
         self.paired = self.paired_poses = self.poses_ok = 0
         self.t1_ms = ctx.time_out_s * 1000.0
@@ -112,7 +115,7 @@ class ConnJudge:
 
     # -- the robot's events ----------------------------------------------------------------------
     def request(self, event: Any, raw: bytes, offset: int, first: int, last: int, t: float) -> None:
-        if type(event) is Frame and event.action is POSE and self.steady:
+        if type(event) is Frame and event.action is POSE and self.steady and not self.robot_counts:
             # the stream's pose (after the first ones): counted, timed and queued for its answer
             self.poses += 1
             times = self.clock.times
@@ -162,7 +165,15 @@ class ConnJudge:
             self.not_paired += 1
             return
         exchange = None
-        if action is not None and action is not POSE and len(self.records) < KEEP_REQUESTS:
+        if action is POSE and self._keep_pose(t):
+            # a pose the session judges (its first, the first in the cycle, one on a command connection):
+            # what the box did about it is kept too, so A1/T1 of the robot see its answer
+            exchange = Exchange(offset, t, action, "pending")
+            self.exchanges.append(exchange)
+            if self.robot_counts:
+                self.records.append(FrameRecord(0, self.transport, t, offset, raw[:64], event))
+            self.frame_at.setdefault(t, last)
+        elif action is not None and action is not POSE and len(self.records) < KEEP_REQUESTS:
             exchange = Exchange(offset, t, action, "pending")
             self.records.append(FrameRecord(0, self.transport, t, offset, raw[:64], event))
             self.exchanges.append(exchange)
@@ -172,6 +183,14 @@ class ConnJudge:
         self.queue.append((t, action, first, last, KIND[exp.rule], raw, event, exchange, exp))
         if len(self.queue) > MAX_OUTSTANDING:
             self._overflow(t)
+
+    def _keep_pose(self, t: float) -> bool:
+        """Keep this pose's exchange: the connection's first pose or the first after the cycle began (the
+        session's records), or any pose on a connection that carries commands (ISIGHT(3,35)), within bounds."""
+        if len(self.exchanges) >= KEEP_REQUESTS:
+            return False
+        return bool(self.robot_counts) or (self.first_pose is not None and self.first_pose[0] == t) or \
+            (self.pose_after is not None and self.pose_after[0] == t)
 
     def _note_action(self, action: int) -> None:
         if action not in self.actions:
@@ -197,13 +216,15 @@ class ConnJudge:
         queue = self.queue
         if type(event) is Frame and event.action is POSE and not event.error_code and queue:
             head = queue[0]
-            if head[1] is POSE and head[4] == OK:  # the stream's answer, 0000, to the pose it answers
+            if head[1] is POSE and head[4] == OK and head[7] is None:  # the stream's answer, 0000, to its pose
                 latency = (t - head[0]) * 1000.0
                 if latency <= self.t1_ms:
                     queue.popleft()
                     self.box_poses += 1
                     lat = self._latencies
                     lat.append(latency)
+                    if self.observe_pose is not None:
+                        self.observe_pose(latency)
                     if len(lat) >= LATENCY_BATCH:
                         self.pose_latency.extend(lat)
                         self._latencies = array("d")
@@ -219,13 +240,16 @@ class ConnJudge:
             action = event.action
             code = event.error_code
             self.box_counts[event.action] = self.box_counts.get(event.action, 0) + 1
-            if event.blocks and self.f4[BOX] < F4_SAMPLE:
+            self.answer_codes[code] = self.answer_codes.get(code, 0) + 1
+            if event.blocks and self.f4[BOX] < F4_SAMPLE and not self._echoes(event):
                 byte_order(self, BOX, event, raw, offset, t, last)
         else:
             self.box_errors += 1
             clause = _BOX_CLAUSE.get(event.clause, event.clause)
             self.findings.add(clause, BOX, broken_verdict(spec_for(clause, BOX).level),
                               f"{self.label}, offset {offset}: {event.message}", (first, last), box=raw)
+            # the robot may take a malformed answer for a refusal and stop: what it does next is not judged
+            self.refused(t, f"the box sent a malformed frame ({event.clause})")
             if event.clause in ("F2", "F1") and self.f4[BOX] < F4_SAMPLE:
                 byte_order(self, BOX, event, raw, offset, t, last)
             action = _header_action(event)
@@ -246,6 +270,12 @@ class ConnJudge:
             self._unsolicited(raw, action, code, first, last)
             return
         self._pair(queue.popleft(), event, raw, action, code, last, t)
+
+    def _echoes(self, event: Frame) -> bool:
+        """The answer carries the very blocks of the request it answers (a ProgIdx echoed): their byte order
+        is the robot's, not evidence about the box's (F4)."""
+        head = self.queue[0] if self.queue else None
+        return head is not None and type(head[6]) is Frame and head[6].blocks == event.blocks
 
     def _ok_later(self, action: int | None) -> bool:
         return any(r[4] == OK and r[1] == action for r in self.queue)
@@ -279,6 +309,8 @@ class ConnJudge:
         if r_action is POSE:
             self.paired_poses += 1
             self._latencies.append(latency)
+            if self.observe_pose is not None:
+                self.observe_pose(latency)
         else:
             ctx.latency.add(latency)
         frames = (r_last, last)
@@ -286,6 +318,9 @@ class ConnJudge:
         if latency > limit:
             self.findings.add("T1", BOX, FAIL, f"{self.label}: {action_name(r_action)} answered after "
                               f"{latency:.1f} ms; the bound is {limit:.0f} ms", frames, robot=r_raw, box=raw)
+            # the robot stops waiting at its time_out: from then on it may give the session up
+            self.refused(t_req + limit / 1000.0, f"the box did not answer {action_name(r_action)} within "
+                                                 f"{limit:.0f} ms")
         if exchange is not None:
             exchange.answer, exchange.t_answer, exchange.error_code = raw, t, code
             exchange.reaction = "answered"
@@ -360,7 +395,14 @@ class ConnJudge:
             if exchange is not None:
                 exchange.reaction = "close" if end in ("box", "robot") else "silent"
             name = action_name(action)
-            if self.garbage_t is not None and t_req > self.garbage_t:
+            if action in EXTENSION_ACTIONS and not any(self.box_counts.get(a) for a in EXTENSION_ACTIONS):
+                # a box without the extension E may stay silent on 26 and 27 (A5, legal table row
+                # extension-refusal); nothing here shows this box implements E
+                f.add("A1", BOX, INCONCLUSIVE, f"{label}: {name} never answered; a box without the extension E may "
+                      "stay silent on it (A5), and no answer to 26 or 27 shows this box implements E", (last,),
+                      robot=raw)
+                self.refused(t_req, f"the box did not answer {name}")
+            elif self.garbage_t is not None and t_req > self.garbage_t:
                 f.add("R6", BOX, NON_STRICT, f"{label}: {name} after the robot's garbage never answered; the box "
                       "neither resynchronised nor closed", (last,), robot=raw)
             elif end in ("box", "robot") or waited >= limit:

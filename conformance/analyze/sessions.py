@@ -29,7 +29,14 @@ from .analysis_context import Context
 from .capture_timing import StreamJudgement
 from .findings import ROBOT
 
-__all__ = ["ConnOutcome", "ObservedView", "Session", "SessionTracker"]
+__all__ = ["SPLIT_AFTER_S", "SPLIT_CONNECTIONS", "ConnOutcome", "ObservedView", "Session", "SessionTracker"]
+
+#: a session takes at most this many connections, and no new one once it is this old: the next starts a new
+#: session (several robots behind one address, a connection open for a week: memory stays flat)
+SPLIT_CONNECTIONS = 64
+SPLIT_AFTER_S = 3600.0
+#: a stream's rate (T2) is judged from this many intervals on (the robot stopped after a refusal: a few poses)
+MIN_RATE_INTERVALS = 8
 
 
 @dataclass
@@ -72,6 +79,9 @@ class Session:
         self.conns: list[Any] = []  # the live connections (their judges get the first CycleOn)
         self.outcomes: list[ConnOutcome] = []
         self.cycle_on: float | None = None
+        self.seen = 0  # connections attached so far
+        self.split_at: float | None = None  # when a new connection went to a new session instead
+        self.continues: int | None = None  # the number of the session this one was split from
 
     def on_cycle_on(self, t: float) -> None:
         if self.cycle_on is None:
@@ -94,11 +104,20 @@ class SessionTracker:
     def attach(self, conn: Any) -> Session:
         key = (conn.robot[0], conn.box[0], conn.box[1])
         session = self.open.get(key)
+        previous = None
+        if session is not None and (session.seen >= SPLIT_CONNECTIONS or conn.t_open - session.t0 > SPLIT_AFTER_S):
+            # split: the old session keeps its open connections and is judged when they end; it is cut here
+            session.split_at = conn.t_open
+            previous, session = session, None
+            del self.open[key]
         if session is None:
             self.count += 1
             self.ctx.stats.sessions += 1
             session = self.open[key] = Session(self.count, key, conn.t_open)
+            if previous is not None:
+                session.continues = previous.number
         session.open += 1
+        session.seen += 1
         session.conns.append(conn)
         conn.judge.on_cycle_on = session.on_cycle_on
         if session.cycle_on is not None:
@@ -126,11 +145,14 @@ def judge_session(ctx: Context, session: Session) -> None:
         record = dataclasses.replace(o.record, number=n)
         records.append(record)
         kept = [dataclasses.replace(r, conn=n) for r in o.requests]
+        have = {r.offset for r in kept}
         for pose in (o.first_pose, o.pose_after):
             if pose is not None:
                 t, frame, offset, event = pose
-                kept.append(FrameRecord(n, "tcp", t, offset, b"", event))
                 frame_at.setdefault(t, frame)
+                if offset not in have:  # the first pose may be the first in the cycle, or kept already: once
+                    have.add(offset)
+                    kept.append(FrameRecord(n, "tcp", t, offset, b"", event))
         frames[n] = sorted(kept, key=lambda r: r.t)
         frame_at.update({t: f for t, f in o.frame_at.items() if t not in frame_at})
     t_end = max(o.t_end for o in outcomes)
@@ -139,11 +161,14 @@ def judge_session(ctx: Context, session: Session) -> None:
                         frame_at=frame_at)
     view.frames = frames
     view.cut = _cut(view, outcomes)
+    if session.split_at is not None and (view.cut is None or view.cut.t > session.split_at):
+        view.cut = Cut(session.split_at, f"the session was split there (more than {SPLIT_CONNECTIONS} connections, "
+                                         f"or older than {SPLIT_AFTER_S:g} s): what follows is a new session")
     label = session.label
     extension = ctx.config.extension
     if extension is None:
         extension = any(a in (Action.PROG_IDX, Action.VISION_RESULT) for o in outcomes for a in o.record.actions)
-    _order(ctx, view, outcomes, label, extension)
+    _order(ctx, view, outcomes, label, extension, session.continues)
     _awaited(ctx, view, label)
     _closes(ctx, view, outcomes, label)
     _streams(ctx, outcomes)
@@ -160,15 +185,18 @@ def _cut(view: SessionView, outcomes: list[ConnOutcome]) -> Cut | None:
     return min(cuts, key=lambda c: c.t) if cuts else None
 
 
-def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label: str, extension: bool) -> None:
+def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label: str, extension: bool,
+           continues: int | None = None) -> None:
     clause = "E4" if extension else "S1"
     f = ctx.findings
     first = outcomes[0]
     seen = [r for rs in view.frames.values() for r in rs if r.action is not None]
-    if not first.handshake:
+    if not first.handshake or continues is not None:
         actions = sorted({r.action for r in seen if r.action is not None})
+        why = (f"it continues session {continues}, split there (too many or too old connections)"
+               if first.handshake else f"the capture starts mid-session ({first.label} was already open)")
         f.add(clause, ROBOT, Verdict.INCONCLUSIVE,
-              f"{label}: the capture starts mid-session ({first.label} was already open): the order is not judged; "
+              f"{label}: {why}: the order is not judged; "
               f"seen: {', '.join(action_name(a) for a in actions) or 'no request'}",
               (view.frame_at.get(first.record.t_open, 0),))
         return
@@ -176,7 +204,10 @@ def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label:
     steps = "; ".join(f"{name} {view.ms(t)}" for name, t in result.steps.items())
     lines = [*result.violations, *result.missing]
     frames = sorted({n for n in view.frame_at.values()})[:1]
-    if result.failed:
+    if result.failed and len(view.commands) > 1:
+        f.add(clause, ROBOT, Verdict.INCONCLUSIVE, f"{label}: {crowded(view)}; not judged: {'; '.join(lines)} "
+              f"[steps: {steps}]", frames)
+    elif result.failed:
         f.add(clause, ROBOT, Verdict.FAIL, f"{label}: {'; '.join(lines)} [steps: {steps}]", frames)
     elif result.not_judged:
         cut = view.cut
@@ -187,6 +218,13 @@ def _order(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label:
         f.check(clause, ROBOT)
         f.tally(clause, ROBOT).note(f"{label}: all {len(result.steps)} steps in order [steps: {steps}]"
                                     + (f" ({'; '.join(result.notes)})" if result.notes else ""))
+
+
+def crowded(view: SessionView) -> str:
+    """Why a session with several command connections is not judged as one robot's."""
+    return (f"{len(view.commands)} command connections from one address at once: several robots behind one address "
+            "(NAT), or one robot opening several; which connection belongs to which session cannot be told from "
+            "the wire (certify-robot, or a capture per robot, tells)")
 
 
 def _awaited(ctx: Context, view: ObservedView, label: str) -> None:
@@ -212,7 +250,10 @@ def _closes(ctx: Context, view: ObservedView, outcomes: list[ConnOutcome], label
             end = record.t_close if record.t_close is not None else o.t_end
             if end - cmd_closed > linger:
                 late = end - cmd_closed
-        if late is not None:
+        if late is not None and len(view.commands) > 1:
+            f.add("S5", ROBOT, Verdict.INCONCLUSIVE, f"{label}: {o.label} outlived a command connection by "
+                  f"{late:.1f} s; {crowded(view)}")
+        elif late is not None:
             what = "closed" if record.t_close is not None else "still open when the capture ends"
             f.add("S5", ROBOT, Verdict.FAIL, f"{label}: {o.label} {what} {late:.1f} s after the command connection "
                   f"closed (more than --linger {linger:g} s): the robot left it open",
@@ -229,13 +270,17 @@ def _streams(ctx: Context, outcomes: list[ConnOutcome]) -> None:
         if o.record.role != "stream":
             continue
         j = o.stream
-        if not j.blocks:
-            f.add("T2", ROBOT, Verdict.INCONCLUSIVE, f"{o.label}: {j.poses} pose(s): too few to measure a rate")
+        if not j.blocks or j.poses <= MIN_RATE_INTERVALS:  # a few poses' "rate" is the machine's scheduling
+            f.add("T2", ROBOT, Verdict.INCONCLUSIVE, f"{o.label}: {j.poses} pose(s): too few to measure a rate "
+                  f"(at least {MIN_RATE_INTERVALS + 1})")
             continue
         tally = f.tally("T2", ROBOT)
         if len(tally.details.setdefault("streams", [])) < 20:
             tally.details["streams"].append({"connection": o.label, "figures": j.described[:2],
                                              "windows_hz": j.windows_hz[:120]})
+        if j.ok and j.starved:
+            f.add("T2", ROBOT, Verdict.INCONCLUSIVE, f"{o.label}: {j.starved}")
+            continue
         if j.ok:
             f.check("T2", ROBOT)
             tally.note(f"{o.label}: {j.rate_text}; {j.jitter_text}")

@@ -6,7 +6,7 @@
   garbage; UDP datagrams when there is a UDP target), each followed by a probe and
   judged by the fuzz oracle, liveness on a fresh connection every 64 cases and after
   every anomaly (R2).
-* FUZZ-02: one second of the session state machine (:mod:`conformance.fuzz.stateful`):
+* FUZZ-02: one second of the session state machine (:mod:`conformance.fuzz.session_runner`):
   cycles, poses on a stream connection, tolerances, ProgIdx/result when the box has E,
   malformed frames and reconnects, interleaved.
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..evidence.pcap import write_transcript
+from ..harness.starvation import gauge, watch_loop
 from ..harness.transcript import ConnectionInfo, Transcript, WireEvent
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
@@ -108,7 +109,12 @@ async def certify(
         on_listening(listener.describe())
     if listener_ready is not None:
         listener_ready(listener)
-    run = await listener.run()
+    with gauge():  # the suite's own scheduling delay while it stamps the robot's frames (T2 on a loaded runner)
+        stop_watch = watch_loop(asyncio.get_running_loop())
+        try:
+            run = await listener.run()
+        finally:
+            stop_watch()
     if not run.sessions:
         return CertifyOutcome(EXIT_USAGE, run.end_note or "no robot connected", run)
     await asyncio.to_thread(write_pcaps, run)

@@ -34,7 +34,7 @@ from ..observed.robot_catalogue import (
 )
 from ..observed.robot_frames import FrameRecord, byte_order_evidence
 from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
-from ..observed.stream_timing import judge_jitter, judge_rate, stream_stats
+from ..observed.stream_timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
@@ -217,13 +217,20 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
     note = (f"\n{unreadable} chunk(s) of the stream had no readable header and are not counted as poses"
             if unreadable else "")
     out = []
-    for spec, (ok, text), tolerance in (
-        (RATE_SPEC, judge_rate(stats, cfg.rate_tolerance), f"±{cfg.rate_tolerance * 100:g} % of the declared rate"),
-        (JITTER_SPEC, judge_jitter(stats, cfg.jitter_tolerance), f"{cfg.jitter_tolerance * 100:g} % of the period"),
+    for spec, (ok, text), tolerance, starving in (
+        (RATE_SPEC, judge_rate(stats, cfg.rate_tolerance), f"±{cfg.rate_tolerance * 100:g} % of the declared rate",
+         lambda: rate_starved(stats, times, cfg.rate_tolerance)),
+        (JITTER_SPEC, judge_jitter(stats, cfg.jitter_tolerance), f"{cfg.jitter_tolerance * 100:g} % of the period",
+         lambda: jitter_starved(stats, times, cfg.jitter_tolerance)),
     ):
         details = {"interval_histogram": histogram, "stream": stats.describe(), "tolerance": tolerance,
                    "windows_hz": [round(w.rate_hz, 2) for w in stats.windows]}
-        out.append(ctx.result(spec, Verdict.PASS if ok else Verdict.FAIL, text, f"{text}\n{stats.describe()}{note}",
+        verdict = Verdict.PASS if ok else Verdict.FAIL
+        # the frames' times are when the suite's event loop saw them: a stall of the suite's own can explain a breach
+        starved = None if ok else starving()
+        if starved is not None:
+            verdict, text = Verdict.INCONCLUSIVE, f"{starved}. {text}"
+        out.append(ctx.result(spec, verdict, text, f"{text}\n{stats.describe()}{note}",
                               pcap=ctx.pcap(stream.number), details=details))
     return out
 

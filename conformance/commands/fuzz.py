@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..fuzz.database import DEFAULT_DATABASE
+from ..fuzz.gating import add_gating_arguments
 from ..fuzz.launch import main_fuzz
 from ..i18n import N_, _
 from .options import add_profile_group, add_target_options
@@ -18,6 +19,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     budget = p.add_mutually_exclusive_group()
     budget.add_argument("--max-examples", type=int, metavar="N", help=_("fuzz cases to send (default: 5000)"))
     budget.add_argument("--duration", type=float, metavar="S", help=_("seconds to fuzz for"))
+    add_gating_arguments(p, budget)
     p.add_argument("--seed", type=int, metavar="N", help=_("the campaign's seed (printed at the start; default: random)"))
     p.add_argument("--report-dir", metavar="DIR", help=_("fuzz-summary.json and one vector file per failure "
                    "(default: reports/fuzz-<timestamp>)"))
@@ -41,8 +43,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help=_("[R2] liveness check on a fresh connection every K cases, and after every anomaly (default: 64)"))
     p.add_argument("--max-failures", type=int, default=5, metavar="N", help=_("stop after N distinct failures (default: 5)"))
     p.add_argument("--restart-cmd", metavar="CMD",
-                   help=_("[R2] a shell command that brings a dead box back (e.g. 'systemctl restart aibox'): a death "
-                   "is then confirmed, shrunk to the shortest killing sequence, and the campaign goes on"))
+                   help=_("[R2] a shell command that starts or brings back the box (e.g. './aibox --port 9004' or "
+                   "'systemctl restart aibox'), run as this command's child: a death is confirmed, shrunk to the "
+                   "shortest killing sequence, and the campaign goes on; what the box wrote before it died (a "
+                   "sanitizer report, a traceback) is kept with the finding"))
     p.add_argument("--quiet", action="store_true", help=_("no progress lines"))
     add_profile_group(p, _("profile"))
 

@@ -53,6 +53,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     out.add_argument("--checkpoint", type=float, default=10.0, metavar="MINUTES",
                      help=_("write the reports every MINUTES minutes too; 0: only on stop (default: 10)"))
     out.add_argument("--quiet", action="store_true", help=_("findings only: no live panel, no status lines"))
+    live = p.add_argument_group(_("plant monitoring (see docs/MONITOR.md)"))
+    live.add_argument("--metrics", metavar="HOST:PORT", default=None,
+                      help=_("serve Prometheus metrics at http://HOST:PORT/metrics (loopback unless --allow-remote)"))
+    live.add_argument("--http", metavar="HOST:PORT", default=None,
+                      help=_("serve the live page at http://HOST:PORT/ (loopback unless --allow-remote)"))
+    live.add_argument("--allow-remote", action="store_true",
+                      help=_("let --metrics and --http bind a non-loopback address: they have no authentication "
+                             "and the page serves the ring's pcapng files"))
     judge = p.add_argument_group(_("judgement (as analyze)"))
     judge.add_argument("--extension", action=argparse.BooleanOptionalAction, default=None,
                        help=_("[E4] judge every session as the revision's / as S1; default: by what the session uses"))
@@ -74,17 +82,33 @@ def settings_from_args(args: argparse.Namespace, pcap_dir: Path | None) -> Monit
     if args.checkpoint < 0 or args.duration < 0 or not 0 < args.connect_timeout <= 3600:
         raise ValueError("--checkpoint and --duration must be >= 0, --connect-timeout in (0, 3600]")
     settings = MonitorSettings(listen, (up.host, up.port), config, pcap_dir, args.ring, args.ring_mb,
-                               list(args.fault), args.seed, args.udp, args.connect_timeout)
+                               list(args.fault), args.seed, args.udp, args.connect_timeout,
+                               _served("--metrics", args.metrics, args.allow_remote),
+                               _served("--http", args.http, args.allow_remote))
     from ..monitor.faults import FaultPlan
 
     FaultPlan(settings.faults)  # a malformed spec is a usage error now, not later
     return settings
 
 
+def _served(option: str, value: str | None, allow_remote: bool) -> tuple[str, int] | None:
+    """--metrics / --http HOST:PORT, loopback unless --allow-remote; ValueError (one line) otherwise."""
+    if value is None:
+        return None
+    from ..monitor.webserve import check_bind
+
+    try:
+        address = parse_listen(value)
+    except ValueError as exc:
+        raise ValueError(str(exc).replace("--listen", option)) from None
+    check_bind(option, address[0], allow_remote)
+    return address
+
+
 def main_monitor(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from ..monitor.runner import ListenError, monitor_main
+    from ..monitor.monitor_loop import ListenError, monitor_main
     from ..monitor.view import View
     from ..report.terminal import print_final_table
 

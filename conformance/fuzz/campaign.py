@@ -7,10 +7,12 @@ found once is replayed first next time). One hypothesis example is a *batch*: a 
 of up to ``batch`` fuzz cases, run one after the other on a reused connection;
 hypothesis pays its per-example overhead once per batch, and shrinks a failing batch
 down to the one case that fails and that case down to its simplest frame. After each
-hypothesis case one case of the boundary schedule (:mod:`.schedule`) runs, until the
-schedule is done: every block count, field boundary and float class early.
+hypothesis case ``mutants`` cheap mutants of the recent ones run (:mod:`.mutants`: hypothesis's
+engine, not the box, is what a case costs), and after each drawn case and each mutant one
+case of the boundary schedule (:mod:`.schedule`), until the schedule is done: every block
+count, field boundary and float class early.
 
-Frame chunks alternate with chunks of the session state machine (:mod:`.stateful`)
+Frame chunks alternate with chunks of the session state machine (:mod:`.session_runner`)
 from the first second, so that the sessions get ``stateful_share`` of the time (or of
 the cases) all along. Between chunks the campaign checks its budget
 (``max_examples`` cases or ``duration_s``).
@@ -39,15 +41,16 @@ from ..model.verdicts import Verdict
 from ..suite.profile_options import profile_flags
 from .budget import Budget
 from .config import CampaignConfig, new_seed
-from .coverage import Coverage
 from .death import RESTART_HINT, STOPPED, Seen, death_key, find_killer
-from .evidence import Failure, write_summary
 from .executor import Executor, Result, alive
+from .failure_files import Failure, write_summary
 from .hyp import seed_test, set_database_key
+from .input_coverage import Coverage
+from .mutants import Mutants
 from .restart import recover
 from .result import CampaignResult, Observation, Sessions
 from .schedule import Schedule
-from .stateful import SessionRunner
+from .session_runner import SessionRunner
 from .strategies import FuzzCase, Strategies
 from .triage import FuzzFailure, Triage
 
@@ -55,6 +58,9 @@ from .triage import FuzzFailure, Triage
 SEGMENT_CASES = 20_000
 #: Events kept in memory per campaign transcript (the pcap has them all).
 KEEP_EVENTS = 20_000
+#: Mutants after which the box waited time_out without failing (a legal framing of their bytes) before the
+#: campaign sends no more mutants.
+MUTANT_SILENCES = 3
 
 
 class Campaign:
@@ -69,6 +75,8 @@ class Campaign:
         self.strategies = Strategies(cfg.profile, cfg.extension, udp=cfg.udp_target is not None)
         self.cases = self.strategies.cases(cfg.categories)
         self.schedule = Schedule(self.strategies) if not cfg.categories else None
+        self.mutants = Mutants(self.strategies, self.seed ^ 0x6D757461) if not cfg.categories and cfg.mutants else None
+        self._mutant_silences = 0
         self.coverage = Coverage(cfg.profile)
         self.disabled: set[str] = set()
         self.window: list[Seen] = []  # cases since the last good liveness check
@@ -101,6 +109,9 @@ class Campaign:
 
     # -- budget ----------------------------------------------------------------------------
     def _going(self) -> bool:
+        if self.config.until_first and not self.stopped and any(f.confirmed for f in self.failures):
+            self.stopped = "the first confirmed finding (--until-first)"
+            self.config.log(f"fuzz: stopping at {self.stopped}")
         return not self.stopped and len(self.failures) < self.config.max_failures
 
     def budget_left(self) -> bool:
@@ -238,11 +249,32 @@ class Campaign:
             raised = self._step(case, shrinkable=True)
             if raised is not None:
                 return raised
-            if not triage.shrinking and self.schedule is not None and self.budget_left():
-                scheduled = self.schedule.next()
-                if scheduled is not None and scheduled.kind not in self.disabled:
-                    self._step(scheduled, shrinkable=False)
+            if not triage.shrinking:
+                self._scheduled()
+            if not triage.shrinking and self.mutants is not None:
+                self._mutants(case)
         return None
+
+    def _scheduled(self) -> None:
+        """The next case of the boundary schedule (after every case drawn or derived, until it is done)."""
+        if self.schedule is not None and self.budget_left():
+            scheduled = self.schedule.next()
+            if scheduled is not None and scheduled.kind not in self.disabled:
+                self._step(scheduled, shrinkable=False)
+
+    def _mutants(self, drawn: FuzzCase) -> None:
+        """``config.mutants`` cheap cases derived from the recent hypothesis cases (:mod:`.mutants`), each followed
+        by a case of the schedule: the schedule keeps half of the cases until it is done."""
+        assert self.mutants is not None
+        self.mutants.feed(drawn)
+        for _ in range(self.config.mutants):
+            if self.stopped or not self.budget_left():
+                return
+            mutant = self.mutants.next()
+            if mutant is None or mutant.kind in self.disabled:
+                continue
+            self._step(mutant, shrinkable=False)
+            self._scheduled()
 
     def _step(self, case: FuzzCase, shrinkable: bool) -> Result | None:
         """One case: run, judged, confirmed if it fails; the result to raise to hypothesis (``shrinkable`` only)."""
@@ -264,6 +296,8 @@ class Campaign:
         self._progress()
         self._observe(case, result)
         failing = triage.new_failures(result)
+        if case.kind == "mutant" and len(failing) < len(result.judgement.failures):
+            failing = []  # a mutant failing a way already reported, among others, shows the same defect again
         if not failing:
             if result.anomaly:
                 self.history.clear()
@@ -309,6 +343,12 @@ class Campaign:
         return back
 
     def _observe(self, case: FuzzCase, result: Result) -> None:
+        if case.kind == "mutant" and isinstance(result.end, Silence) and result.verdict is not Verdict.FAIL:
+            self._mutant_silences += 1  # the box framed the bytes otherwise (R6 allows it) and waits on them
+            if self._mutant_silences >= MUTANT_SILENCES:
+                self.disabled.add(case.kind)
+                self.config.log(f"fuzz: the box waited time_out on {MUTANT_SILENCES} mutants (it frames some bytes "
+                                "otherwise, as R6 allows); no more mutants in this campaign (each would wait time_out)")
         if case.kind == "R5-oversized" and isinstance(result.end, Silence) and case.kind not in self.disabled:
             self.disabled.add(case.kind)  # legal (R6 a: it skips what the header announces), but each waits time_out
             self.config.log(f"fuzz: the box waits on a {case.kind} header (R6 a trusts it and skips what it "

@@ -2,7 +2,7 @@
 
 :class:`CampaignConfig` is read by the campaign's loop (:mod:`.campaign`), by the triage of
 a failure (:mod:`.triage`), by the search for the input that killed the box (:mod:`.death`)
-and by the session state machine (:mod:`.stateful`); none of them needs the campaign itself.
+and by the session state machine (:mod:`.session_runner`); none of them needs the campaign itself.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from hypothesis.database import ExampleDatabase
 from ..harness.target import Target
 from ..harness.transcript import Transcript
 from ..protocol import DEFAULT_PROFILE, Profile
+from .box_process import BoxProcess
 
 
 @dataclass
@@ -40,8 +41,11 @@ class CampaignConfig:
     categories: tuple[str, ...] = ()
     stateful_share: float = 0.2  # of the budget for the session state machine (0: off)
     restart: Callable[[], None] | None = None  # brings a dead box back (the bundled box)
+    box: BoxProcess | None = None  # the box as this campaign's child (fuzz --restart-cmd): its last words are kept
+    until_first: bool = False  # stop at the first confirmed finding (fuzz --until-first)
     recover_s: float | None = None  # how long to wait for a dead box to come back (default: time_out)
     chunk_examples: int = 100
+    mutants: int = 4  # cheap mutants of the recent hypothesis cases after each one (:mod:`.mutants`; 0: none)
     settle_s: float = 0.05
     progress_s: float = 2.0
     log: Callable[[str], None] = print

@@ -25,8 +25,9 @@ from ..harness.transcript import Transcript
 from ..i18n import N_
 from ..protocol import peek_header
 from .config import CampaignConfig
-from .evidence import Failure, clauses_of
 from .executor import Executor, Result, alive
+from .failure_files import Failure, clauses_of
+from .last_words import telling
 from .restart import History, Step, kills, recover, shrink
 from .strategies import FuzzCase
 
@@ -80,7 +81,24 @@ def _single(config: CampaignConfig, window: list[Seen], tr: Transcript) -> FuzzC
 
 
 def find_killer(config: CampaignConfig, window: list[Seen], executor: Executor, number: int) -> Death:
-    """The death as failure ``number``; ``executor`` is the campaign's (closed here, used to see the box is back)."""
+    """The death as failure ``number``; ``executor`` is the campaign's (closed here, used to see the box is back).
+
+    With the box as the campaign's child (``--restart-cmd``) the finding carries what the incarnation that
+    died wrote last (or, when it wrote nothing telling, what the one that died again to confirm it wrote)."""
+    box = config.box
+    if box is None:
+        return _find_killer(config, window, executor, number)
+    first = len(box.incarnations)
+    words = [box.last_words()]
+    death = _find_killer(config, window, executor, number)
+    words += [inc.last_words(0.0) for inc in box.incarnations[first:-1]]
+    death.failure.last_words = telling(words)
+    if death.failure.last_words is not None:
+        config.log(f"fuzz: R2: {death.failure.last_words.summary()}")
+    return death
+
+
+def _find_killer(config: CampaignConfig, window: list[Seen], executor: Executor, number: int) -> Death:
     suspects = [s.case for s in window]
     prime = next((s.case for s in window if s.result.anomaly), None)
     config.log(f"fuzz: R2: the box no longer answers a fresh connection; {len(suspects)} cases since the last good "

@@ -46,6 +46,8 @@ from ..harness.transcript import Kind, Transcript
 from ..model.verdicts import Verdict
 from ..protocol import Action, Frame, Profile, Transport, codec_for
 from ..protocol.framings import End
+from ..suite.quiet import CUT_S
+from ..suite.quiet import HANG_CASES as REFUSED_REPEAT
 from .oracle import Finding, Judgement, judge
 from .strategies import FuzzCase
 
@@ -104,6 +106,10 @@ class Stats:
     connections: int = 0
     liveness_checks: int = 0
     by_kind: dict[str, int] = field(default_factory=dict)
+
+
+#: per box (host, port): exchanges whose probe came back with an error and no 0000 within time_out
+REFUSED_RUNS: dict[tuple[str, int], int] = {}
 
 
 class Executor:
@@ -226,8 +232,15 @@ class Executor:
         wire = case.wire + probe_bytes
         text = note or case.describe()
         text += f"; then a {probe.name} probe" if probe is not None else " (no probe: the bytes hold every probe action)"
+        # bounded time: once the probe's action came back with an error and no 0000 behind it for the whole
+        # time_out twice (a box whose answers after an error repeat it), that 0000 is awaited only CUT_S
+        key = (self.target.host, self.target.port)  # per box, across the executors of one campaign's sessions
+        cut = REFUSED_RUNS.get(key, 0) >= REFUSED_REPEAT
         got = send_and_collect(conn, case.wire, probe, probe_bytes, text, self._settle(), self.time_out_s,
-                               splits=tuple(case.splits), gap_s=case.gap_s)
+                               splits=tuple(case.splits), gap_s=case.gap_s,
+                               await_s=min(CUT_S, self.time_out_s) if cut else None)
+        if got.ran_out and not cut:
+            REFUSED_RUNS[key] = REFUSED_RUNS.get(key, 0) + 1
         outcomes, end = got.outcomes, got.end
         if got.probe_answered and got.kind is End.CLOSED:  # a refusal, then a close: the probe never read
             outcomes, end = [*outcomes, *got.answers()[-1:]], got.close

@@ -26,6 +26,8 @@ from ..report.rundirs import default_run_dirs
 from ..suite.extension import detect_extension
 from ..suite.profile_options import profile_from_options
 from .database import resolve_database
+from .failure_lines import report_lines
+from .gating import box_child
 from .strategies import Strategies
 
 if TYPE_CHECKING:
@@ -96,7 +98,8 @@ def _fuzz(args: argparse.Namespace) -> int:
     if unknown:
         raise ValueError(f"unknown fuzz categories {', '.join(unknown)}; choose from {', '.join(known)}")
     quiet = args.quiet
-    with _box(args, profile, "fuzz") as (target, udp, box):
+    with box_child(args.restart_cmd, _parse_target(args.target), profile.time_out_ms / 1000) as child, \
+            _box(args, profile, "fuzz") as (target, udp, box):
         try:  # once the target is known to answer: an unreachable one leaves no directories behind
             report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir, prefix="fuzz-")
         except OSError as exc:
@@ -108,7 +111,8 @@ def _fuzz(args: argparse.Namespace) -> int:
             duration_s=args.duration, report_dir=report_dir, pcap_dir=pcap_dir, capture=args.capture,
             database=database, database_label=db_label, extension=extension, batch=args.batch,
             liveness_every=args.liveness_every, max_failures=args.max_failures, categories=categories,
-            stateful_share=args.stateful_share, restart=_restart(args, box), bundled=box is not None,
+            stateful_share=args.stateful_share, restart=child.restart if child else _restart(args, box),
+            box=child, until_first=args.until_first, bundled=box is not None,
             log=(lambda line: None if line.startswith("fuzz: ") and " examples (" in line else print(line, flush=True))
             if quiet else (lambda line: print(line, flush=True)),
             command=" ".join(shlex.quote(a) for a in sys.argv),
@@ -150,9 +154,8 @@ def _print_result(result: CampaignResult, summary: Path) -> None:
     print("fuzz: " + _("coverage: {coverage}").format(coverage=line))
     for obs in result.non_strict:
         print(f"  NON-STRICT [{obs.clause}] {obs.requirement} (×{obs.count}, first on {obs.hex[:80]})")
-    for f in result.failures:
-        print(f"  FAIL {f.number} [{', '.join(f.clauses)}] {f.message}")
-        print(f"       vector: {f.vector}" + (f"  pcap: {f.pcap}" if f.pcap else ""))
+    for line in report_lines(result.failures):  # deaths (R2) first, with the box's last words
+        print(line)
     if result.hint:
         print("fuzz: " + _("hint: {hint}").format(hint=_(result.hint)))
     print("fuzz: " + _("summary {path}; seed {seed}").format(path=summary, seed=result.seed))

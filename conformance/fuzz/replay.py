@@ -28,8 +28,8 @@ from ..harness.target import Target
 from ..harness.transcript import Transcript
 from ..model.verdicts import Verdict
 from ..protocol import Profile, TransferType, Transport, peek_header
-from .evidence import splits_of
 from .executor import Executor
+from .failure_files import splits_of
 from .oracle import expectations
 from .strategies import FuzzCase
 

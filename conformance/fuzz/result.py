@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from .evidence import Failure
+from .failure_files import Failure
 
 
 @dataclass
@@ -23,7 +23,7 @@ class Observation:
 
 @dataclass
 class Sessions:
-    """What the session state machine did, and the state transitions it reached (:mod:`.statecov`)."""
+    """What the session state machine did, and the state transitions it reached (:mod:`.state_coverage`)."""
 
     runs: int = 0
     steps: int = 0
@@ -49,7 +49,7 @@ class CampaignResult:
     examples_per_s: float | None
     shrink_runs: int
     scheduled: int  # cases of the boundary schedule sent (:mod:`.schedule`)
-    coverage: dict[str, Any]  # count, field, value and size space reached (:mod:`.coverage`)
+    coverage: dict[str, Any]  # count, field, value and size space reached (:mod:`.input_coverage`)
     stateful: Sessions
     connections: int
     liveness_checks: int

@@ -10,7 +10,7 @@ seconds at the usual rate). The groups are taken in turn, so the small ones fini
   count 1-255, with correct indexes and finite values (boundary counts first: 1, 2, 3,
   4, 7, 8, 9, ... 254, 255, then the rest);
 * **indexes**: one wrong block index at the first, second, 17th, 129th and last block (B3);
-* **fields**: every header field at each of its boundary values (:func:`.coverage.field_space`),
+* **fields**: every header field at each of its boundary values (:func:`.input_coverage.field_space`),
   on a NONE and on a one-pose request;
 * **values**: every float32 class of :data:`FLOAT_SPECIALS` (±0, subnormals, NaN with
   payloads, ±inf, huge magnitudes, the largest finite) in a pose and a tolerance request,
@@ -33,7 +33,7 @@ from typing import Literal
 
 from ..protocol import BLOCK_LEN, MAX_FRAME_LEN, REQUEST_SHAPE, Action, BlockType, Header, Transport
 from ..protocol.constants import MAX_BLOCK_COUNT
-from .coverage import EDGES_U8, FIELDS, field_space
+from .input_coverage import EDGES_U8, FIELDS, field_space
 from .strategies import BLOCK_ACTIONS, FuzzCase, Strategies
 
 #: float32 bit patterns of every class, legal and not (B4).

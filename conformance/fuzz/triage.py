@@ -24,8 +24,8 @@ from .. import __version__
 from ..harness.client import Silence
 from ..harness.transcript import Transcript
 from .config import CampaignConfig
-from .evidence import Failure, clauses_of, write_pcap, write_vectors
 from .executor import Executor, Result
+from .failure_files import Failure, clauses_of, write_pcap, write_vectors
 from .oracle import Finding
 from .strategies import FuzzCase, Strategies
 
@@ -227,7 +227,8 @@ class Triage:
         self.failures.append(failure)
         cfg.log(f"fuzz: FAIL {failure.number} [{', '.join(failure.clauses)}] {failure.message}\n"
                 f"      bytes: {failure.hex}" + (f"\n      vector: {failure.vector}" if failure.vector else "")
-                + (f"\n      pcap: {failure.pcap}" if failure.pcap else ""))
+                + (f"\n      pcap: {failure.pcap}" if failure.pcap else "")
+                + (f"\n      box: {failure.last_words.summary()}" if failure.last_words is not None else ""))
         return failure
 
 

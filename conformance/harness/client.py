@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import math
 import select
 import socket
 import time
@@ -29,7 +30,8 @@ from ..protocol import (
     decode_datagram,
     peek_action,
 )
-from .target import Refused, Target, Unreachable
+from .starvation import enable_rx_timestamps, recv_stamped
+from .target import Refused, Target, Unreachable, connect_failure, dial
 from .transcript import Endpoint, Kind, Transcript
 
 # -- outcomes ------------------------------------------------------------------------------
@@ -98,15 +100,11 @@ class Closed:
 
 Outcome = Answer | Malformed | Silence | Closed
 
-#: A box may send this many bytes on one connection, plus FLOOD_PER_SENT times what the suite sent on it
-#: (answers are no longer than the requests they answer); more is a flood: the suite stops reading and
-#: resets the connection, having recorded the first bytes as evidence (bounded memory and disk).
-FLOOD_BYTES = 64 * 1024
-FLOOD_PER_SENT = 4
-#: Descriptions quote at most this many bytes of what the box sent.
-SHOWN_BYTES = 64
-#: drain() takes at most this many outcomes (a box that never goes quiet ends the drain).
-MAX_DRAIN = 64
+#: A box may send FLOOD_BYTES on one connection, plus FLOOD_PER_SENT times what the suite sent on it (answers
+#: are no longer than the requests they answer); more is a flood: the suite stops reading and resets the
+#: connection, having recorded the first bytes as evidence (bounded memory and disk). Descriptions quote at
+#: most SHOWN_BYTES of what the box sent; drain() takes at most MAX_DRAIN outcomes (a box never quiet ends it).
+FLOOD_BYTES, FLOOD_PER_SENT, SHOWN_BYTES, MAX_DRAIN = 64 * 1024, 4, 64, 64
 
 
 # -- TCP ---------------------------------------------------------------------------------------
@@ -118,10 +116,7 @@ class TcpConnection:
     def __init__(
         self, transcript: Transcript, target: Target, profile: Profile, label: str = "", time_out_s: float | None = None
     ) -> None:
-        self.transcript = transcript
-        self.target = target
-        self.profile = profile
-        self.label = label
+        self.transcript, self.target, self.profile, self.label = transcript, target, profile, label
         self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_ms / 1000
         self.codec = codec_for(profile)
         self.decoder = StreamDecoder(profile, expect=TransferType.BOX_TO_ROBOT)
@@ -129,8 +124,7 @@ class TcpConnection:
         self.conn_id = 0
         self.closed_by_peer: Closed | None = None
         self._closed = False
-        self.received_bytes = 0
-        self.sent_bytes = 0
+        self.received_bytes = self.sent_bytes = 0
         self.max_bytes = FLOOD_BYTES
         #: called with every chunk before it is sent (the suite's session rules may stop a case here)
         self.before_send: Callable[[bytes], None] | None = None
@@ -138,12 +132,21 @@ class TcpConnection:
         self.on_answered: Callable[[int], None] | None = None
         #: called when a wait for an answer runs out this connection's time_out (it may raise)
         self.on_time_out: Callable[[], None] | None = None
+        self.before_connect: Callable[[socket.socket], None] | None = None  # e.g. a small SO_RCVBUF
+        self.answers = 0  # answers (and malformed answers) read so far
+        self.rx_at = self.last_arrival = math.inf  # when the last chunk, and the last answer returned, arrived
+        #: bounded time (suite.waits): a short first wait for request()'s answer, on_cut(request, wait) when it ran
+        #: out (it may raise), on_ran_out when the wait ran out time_out
+        self.wait_bound: Callable[[TcpConnection], float | None] | None = None
+        self.on_cut: Callable[[bytes, float], None] | None = None
+        self.on_ran_out: Callable[[int], None] | None = None  # called with the answers read before
+        self.stream_bound: float | None = None  # a pose stream's short wait for an overdue answer (suite.waits)
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:
         start = time.monotonic()
         try:
-            sock = socket.create_connection((self.target.host, self.target.port), timeout=self.time_out_s)
+            sock = dial(self.target, self.time_out_s, self.before_connect)
         except OSError as exc:
             info = self.transcript.open("tcp", Endpoint("0.0.0.0", 0), Endpoint(self.target.host, self.target.port), self.label)
             self.conn_id = info.conn
@@ -154,7 +157,7 @@ class TcpConnection:
                 self._closed = True
                 self._peer_gone(exc)
                 return self
-            reason = _reason(exc, self.time_out_s)
+            reason = connect_failure(exc, self.time_out_s)
             self.transcript.add(info.conn, Kind.CONNECT_FAILED, note=reason)
             kind = Refused if isinstance(exc, ConnectionRefusedError) else Unreachable
             raise kind(f"cannot connect to {self.target}: {reason}") from None
@@ -163,6 +166,7 @@ class TcpConnection:
         try:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             sock.setblocking(False)
+            enable_rx_timestamps(sock)
             local, remote = sock.getsockname(), sock.getpeername()
         except OSError as exc:  # the box reset the connection right after accepting it
             gone = exc
@@ -255,19 +259,28 @@ class TcpConnection:
         start = since if since is not None else time.monotonic()
         wait = self.time_out_s if timeout_s is None else timeout_s
         deadline = time.monotonic() + wait
+        final = False  # at the deadline, one last look: the suite itself may have been kept from running
         while True:
             event = self.decoder.next_event()
             now = time.monotonic()
+            arrived = min(now, self.rx_at)  # the kernel's receive time of the chunk that completed it
             if isinstance(event, Frame):
-                return Answer(event, now - start, self.codec.encode_body(event) + event.check.to_bytes(2, "big"))
+                self.answers, self.last_arrival = self.answers + 1, arrived
+                return Answer(event, arrived - start, self.codec.encode_body(event) + event.check.to_bytes(2, "big"))
             if isinstance(event, ProtocolError):
-                return Malformed(event, now - start)
+                self.answers, self.last_arrival = self.answers + 1, arrived
+                return Malformed(event, arrived - start)
             if event is CLOSED:
                 return self.closed_by_peer or Closed(False, now - start)
             assert event is NEED_DATA
             if self.closed_by_peer is not None:
                 return replace(self.closed_by_peer, latency_s=now - start)
             remaining = deadline - now
+            if remaining <= 0 and not final and self.is_open:
+                final = True
+                self._read(0.0, start)
+                if self.rx_at <= deadline:  # what came in time is taken (a stamp after the deadline stays unread)
+                    continue
             if remaining <= 0 or self.sock is None or self._closed:
                 if timeout_s is None and remaining <= 0:
                     if self.on_time_out is not None:
@@ -286,7 +299,7 @@ class TcpConnection:
         if not ready:
             return
         try:
-            data = self.sock.recv(65536)
+            data, self.rx_at = recv_stamped(self.sock)
         except BlockingIOError:
             return
         except OSError as exc:
@@ -326,12 +339,16 @@ class TcpConnection:
         start = time.monotonic()
         if not self.send(data, note):
             return self.closed_by_peer or Closed(False, time.monotonic() - start)
-        outcome = self.next_outcome(timeout_s, since=start)
-        if self.on_answered is not None and isinstance(outcome, Answer):
-            raw = data if isinstance(data, bytes) else self.codec.encode(data)
-            action = peek_action(raw)
-            if action is not None and outcome.frame.action == action:
-                self.on_answered(action)
+        raw = data if isinstance(data, bytes) else self.codec.encode(data)
+        bound = self.wait_bound(self) if self.wait_bound is not None and timeout_s is None else None
+        outcome = self.next_outcome(bound, since=start) if bound is not None else Silence(0.0)
+        if bound is not None and isinstance(outcome, Silence) and self.on_cut is not None:
+            self.on_cut(raw, bound)  # the suite's rules may end the case here; else the wait goes on
+        outcome = self.next_outcome(timeout_s, since=start) if isinstance(outcome, Silence) else outcome
+        if isinstance(outcome, Silence) and timeout_s is None and self.on_ran_out is not None:
+            self.on_ran_out(self.answers)
+        if self.on_answered is not None and isinstance(outcome, Answer) and outcome.frame.action == peek_action(raw):
+            self.on_answered(outcome.frame.action)
         return outcome
 
     def drain(self, quiet_s: float = 0.05) -> list[Outcome]:
@@ -366,16 +383,6 @@ class TcpConnection:
 _RESET_AT_CONNECT = frozenset({errno.ECONNRESET, errno.EPIPE, errno.ECONNABORTED})
 
 
-def _reason(exc: OSError, time_out_s: float) -> str:
-    if isinstance(exc, (TimeoutError, socket.timeout)):
-        return f"no answer to the connection request within time_out ({time_out_s * 1000:.0f} ms)"
-    if isinstance(exc, ConnectionRefusedError):
-        return "connection refused (nothing listens on that port)"
-    if isinstance(exc, socket.gaierror):
-        return f"host name does not resolve ({exc.strerror})"
-    return exc.strerror or str(exc)
-
-
 # -- UDP ----------------------------------------------------------------------------------------
 
 
@@ -395,7 +402,7 @@ class UdpChannel:
             self.sock.connect((target.host, target.port))
         except OSError as exc:
             self.sock.close()
-            raise Unreachable(f"cannot reach UDP target {target}: {_reason(exc, self.time_out_s)}") from None
+            raise Unreachable(f"cannot reach UDP target {target}: {connect_failure(exc, self.time_out_s)}") from None
         local, remote = self.sock.getsockname(), self.sock.getpeername()
         info = transcript.open("udp", Endpoint(local[0], local[1]), Endpoint(remote[0], remote[1]), label)
         self.conn_id = info.conn

@@ -115,6 +115,14 @@ def action_of(outcome: Outcome) -> int | None:
     return header.action if header is not None and header.start_word == START_WORD else None
 
 
+def error_code(outcome: Outcome | None) -> int | None:
+    """The error code of what the box sent: an answer, or malformed bytes with a readable header."""
+    if isinstance(outcome, Answer):
+        return outcome.frame.error_code
+    header = outcome.error.header if isinstance(outcome, Malformed) else None
+    return header.error_code if header is not None and header.start_word == START_WORD else None
+
+
 def answers_zero(outcome: Outcome, action: int) -> bool:
     """A well-formed 0000 answer with this action."""
     return isinstance(outcome, Answer) and outcome.frame.action == action and outcome.frame.error_code == 0
@@ -127,6 +135,8 @@ class Collected:
     outcomes: list[Outcome] = field(default_factory=list)  # the answers before the probe's, and late extras
     end: Outcome | None = None  # the answer with the probe's action (the probe's), a Closed or a Silence
     close: Closed | None = None  # a close or reset that came in the settle window
+    #: the probe's action came with an error and the wait for its 0000 behind it ran out (the wait's bound)
+    ran_out: bool = False
 
     @property
     def probe_answered(self) -> bool:
@@ -158,7 +168,7 @@ class Collected:
 
 def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_bytes: bytes, note: str,
                      settle: Settle, timeout_s: float | None = None, splits: tuple[int, ...] = (),
-                     gap_s: float = 0.0) -> Collected:
+                     gap_s: float = 0.0, await_s: float | None = None) -> Collected:
     """``data`` and the probe behind it in one write (the box sees them as one segment, every time:
     R4 requires it to answer both), or cut at the offsets ``splits`` with ``gap_s`` between the
     pieces (R3), then :func:`collect`. If the write fails, what had already arrived and the close."""
@@ -170,16 +180,17 @@ def send_and_collect(conn: TcpConnection, data: bytes, probe: int | None, probe_
     if not sent:
         arrived: list[Outcome] = [o for o in conn.poll() if not isinstance(o, Closed)]
         return Collected(arrived, conn.closed_by_peer or Closed(False, time.monotonic() - start))
-    return collect(conn, probe, start, settle, timeout_s)
+    return collect(conn, probe, start, settle, timeout_s, await_s)
 
 
 def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle,
-            timeout_s: float | None = None) -> Collected:
+            timeout_s: float | None = None, await_s: float | None = None) -> Collected:
     """Everything the box sends until an answer with the probe's action (then the settle
     window), a close, or silence (``timeout_s`` since ``start``; None: the connection's
     time_out, a wait that runs it out counted in the transcript). If a second answer with
     the probe's action follows the first at once and answers it 0000, the first answered
-    the bytes (A5 lets a refusal carry any action) and the second is the probe's."""
+    the bytes (A5 lets a refusal carry any action) and the second is the probe's. ``await_s``: how long
+    to wait for that 0000 (default ``timeout_s``; ``ran_out`` says it did not come)."""
     out = Collected()
     while len(out.outcomes) < MAX_DRAIN:
         outcome = conn.next_outcome(timeout_s, since=start)
@@ -191,7 +202,9 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
             continue
         extra = _settle(conn, settle.window(outcome.latency_s, not answers_zero(outcome, probe)))
         if _maybe_refusal(outcome) and not answers_zero(outcome, probe):
-            extra += _await_probe(conn, probe, start, extra, timeout_s)
+            more = _await_probe(conn, probe, start, extra, timeout_s if await_s is None else await_s)
+            out.ran_out = not any(isinstance(o, Closed) or answers_zero(o, probe) for o in extra + more)
+            extra += more
         out.close = next((o for o in extra if isinstance(o, Closed)), None)
         extra = [o for o in extra if not isinstance(o, Closed)]
         late = next((k for k, o in enumerate(extra) if answers_zero(o, probe)), None)
@@ -204,6 +217,19 @@ def collect(conn: TcpConnection, probe: int | None, start: float, settle: Settle
         return out
     out.end = Silence(time.monotonic() - start)
     return out
+
+
+def await_rest(conn: TcpConnection, probe: int, got: Collected, wait_s: float) -> Collected:
+    """After a wait for the probe's 0000 that ran out at a short bound (``got.ran_out``): wait ``wait_s``
+    more for it, and put what came where :func:`collect` would have (a late 0000 is the probe's answer,
+    the error answer before it answered the bytes)."""
+    more = _await_probe(conn, probe, time.monotonic(), [], wait_s)
+    close = got.close or next((o for o in more if isinstance(o, Closed)), None)
+    more = [o for o in more if not isinstance(o, Closed)]
+    late = next((k for k, o in enumerate(more) if answers_zero(o, probe)), None)
+    if late is None or got.end is None:
+        return Collected(got.outcomes + more, got.end, close, ran_out=close is None)
+    return Collected([*got.outcomes, got.end, *more[:late]] + more[late + 1:], more[late], close)
 
 
 def _maybe_refusal(outcome: Outcome) -> bool:

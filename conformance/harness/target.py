@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import socket
+from collections.abc import Callable
 from dataclasses import dataclass
 
 
@@ -74,3 +75,32 @@ def check_reachable(target: Target, time_out_s: float) -> str | None:
         return None  # something listens there and reset us: it is reachable; the cases judge the rest
     except OSError as exc:
         return f"target {target} unreachable: {exc.strerror or exc}"
+
+
+def dial(target: Target, time_out_s: float, prepare: Callable[[socket.socket], None] | None) -> socket.socket:
+    """``socket.create_connection``, with ``prepare`` applied to the socket before it connects."""
+    if prepare is None:
+        return socket.create_connection((target.host, target.port), timeout=time_out_s)
+    error: OSError = OSError(f"{target.host} does not resolve")
+    for family, kind, proto, _, addr in socket.getaddrinfo(target.host, target.port, type=socket.SOCK_STREAM):
+        sock = socket.socket(family, kind, proto)
+        try:
+            prepare(sock)
+            sock.settimeout(time_out_s)
+            sock.connect(addr)
+            return sock
+        except OSError as exc:
+            sock.close()
+            error = exc
+    raise error
+
+
+def connect_failure(exc: OSError, time_out_s: float) -> str:
+    """One line: why a connection attempt failed."""
+    if isinstance(exc, (TimeoutError, socket.timeout)):
+        return f"no answer to the connection request within time_out ({time_out_s * 1000:.0f} ms)"
+    if isinstance(exc, ConnectionRefusedError):
+        return "connection refused (nothing listens on that port)"
+    if isinstance(exc, socket.gaierror):
+        return f"host name does not resolve ({exc.strerror})"
+    return exc.strerror or str(exc)

@@ -30,6 +30,7 @@ class Sig(str, enum.Enum):
     CASE = "case"  # the case's own finding (never grouped)
     FUZZ = "fuzz"  # fuzzing found it (``clause``; ``field`` "answer" for a malformed answer; ``subject`` the key)
     LEFT_OPEN = "left-open"  # certify-robot: the robot left its ``subject`` connection(s) open
+    BACKLOG = "backlog"  # T2: the answer latency grows through a pose stream
 
 
 @dataclass(frozen=True)

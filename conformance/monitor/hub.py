@@ -1,6 +1,6 @@
 """The monitor's state: the wire, the engine, the ring, the faults and what the robot did after them.
 
-:class:`Hub` is what the proxies (:mod:`.proxy`, :mod:`.udp`) tell about each connection:
+:class:`Hub` is what the proxies (:mod:`.proxy`, :mod:`.udp_proxy`) tell about each connection:
 it opened, one side sent bytes, one side closed, the box could not be reached, a fault
 was injected. It keeps the counts the live view shows. Nothing here does I/O but the
 ring's writes.
@@ -18,12 +18,14 @@ from typing import Any
 from ..analyze.analysis_context import AnalyzeConfig, Context
 from ..analyze.engine import Feed
 from ..analyze.findings import Observation
+from .alarms import Alarms
 from .faults import Fault, FaultPlan
-from .judge import Cause, LiveFindings
+from .line_recording import Line, Wire
+from .live_findings import Cause, LiveFindings
 from .reactions import Injection, Reactions
 from .ring import Ring
 from .split import Splitter
-from .wire import Line, Wire
+from .tally import Buckets, ObservedSeries, Tally
 
 __all__ = ["Conn", "Hub", "MonitorSettings"]
 
@@ -43,6 +45,8 @@ class MonitorSettings:
     seed: int = 0
     udp: bool = False
     connect_timeout_s: float = 5.0
+    metrics: tuple[str, int] | None = None  # --metrics HOST:PORT (the address got, once listening)
+    http: tuple[str, int] | None = None  # --http HOST:PORT
 
 
 @dataclass
@@ -73,8 +77,17 @@ class Hub:
         self.settings = settings
         self.clock = clock
         self.started = clock()
-        self.findings = LiveFindings(on_finding, clock)
+        profile = settings.config.profile
+        self.alarms = Alarms(profile.time_out_ms, profile.vision_time_out_ms, profile.pose_rate_hz,
+                             settings.config.rate_tolerance)
+        self.on_finding = on_finding
+        self.findings = LiveFindings(self._finding, clock)
         self.feed = Feed(settings.config, settings.pcap_dir, self.findings)
+        # latency histograms for the metrics: the engine's command series feeds one, each pose answer the other
+        self.command_latency, self.pose_latency = Buckets(), Buckets()
+        self.feed.ctx.latency = ObservedSeries(self.command_latency)
+        self.feed.ctx.observe_pose = self.pose_latency.observe  # type: ignore[attr-defined]
+        self.tally = Tally()  # the counts of the connections gone
         self.ring = (Ring(settings.pcap_dir, settings.ring_files, settings.ring_mb)
                      if settings.pcap_dir is not None else None)
         self.wire = Wire(self.feed, self.ring, f"monitor-{int(self.started)}", clock)
@@ -90,6 +103,20 @@ class Hub:
     @property
     def ctx(self) -> Context:
         return self.feed.ctx
+
+    def _finding(self, clause: str, side: str, finding: Observation, cause: Cause) -> None:
+        self.alarms.finding(clause, side, finding.text, finding.frames, self.clock())
+        if self.on_finding is not None:
+            self.on_finding(clause, side, finding, cause)
+
+    def tick(self) -> None:
+        """About twice a second: raise and clear the live alarms."""
+        self.alarms.check([(n, c.judge, not c.closed) for n, c in self.open.items()], self.clock(),
+                          self.findings.faulted)
+
+    def totals(self) -> Tally:
+        """The counts of every connection so far (those gone and those open)."""
+        return self.tally.with_open(c.judge for c in self.open.values() if c.judge is not None)
 
     def elapsed(self) -> float:
         return self.clock() - self.started
@@ -117,7 +144,12 @@ class Hub:
         text = f"connection {conn.line.number} from {conn.line.robot}: the box {conn.line.box} {why}; the robot's " \
                "connection was reset"
         self.note(text)
+        self.alarms.refused(conn.line.number, text, self.clock())
         self.closed(conn, from_robot=False, reset=True, comment=f"monitor: {text}")
+
+    def upstream_ok(self, conn: Conn) -> None:
+        """The box accepted the connection made for this robot connection."""
+        self.alarms.accepted(conn.line.number, self.clock())
 
     def data(self, conn: Conn, from_robot: bool, payload: bytes, comments: list[str] | None = None) -> int:
         frame = self.wire.data(conn.line, from_robot, payload, comments)
@@ -146,6 +178,7 @@ class Hub:
         conn.closed = True
         if self.open.pop(conn.line.number, None) is not None:
             self.counted = [a + b for a, b in zip(self.counted, judge_counts(conn.judge))]
+            self.tally.add(conn.judge)
 
     def counts(self) -> tuple[int, int, int]:
         """(requests, answers, poses) over every TCP connection so far."""

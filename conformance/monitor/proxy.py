@@ -110,6 +110,7 @@ class TcpProxy:
             hub.gone(conn)
             return
         _nodelay(up_w)
+        hub.upstream_ok(conn)
         pumps = [asyncio.ensure_future(self._robot_to_box(conn, reader, up_w, writer)),
                  asyncio.ensure_future(self._box_to_robot(conn, up_r, writer, up_w))]
         try:

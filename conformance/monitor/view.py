@@ -20,8 +20,9 @@ from typing import IO, Any
 from ..analyze.findings import Observation
 from ..i18n import _
 from ..model.percentiles import percentile
+from .alarms import Alarm
 from .hub import Hub
-from .judge import Cause
+from .live_findings import Cause
 
 __all__ = ["STATUS_EVERY_S", "View"]
 
@@ -73,6 +74,13 @@ class View:
         self.line(f"{time.strftime('%H:%M:%S')} {finding.verdict.value} {side.upper()} {clause}: "
                   f"{finding.line()}{more}")
 
+    def alarm(self, alarm: Alarm) -> None:
+        """An alarm raised or cleared (printed even with --quiet: it is a finding as it happens)."""
+        if alarm.active:
+            self.line(f"{time.strftime('%H:%M:%S')} ALARM {alarm.line()}")
+        else:
+            self.line(f"{time.strftime('%H:%M:%S')} " + _("CLEARED") + f" #{alarm.id} {alarm.line()}")
+
     def line(self, text: str) -> None:
         if self.live is not None:
             self.live.console.print(text, markup=False, highlight=False, soft_wrap=True)
@@ -93,7 +101,8 @@ class View:
             open=len(hub.open), connections=f"{hub.connections:,}", sessions=f"{hub.ctx.stats.sessions:,}",
             requests=f"{requests:,}", answers=f"{answers:,}", p50=_ms(lat.percentile(50)),
             p99=_ms(lat.percentile(99)), pose=pose, rate=f"{self.counts.rate:.1f}", findings=f"{bad:,}",
-            causes=len(hub.findings.roots.causes), injected=f"{hub.reactions.total:,}")
+            causes=len(hub.findings.roots.causes), injected=f"{hub.reactions.total:,}") + "; " + _(
+            "alarms {alarms} active").format(alarms=len(hub.alarms.active))
 
     def _panel(self, hub: Hub) -> Any:
         from rich.table import Table
@@ -118,6 +127,10 @@ class View:
         t.add_row(_("pose stream"), _("{rate} poses/s ({poses} in all)").format(rate=f"{self.counts.rate:.1f}",
                                                                                poses=f"{poses:,}"))
         t.add_row(_("faults injected"), f"{hub.reactions.total:,}")
+        active = sorted(hub.alarms.active.values(), key=lambda a: a.raised)
+        t.add_row(_("alarms"), f"{len(active)} " + _("active") if active else _("none"))
+        for a in active[:5]:
+            t.add_row(f"  ALARM {a.side} {a.clause}", a.text[:110])
         causes = hub.findings.roots.ordered()
         t.add_row(_("root causes"), f"{len(causes)}" if causes else _("none so far"))
         for c in causes[:8]:
@@ -139,6 +152,8 @@ class View:
         hub = self.hub
         if hub is None:
             return
+        for alarm in hub.alarms.take_changes():
+            self.alarm(alarm)
         if self.live is not None:
             self.live.update(self._panel(hub))
         elif time.monotonic() - self.last_status >= STATUS_EVERY_S:

@@ -308,6 +308,8 @@ def awaited(view: SessionView, profile: Profile) -> tuple[int, list[str]]:
                 checked += 1
             if (answered is not None and answered <= t_next) or t_next - prev.t >= bound * WAIT_SLACK:
                 continue
+            if answered is None and view.cut is not None and t_next > view.cut.t:
+                continue  # after the box's refusal (silence, a malformed or non-0000 answer) the robot may move on
             state = (f"its answer went out at {view.ms(answered)}" if answered is not None
                      else "no answer was coming (the box stays silent on it)")
             bad.append(f"connection {conn.number}: {what} at {view.ms(t_next)}, {(t_next - prev.t) * 1000:.1f} ms after "

@@ -18,6 +18,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from ..harness.starvation import gauge, starved_text, starved_verdict
 from ..model.percentiles import percentile
 
 #: Below this many poses no rate is measured.
@@ -122,3 +123,52 @@ def judge_jitter(stats: StreamStats, tolerance: float) -> tuple[bool, str]:
             if stats.together else ""
         return False, text + extra
     return True, text
+
+
+def _span_excess_ms(intervals: int, span_ms: float, declared: float, tolerance: float) -> float:
+    """How far a span of ``intervals`` intervals is outside the spans the rate tolerance allows (ms; 0 inside)."""
+    if intervals <= 0:
+        return 0.0
+    longest = intervals / (declared * (1 - tolerance)) * 1000.0
+    shortest = intervals / (declared * (1 + tolerance)) * 1000.0
+    return max(0.0, span_ms - longest, shortest - span_ms)
+
+
+def rate_excess_ms(stats: StreamStats, tolerance: float) -> float:
+    """How much time the stream (or its worst one-second window) is off the rate tolerance: the delay a stall
+    of the measuring side would have to explain (ms; 0 when within)."""
+    worst = _span_excess_ms(len(stats.intervals_ms), stats.duration_s * 1000.0, stats.declared_hz, tolerance)
+    size = max(10, round(stats.declared_hz))
+    for start in range(0, len(stats.intervals_ms), size):
+        chunk = stats.intervals_ms[start : start + size]
+        if len(chunk) >= size / 2 or start == 0:
+            worst = max(worst, _span_excess_ms(len(chunk), sum(chunk), stats.declared_hz, tolerance))
+    return worst
+
+
+def jitter_excess_ms(stats: StreamStats, tolerance: float) -> float:
+    """How far the p99 interval deviation is above the jitter tolerance (ms; 0 when within)."""
+    return max(0.0, stats.dev_p99_ms - tolerance * stats.period_ms)
+
+
+def rate_starved(stats: StreamStats, times: Sequence[float], tolerance: float) -> str | None:
+    """The INCONCLUSIVE reason when a stall of the judging side (its wall-clock time stamps) could explain a
+    rate breach: one stall at least as long as the time the stream is off by (None: the breach stands)."""
+    excess = rate_excess_ms(stats, tolerance)
+    return starved_verdict(excess, min(times), max(times), "the stream's rate", wall=True) if excess else None
+
+
+def jitter_starved(stats: StreamStats, times: Sequence[float], tolerance: float) -> str | None:
+    """The INCONCLUSIVE reason when the judging side's stalls could explain a jitter breach: every interval
+    off by more than the tolerance overlaps a stall at least that large, but for as many as the p99 allows."""
+    excess = jitter_excess_ms(stats, tolerance)
+    if not excess:
+        return None
+    ordered, limit = sorted(times), tolerance * stats.period_ms
+    off = [(ordered[i], ordered[i + 1], dev - limit) for i, dev in
+           ((i, abs(v - stats.period_ms)) for i, v in enumerate(stats.intervals_ms)) if dev > limit]
+    unexplained = [w for w in off if gauge().worst_ms(w[0], w[1], wall=True) < w[2]]
+    if len(unexplained) > len(stats.intervals_ms) // 100:
+        return None
+    return starved_text(excess, max(gauge().worst_ms(a, b, wall=True) for a, b, _ in off),
+                        f"the send-interval jitter ({len(off)} interval(s) off)")

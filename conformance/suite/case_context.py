@@ -12,23 +12,48 @@ the witness, extension support.
 
 from __future__ import annotations
 
+import socket
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
-from ..harness.exchange import Collected, Settle, attribute, choose_probe, collect, probe_request, send_and_collect
+from ..harness.exchange import (
+    Collected,
+    Settle,
+    action_of,
+    answers_zero,
+    attribute,
+    await_rest,
+    choose_probe,
+    collect,
+    error_code,
+    probe_request,
+    send_and_collect,
+)
 from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..model.signature import Sig, Signature
-from ..model.verdicts import Level
-from ..protocol import Action, Frame, encode, peek_header
+from ..model.verdicts import Level, Verdict
+from ..protocol import Action, Frame, encode, peek_action, peek_header
 from ..protocol.framings import Explanation
 from .case_judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
-from .quiet import CUT_S, HANG_CLAUSE, KIND_WORDS, bad_kind, broken_besides_hang, hung, pattern_key
+from .quiet import (
+    CUT_S,
+    HANG_CLAUSE,
+    KIND_WORDS,
+    REFUSED_KEYS,
+    bad_kind,
+    broken_besides_hang,
+    hung,
+    pattern_key,
+    refused_key,
+)
 from .record import CaseRecord
 from .run_state import UNREACHABLE_AT_CONNECT, SessionState
+from .waits import STREAM
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
 #: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).
@@ -65,11 +90,14 @@ class CaseContext:
         return self.session.target()
 
     # -- connections ---------------------------------------------------------------------
-    def connect(self, label: str = "command", target: Target | None = None, time_out_s: float | None = None) -> TcpConnection:
-        """A connected, recorded TCP connection; an unreachable box ends the case INCONCLUSIVE."""
+    def connect(self, label: str = "command", target: Target | None = None, time_out_s: float | None = None,
+                prepare: Callable[[socket.socket], None] | None = None) -> TcpConnection:
+        """A connected, recorded TCP connection (``prepare``: applied to the socket before it connects); an
+        unreachable box ends the case INCONCLUSIVE."""
         conn = TcpConnection(self.transcript, target or self.target, self.profile, label, time_out_s)
+        conn.before_connect = prepare
         conn.before_send = self._not_known_late
-        conn.on_answered = self.session.note_answered
+        self._bound_waits(conn)
         if self._waits_behind_another():
             conn.time_out_s = min(conn.time_out_s, CUT_S)
             conn.on_time_out = self._served_one_at_a_time
@@ -78,6 +106,32 @@ class CaseContext:
             return conn.connect()
         except Unreachable as exc:
             raise Inconclusive(f"box unreachable: {exc}", signature=UNREACHABLE_AT_CONNECT) from None
+
+    def _bound_waits(self, conn: TcpConnection) -> None:
+        """Bounded time (:mod:`.waits`): learn where requests go unanswered, and cut later waits there short."""
+        ran_out = self.session.ran_out
+
+        def answered(action: int) -> None:
+            self.session.note_answered(action)
+            ran_out.answered_at(conn.answers - 1)
+
+        def cut(data: bytes, wait_s: float) -> None:
+            place = conn.answers
+            cases = ran_out.known(place)
+            if cases is None or not responsive(self.check_alive()):
+                return  # a dead box: the wait goes on, and R2 judges
+            name = _action_name(data)
+            raise Inconclusive(
+                f"the box left the request after {place} answer(s) on a connection unanswered for the whole time_out "
+                f"in cases {', '.join(cases[:3])} (A1, T1); here its {name} request was not answered within "
+                f"{wait_s * 1000:.0f} ms either, so the wait ended there (the box still answers a fresh connection)",
+                signature=Signature(Sig.SILENCE, name), judged=("A1", "T1"), sent=data)
+
+        conn.on_answered = answered
+        conn.wait_bound = lambda c: ran_out.bound(c.answers, self.time_out_s)
+        conn.stream_bound = ran_out.bound(STREAM, self.time_out_s)
+        conn.on_cut = cut
+        conn.on_ran_out = lambda place: ran_out.ran_out(self.info.id, place)
 
     def _waits_behind_another(self) -> bool:
         """The box serves one connection at a time (the S4 preflight) and this case holds one open: a
@@ -157,7 +211,28 @@ class CaseContext:
             mine = bool(explanation.answers_within(0, len(bad)))
             self.session.hangs.note(pattern_key(kind, mine), self.info.id, probe_answered=isinstance(
                 self.last_probe, (Answer, Malformed)), hung=isinstance(got.end, Silence) and hung(explanation))
+            self._note_refused(kind, int(action), got, explanation)
         return outcome
+
+    def _note_refused(self, kind: str, probe: int, got: Collected, explanation: Explanation) -> None:
+        """The refused pattern (:func:`.quiet.refused_key`): noted when the wait for the probe's 0000 behind an
+        error answer with its action ran out and nothing else is wrong; withdrawn when such a 0000 came."""
+        code = error_code(got.end)
+        if got.ran_out and code and got.close is None and not broken_besides_hang(explanation, REFUSED_KEYS):
+            self.session.hangs.note(refused_key(kind), self.info.id, hung=True, probe_answered=False)
+            if HANG_CLAUSE not in self.info.clauses:  # the R6 cases judge the probe's answer themselves
+                name = action_name(probe)
+                raise CaseVerdict(
+                    Verdict.FAIL, f"A1: the valid {name} request behind the bytes was answered with error {code:04X}, "
+                    f"and no 0000 followed within time_out ({self.time_out_s * 1000:.0f} ms)",
+                    requirement="A1: the box answers every well-formed request (A4, S3: the probe is answered 0000)",
+                    expected=f"the {name} request answered 0000 (after any refusal of the bytes)",
+                    observed=got.end.describe() if got.end is not None else "", sent=self.last_sent,
+                    received=got.end.raw if got.end is not None else b"", judged=("A1",),
+                    signature=Signature(Sig.CODE, name, value=f"{code:04X}"))
+        elif got.end is not None and answers_zero(got.end, probe) and any(
+                action_of(o) == probe and error_code(o) for o in got.outcomes):
+            self.session.hangs.withdraw_refused(kind)
 
     def _send_bounded(self, conn: TcpConnection, bad: bytes, action: Action | None, probe_bytes: bytes, text: str,
                       kind: str) -> Collected:
@@ -165,6 +240,8 @@ class CaseContext:
         judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
         bound = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
         got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, bound)
+        if bound is not None and action is not None and got.ran_out:
+            return self._refused_bounded(conn, bad, action, probe_bytes, kind, bound, got)
         if bound is None or action is None or not isinstance(got.end, Silence):
             return got
         cases = self.session.hangs.known(pattern_key(kind, bool(got.answers())))
@@ -175,6 +252,26 @@ class CaseContext:
         # not in the pattern, or what came already breaks a requirement: wait out time_out, judged in full
         more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
         return Collected(got.outcomes + more.outcomes, more.end, more.close)
+
+    def _refused_bounded(self, conn: TcpConnection, bad: bytes, action: Action, probe_bytes: bytes, kind: str,
+                         bound: float, got: Collected) -> Collected:
+        """The probe's action came back with an error and no 0000 followed within ``bound``: INCONCLUSIVE under
+        the refused pattern when it is established and nothing else is wrong; otherwise wait out time_out."""
+        code = error_code(got.end)
+        cases = self.session.hangs.known(refused_key(kind)) if code else None
+        if cases is not None:
+            so_far = attribute(bad + probe_bytes, got, self.profile,
+                               extension=self.session.extension_supported is not False, probe_at=len(bad))
+            if not broken_besides_hang(so_far, REFUSED_KEYS) and responsive(self.check_alive()):
+                what = KIND_WORDS.get(kind, kind)
+                raise Inconclusive(
+                    f"after {what} the box answered the request behind them ({action.name}) with error {code:04X} "
+                    f"and no 0000 followed within the whole time_out in cases {', '.join(cases[:3])} (A1: a "
+                    f"well-formed request is answered 0000); here too none came within {bound * 1000:.0f} ms, so the "
+                    "wait ended there and what the box does with these bytes is not judged",
+                    signature=Signature(Sig.CODE, action.name, value=f"{code:04X}"), judged=("A1",),
+                    sent=self.last_sent)
+        return await_rest(conn, int(action), got, max(0.0, self.time_out_s - bound))
 
     def _cut_short(self, kind: str, answered: bool, probe: Action, wait_s: float, cases: list[str]) -> None:
         """The probe behind bytes the box is known to hang on went unanswered for ``wait_s``: INCONCLUSIVE
@@ -276,6 +373,18 @@ class CaseContext:
     def _record_latency(self, outcome: Outcome) -> None:
         if isinstance(outcome, Answer):
             self.latencies_ms.append(outcome.latency_s * 1000)
+
+
+def _action_name(data: bytes) -> str:
+    action = peek_action(data)
+    return action_name(action) if action is not None else "unknown"
+
+
+def action_name(action: int) -> str:
+    try:
+        return Action(action).name
+    except ValueError:
+        return f"0x{action:02X}"
 
 
 def answers_none(outcome: Outcome) -> bool:

@@ -14,11 +14,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
+from ..harness.liveness import check_alive, responsive
+from ..harness.starvation import gauge, starved_share, starved_text
 from ..harness.trajectory import PrimerTrajectory
 from ..model.percentiles import percentile
+from ..model.signature import Sig, Signature
 from ..model.verdicts import Level
 from ..protocol import Action, pose_blocks, request
-from .case_judge import Expect, answered, check, fail
+from .case_judge import Expect, Inconclusive, answered, check, fail
+from .waits import STREAM
 
 DEFAULT_POSE = PrimerTrajectory().home
 
@@ -50,6 +54,9 @@ class StreamResult:
     ended_by: Outcome | None = None
     max_send_lag_ms: float = 0.0
     elapsed_s: float = 0.0
+    started_at: float = 0.0  # monotonic: for the starvation gauge's stalls over the stream
+    cut_s: float = 0.0  # the overdue answer was awaited only this long (bounded time: suite.waits), the box alive
+    sent_at: list[float] = field(default_factory=list)  # monotonic send time of each pose
 
     @property
     def lost(self) -> int:
@@ -108,12 +115,14 @@ class PoseStream:
         self.expect = expect or answered(Action.POSE, [0])
         self.first_index = first_index
         self.result = StreamResult(rate_hz, time_out_s)
-        self._sent_at: list[float] = []
+        self._sent_at: list[float] = self.result.sent_at
         self._frames: list[bytes] = []
         self._stop = threading.Event()
+        self._stopped_gauge = False
         self._thread = threading.Thread(target=self._run, name=f"isight-pose-stream-{conn.label}", daemon=True)
 
     def start(self) -> PoseStream:
+        gauge().start()  # the suite's own scheduling delay over the stream (timing verdicts on a loaded runner)
         self._thread.start()
         return self
 
@@ -128,6 +137,9 @@ class PoseStream:
         if self._thread.is_alive():  # never expected: every wait inside is bounded
             self._stop.set()
             self._thread.join(self.time_out_s + 2.0)
+        if not self._thread.is_alive() and not self._stopped_gauge:
+            self._stopped_gauge = True
+            gauge().stop()
         return self.result
 
     @property
@@ -138,7 +150,7 @@ class PoseStream:
         r, period = self.result, 1.0 / self.rate_hz
         count = None if self.duration_s is None else max(1, round(self.duration_s * self.rate_hz))
         codec, label = self.conn.codec, self.conn.label
-        t0 = time.monotonic()
+        t0 = r.started_at = time.monotonic()
         try:
             while not self._stop.is_set() and (count is None or r.sent < count):
                 due = t0 + r.sent * period
@@ -168,9 +180,16 @@ class PoseStream:
         r = self.result
         while True:
             now = time.monotonic()
-            if r.answered < r.sent and now - self._sent_at[r.answered] > self.time_out_s:
-                r.ended = "overdue"
-                return False
+            limit = min(self.conn.stream_bound or self.time_out_s, self.time_out_s)
+            if r.answered < r.sent and now - self._sent_at[r.answered] > limit:
+                late = self.conn.next_outcome(0.0)  # one last look: the suite may have been kept from running
+                due = self._sent_at[r.answered] + limit
+                if not isinstance(late, Answer) or self.conn.last_arrival > due:
+                    r.ended = "overdue"
+                    self._overdue(limit)
+                    return False
+                self._take(late)
+                continue
             if now >= until:
                 return True
             outcome = self.conn.next_outcome(max(until - now, 0.0002))
@@ -179,16 +198,34 @@ class PoseStream:
             if not isinstance(outcome, Answer):
                 self._end(outcome)
                 return False
-            k = r.answered
-            if k >= r.sent:
-                r.extra += 1
-                if r.bad is None:
-                    r.bad, r.bad_index = outcome, k
+            if not self._take(outcome):
                 return False
-            r.latencies_ms.append((time.monotonic() - self._sent_at[k]) * 1000)
-            if r.bad is None and not self.expect.matches(outcome):
-                r.bad, r.bad_index, r.bad_sent = outcome, k, self._frames[k]
-            r.answered += 1
+
+    def _overdue(self, limit: float) -> None:
+        """A pose unanswered for ``limit``: noted for the session's wait patterns (:mod:`.waits`) after a
+        full time_out; after a short bound, kept as a cut (INCONCLUSIVE) if a fresh connection is answered."""
+        conn = self.conn
+        if limit >= self.time_out_s:
+            if conn.on_ran_out is not None:
+                conn.on_ran_out(STREAM)
+        elif responsive(check_alive(conn.transcript, conn.target, conn.profile)):
+            self.result.cut_s = limit
+
+    def _take(self, outcome: Answer) -> bool:
+        """Match an answer to the oldest pose unanswered (A1: in order); False for one beyond the poses sent.
+        Its latency runs to the kernel's receive time (not to when the suite got round to reading it)."""
+        r = self.result
+        k = r.answered
+        if k >= r.sent:
+            r.extra += 1
+            if r.bad is None:
+                r.bad, r.bad_index = outcome, k
+            return False
+        r.latencies_ms.append((min(time.monotonic(), self.conn.last_arrival) - self._sent_at[k]) * 1000)
+        if r.bad is None and not self.expect.matches(outcome):
+            r.bad, r.bad_index, r.bad_sent = outcome, k, self._frames[k]
+        r.answered += 1
+        return True
 
     def _end(self, outcome: Outcome) -> None:
         r = self.result
@@ -211,6 +248,11 @@ def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, ba
     if r.ended == "malformed" and r.ended_by is not None:
         check(r.ended_by, answered(Action.POSE), level, f"{what}: every pose is answered with a well-formed frame",
               judged=clauses)
+    if r.lost > max_lost and r.cut_s:
+        raise Inconclusive(
+            f"{what}: pose {r.answered + 1} was not answered within {r.cut_s * 1000:.0f} ms; streams of earlier "
+            "cases left a pose unanswered for the whole time_out (and the box still answers a fresh connection), "
+            "so this stream ended there, not judged", judged=clauses, signature=Signature(Sig.SILENCE, "POSE"))
     if r.lost > max_lost:
         why = {"overdue": f"pose {r.answered + 1} got no answer within time_out ({r.time_out_s * 1000:.0f} ms)",
                "closed": "the box closed the connection", "reset": "the box reset the connection",
@@ -220,7 +262,13 @@ def judge_stream(r: StreamResult, level: Level, what: str, max_lost: int = 0, ba
             judged=clauses)
     b = r.backlog() if backlog else None
     if b is not None and b[1] > b[2]:
+        n = len(r.latencies_ms) // 4  # the last quarter's poses: was each one's wait overlapped by a stall that long?
+        last = [(r.sent_at[k], r.sent_at[k] + r.latencies_ms[k] / 1000) for k in range(len(r.latencies_ms) - n,
+                                                                                     len(r.latencies_ms))]
+        if len(r.sent_at) >= len(r.latencies_ms) and starved_share(last, b[1] - b[2]) >= 0.5:
+            raise Inconclusive(starved_text(b[1] - b[2], gauge().worst_ms(last[0][0], last[-1][1]),
+                                            "the last quarter's p50 answer latency (T2 backlog)"), judged=clauses)
         raise fail(level, f"{what}: answer latency does not grow over the run (backlog)",
                    f"last-quarter p50 ≤ {b[2]:.1f} ms (first-quarter p50 {b[0]:.1f} ms + max(20 ms, 3×))",
-                   f"backlog: last-quarter p50 {b[1]:.1f} ms", judged=clauses)
+                   f"backlog: last-quarter p50 {b[1]:.1f} ms", judged=clauses, signature=Signature(Sig.BACKLOG))
 

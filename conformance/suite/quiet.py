@@ -44,6 +44,8 @@ KIND_WORDS = {"not-request": "bytes that are not a request", "reject": "a malfor
               "any": "a request whose handling PROTOCOL.md leaves open", "incomplete": "an incomplete frame"}
 #: Findings of an explanation that say the box left the probe unanswered with no legal reason.
 _HANG_KEYS = ("end/hang", "end/silence")
+#: ... and the finding that says the probe was answered with an error (the refused pattern, :func:`refused_key`).
+REFUSED_KEYS = ("probe/code",)
 
 
 def bad_kind(data: bytes, profile: Profile, extension: bool = True) -> str:
@@ -65,17 +67,27 @@ def hung(explanation: Explanation) -> bool:
     return any(f.key in _HANG_KEYS for f in explanation.findings)
 
 
-def broken_besides_hang(explanation: Explanation) -> bool:
-    """The explanation finds something wrong other than the silence at the end."""
-    return any(f.key not in _HANG_KEYS for f in explanation.findings)
+def broken_besides_hang(explanation: Explanation, also: tuple[str, ...] = ()) -> bool:
+    """The explanation finds something wrong other than the silence at the end (or the findings ``also``)."""
+    return any(f.key not in _HANG_KEYS + also for f in explanation.findings)
+
+
+def _family(kind: str) -> str:
+    return kind if kind in ("not-request", "incomplete") else "request"
+
+
+def refused_key(kind: str) -> str:
+    """The refused pattern: after this kind of bad bytes the probe's action came back with an error and no
+    0000 followed within the wait (a box whose every answer after an error repeats that error: a refusal of
+    the bytes may carry the probe's action, A5, so the 0000 is awaited up to time_out)."""
+    return f"{_family(kind)}/probe-error"
 
 
 def pattern_key(kind: str, answered: bool) -> str:
     """A hang pattern: the kind of bad bytes (bytes that are not a request, a frame with a request's header
     and bad content, an incomplete frame), and whether the box answered them before going quiet (a box
     that answers only the first frame of a read drops the probe exactly when it answered the bytes)."""
-    family = kind if kind in ("not-request", "incomplete") else "request"
-    return f"{family}/{'answered' if answered else 'unanswered'}"
+    return f"{_family(kind)}/{'answered' if answered else 'unanswered'}"
 
 
 @dataclass
@@ -105,6 +117,14 @@ class Hangs:
     def bound(self, kind: str, judges_hang: bool, time_out_s: float) -> float | None:
         """The short first wait for a case sending ``kind`` when some pattern of that kind is established;
         None (wait in full) otherwise, or when the case judges the hang itself (R6 at MUST or SHOULD)."""
-        if judges_hang or not any(self.known(pattern_key(kind, a)) for a in (False, True)):
+        if judges_hang:
+            return None
+        if not any(self.known(k) for k in (pattern_key(kind, False), pattern_key(kind, True), refused_key(kind))):
             return None
         return min(CUT_S, time_out_s)
+
+    def withdraw_refused(self, kind: str) -> None:
+        """After this kind of bytes a probe's 0000 came behind an error answer with its action: the refused
+        patterns of the kind had another cause."""
+        with self._lock:
+            self.answered.add(refused_key(kind))

@@ -43,6 +43,7 @@ from ..protocol import Action, Profile
 from .case_judge import CaseVerdict, Inconclusive
 from .quiet import Hangs
 from .settings import SuiteSettings
+from .waits import RanOut
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
 RECHECK_S = 10.0
@@ -87,6 +88,8 @@ class SessionState:
     answered: set[str] = field(default_factory=set)
     #: the patterns of bad bytes after which the box leaves the probe unanswered (bounded time: :mod:`.quiet`)
     hangs: Hangs = field(default_factory=Hangs)
+    #: the places on a connection where the box leaves well-formed requests unanswered (:mod:`.waits`)
+    ran_out: RanOut = field(default_factory=RanOut)
     _target: Target | None = None
     _udp_target: Target | None = None
     _witness: TcpConnection | None = None
@@ -262,6 +265,8 @@ class SessionState:
         signature = error.signature if isinstance(error, CaseVerdict) and error.verdict is Verdict.FAIL else None
         if signature is not None and signature.kind is Sig.SILENCE:
             self.late.setdefault(signature.subject, []).append(case_id)
+        self.ran_out.case_ended(case_id, signature is not None and signature.kind is Sig.SILENCE,
+                                isinstance(error, CaseVerdict) and error.verdict is Verdict.FAIL)
         refused = isinstance(error, Inconclusive) and error.signature == UNREACHABLE_AT_CONNECT
         if (not (malformed_input or transcript.timeouts or refused) or (isinstance(error, Inconclusive) and not refused)
                 or self.health.dead_since_case is not None):  # already known unreachable: nothing to learn

@@ -18,8 +18,8 @@ import pytest
 
 from conformance.fuzz.config import CampaignConfig
 from conformance.fuzz.death import Seen, find_killer
-from conformance.fuzz.evidence import write_vectors
 from conformance.fuzz.executor import Executor, alive
+from conformance.fuzz.failure_files import write_vectors
 from conformance.fuzz.replay import load_files, replay
 from conformance.fuzz.restart import restart_command
 from conformance.fuzz.strategies import Strategies

@@ -335,5 +335,6 @@ def test_default_cases_pass_on_the_bundled_box_within_budget(tmp_path: Path) -> 
     bad = {k: (v["verdict"], v["message"]) for k, v in cases.items() if v["verdict"] not in ("PASS", "SKIP", "INFORMATIONAL")}
     assert not bad
     assert verdicts["SEQ-USER[none]"] == "SKIP" and verdicts["S3-03"] == "INFORMATIONAL"
-    assert sum(c["duration_s"] for c in cases.values()) < 25, {k: c["duration_s"] for k, c in cases.items()}
+    # S6-02 streams for time_out (5 s) reading nothing, by design (S6: answers kept however late they are read)
+    assert sum(c["duration_s"] for c in cases.values()) < 30, {k: c["duration_s"] for k, c in cases.items()}
     assert elapsed < 60

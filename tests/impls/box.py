@@ -75,6 +75,8 @@ _CONFORMING = [
             "and error FFFF instead of silence"),
     Variant("nan-1001", _preset("trust", extension="absent"),
             "B4: NaN/inf answered 1001/1002; no extension E (26/27 are unknown actions: silence)"),
+    Variant("late-inside-timeout", replace(_preset("trust"), late=0.02),
+            "T1: every answer a fiftieth of time_out late (100 ms at the default), inside it"),
 ]
 
 _BASE = {v.name: v for v in _CONFORMING}
@@ -94,6 +96,14 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "no-resync": ("trust-header", "after garbage (or any frame that is not a request) it hangs silently"),
     "nan-zero": ("trust-header", "NaN/inf in a pose or tolerance answered 0000"),
     "drops-coalesced": ("trust-header", "answers only the first of several frames that arrive in one read"),
+    "sticky-error": ("trust-header", "after any error answer, every later answer on the connection carries that "
+                                     "error code (a C struct never cleared)"),
+    "drops-frames": ("trust-header", "every 7th answer on a connection is never written"),
+    "answers-some-actions": ("trust-header", "never answers Tolerance (25) or RegisterPose (24)"),
+    "quiet-after-n": ("trust-header", "after 150 answers in all it answers nothing more (it still accepts and reads)"),
+    "short-send-drops": ("trust-header", "a small send buffer and one non-blocking send() per answer: what did not "
+                                         "fit is dropped"),
+    "latency-grows": ("trust-header", "each answer on a connection 2 ms later than the one before (a backlog)"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
 _BASE_FIXED: dict[str, dict[str, str]] = {
@@ -161,6 +171,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--port", type=int, default=0, help="TCP port on 127.0.0.1 (0: a free one)")
     parser.add_argument("--seed", type=int, help="random: the combination; a broken box: its random legal base")
     parser.add_argument("--time-out", type=int, default=5000, metavar="MS", help="the time_out the box assumes")
+    parser.add_argument("--for-robot", action="store_true",
+                        help="serve a robot of tests/impls whatever the combination says: the stream on the command "
+                             "port (the robot is wired to one address, e.g. through isight-conformance monitor) and "
+                             "data block indexes from 0 (the robot's profile)")
     parser.add_argument("--list", action="store_true", help="list the variants and exit")
     args = parser.parse_args(argv)
     if args.list:
@@ -172,6 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         if not 0 <= args.port <= 65535 or not 0 < args.time_out <= 600_000:
             raise ValueError("--port must be 0..65535 and --time-out 1..600000")
         chosen = variant(args.variant, args.seed)
+        if args.for_robot:
+            chosen = replace(chosen, choices=replace(chosen.choices, stream_port="same", first_index="0"))
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -33,6 +33,10 @@ FLOOD_HEADER = bytes.fromhex("fefe00011023 01ffffff0000".replace(" ", ""))
 LATENCY = {"0": 0.0, "2ms": 0.002, "20ms": 0.020, "100ms": 0.100}
 PIECE_PAUSE = 0.005  # writer "pieces": the header, then the rest this long after
 LINGER = 1.0  # seconds a closing box reads (and drops) what still comes before it closes
+DROP_EVERY = 7  # drops-frames: every 7th answer on a connection is never written
+QUIET_AFTER = 150  # quiet-after-n: after this many answers (the whole box) it answers nothing more
+SHORT_SNDBUF = 4096  # short-send-drops: its small send buffer (the kernel doubles it)
+GROW_S = 0.002  # latency-grows: each answer on a connection this much later than the one before
 
 
 class ThreadBox:
@@ -63,6 +67,7 @@ class ThreadBox:
             self.udp.settimeout(POLL)
             self.udp_port = self.udp.getsockname()[1]
         self._main: list[threading.Thread] = []
+        self.answers = 0  # answers written (quiet-after-n)
         self._flood = os.urandom(1 << 16) if choices.defect == "flood-random" else FLOOD_HEADER * 4096
 
     # -- life cycle ---------------------------------------------------------------------------
@@ -132,6 +137,8 @@ class ThreadBox:
         try:
             conn.settimeout(POLL)
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, int(self.choices.writer != "pieces"))
+            if self.choices.defect == "short-send-drops":
+                conn.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SHORT_SNDBUF)
             defect = self.choices.defect
             if defect in ("flood-random", "flood-headers"):
                 self._flood_loop(conn)
@@ -179,9 +186,10 @@ class ThreadBox:
         choices = self.choices
         framer = Framer(choices.has_extension, choices.framing)
         cycle = self.cycle if choices.cycle_scope == "box" else Cycle()
-        latency = LATENCY[choices.latency]
+        latency = LATENCY[choices.latency] + choices.late * choices.time_out
         hung = choices.defect == "dead"
         remembers = ConnState()
+        mangle = _Mangle(choices.defect)
         while not self.stop_event.is_set():
             try:
                 data = conn.recv(65536)
@@ -190,7 +198,7 @@ class ThreadBox:
             if not data:
                 return
             arrived = time.monotonic()
-            if hung:
+            if hung or (choices.defect == "quiet-after-n" and self.answers >= QUIET_AFTER):
                 continue  # read and discard: the connection stays open, silent
             framer.feed(data)
             answered = 0
@@ -207,7 +215,13 @@ class ThreadBox:
                 answered += 1
                 if choices.defect == "drops-coalesced" and answered > 1:
                     continue  # only the first frame of each read is answered
-                answers.put((arrived + latency + reply.delay, reply))
+                data = mangle(reply.data)
+                if data is None:
+                    continue
+                with self.lock:
+                    self.answers += 1
+                grow = GROW_S * mangle.count if choices.defect == "latency-grows" else 0.0
+                answers.put((arrived + latency + grow + reply.delay, Reply(data, reply.delay)))
 
     def _write_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         """Answers in order, each at its due time; a close reply shuts the connection (the reader ends)."""
@@ -240,6 +254,11 @@ class ThreadBox:
         return self._send(conn, data)
 
     def _send(self, conn: socket.socket, data: bytes) -> bool:
+        if self.choices.defect == "short-send-drops":  # one non-blocking send; what did not fit is dropped
+            with contextlib.suppress(BlockingIOError), socket.socket(fileno=os.dup(conn.fileno())) as nb:
+                nb.setblocking(False)  # this socket object never waits (the reader's keeps its timeout)
+                nb.send(data)
+            return True
         deadline = time.monotonic() + WRITE_BOUND
         view = memoryview(data)
         while view:
@@ -278,6 +297,27 @@ class ThreadBox:
             if out is not None:
                 with contextlib.suppress(OSError):
                     udp.sendto(out, peer)
+
+
+class _Mangle:
+    """Per connection: what the answer-mangling defects do to each answer (None: it is never written)."""
+
+    def __init__(self, defect: str | None) -> None:
+        self.defect = defect
+        self.sticky = 0  # sticky-error: the last non-zero error code, never cleared
+        self.count = 0
+
+    def __call__(self, data: bytes) -> bytes | None:
+        self.count += 1
+        if self.defect == "drops-frames" and self.count % DROP_EVERY == 0:
+            return None
+        if self.defect == "sticky-error" and len(data) >= 12:
+            code = int.from_bytes(data[10:12], "big")
+            if code:
+                self.sticky = code
+            elif self.sticky:
+                return data[:10] + self.sticky.to_bytes(2, "big") + data[12:]
+        return data
 
 
 def _listen(host: str, port: int) -> socket.socket:

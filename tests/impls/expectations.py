@@ -64,6 +64,13 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
     _bad("no-resync", ("R6",), "NON-STRICT"),
     _bad("nan-zero", ("B4",), "NON-STRICT"),
     _bad("drops-coalesced", ("R4", "A1")),
+    _ok("late-inside-timeout", note="every answer 100 ms late: legal (T1), and slow for every sequential wait"),
+    _bad("sticky-error", ("A4", "A1", "A3", "S1", "S2", "S3", "R1")),
+    _bad("drops-frames", ("A1", "T1", "S6")),
+    _bad("answers-some-actions", ("A1", "T1")),
+    _bad("quiet-after-n", ("T1", "A1", "R2")),
+    _bad("short-send-drops", ("S6", "A1", "F5")),
+    _bad("latency-grows", ("T2", "S6", "T1", "A1", "S4")),
     # robots, conforming
     _ok("canonical", "robot"),
     _ok("karel-calls", "robot", note="poses (23/24) on the command connection are legal: PROTOCOL.md, robot side"),
@@ -74,6 +81,8 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
     _bad("cycle-on-first", ("S1",), role="robot"),
     _bad("nan-pose", ("B4",), "NON-STRICT", role="robot"),
     _bad("slow-stream", ("T2",), role="robot"),
+    Expectation("stream-45hz", "robot", False, ("T2",), "FAIL", suite_args=("--rate-tolerance", "5"),
+                note="45 Hz declared 50: the default 10 % tolerance is exactly its rate, so judged at 5 %"),
     _bad("stream-open", ("S5",), role="robot"),
     _bad("little-floats", ("F4",), role="robot"),
 ]}

@@ -27,7 +27,6 @@ import argparse
 import json
 import os
 import random
-import shutil
 import signal
 import subprocess
 import sys
@@ -64,11 +63,9 @@ class Row:
 
 
 def suite_command() -> list[str]:
-    exe = Path(sys.executable).with_name("isight-conformance")
-    if exe.exists():
-        return [str(exe)]
-    found = shutil.which("isight-conformance")
-    return [found] if found else [sys.executable, "-m", "conformance"]
+    """The suite of this checkout: ``python -m conformance`` run with the checkout as its working directory
+    (an installed ``isight-conformance`` script imports whichever checkout was installed, not this one)."""
+    return [sys.executable, "-m", "conformance"]
 
 
 class Proc:
@@ -369,9 +366,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit", type=float, default=1800, metavar="S", help="hard bound per suite run (s)")
     parser.add_argument("--mem-limit", type=float, default=4096, metavar="MB", help="suite RSS cap (default 4096)")
     parser.add_argument("--out", type=Path, help="where reports go (default reports/impls-matrix-<time>)")
+    parser.add_argument("--through-monitor", type=int, nargs=2, metavar=("R", "B"),
+                        help="instead: R random legal robots x B random legal boxes through monitor, analyze on the "
+                             "capture, plus the broken ones on random bases (tests/impls/pairs.py; --seed, --jobs)")
     parser.add_argument("--rejudge", type=Path, metavar="DIR",
                         help="run nothing: re-read DIR's reports, judge them again and rewrite DIR's table")
     args = parser.parse_args(argv)
+    if args.through_monitor:
+        from .pairs import main as pairs_main
+
+        return pairs_main(["--robots", str(args.through_monitor[0]), "--boxes", str(args.through_monitor[1]),
+                           "--broken", "--seed", str(args.seed), "--jobs", str(args.jobs)]
+                          + (["--out", str(args.out)] if args.out else []))
     if args.rejudge is not None:
         return rejudge(args.rejudge)
     names = args.only or list(EXPECTATIONS)

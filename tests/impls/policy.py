@@ -35,6 +35,13 @@ DEFECTS: dict[str, str] = {
     "no-resync": "R6",
     "nan-zero": "B4",
     "drops-coalesced": "R4",
+    # bounded time whatever the box does (issue 25)
+    "sticky-error": "A4",
+    "drops-frames": "A1",
+    "answers-some-actions": "A1",
+    "quiet-after-n": "T1",
+    "short-send-drops": "S6",
+    "latency-grows": "T2",
 } | {name: planted.clause for name, planted in systematic.SYSTEMATIC.items()}  # the root-cause benchmark's
 
 _RESUME = ("resume+1", "resume+5", "resume+12")
@@ -110,6 +117,7 @@ class Choices:
     stream_port: str = "same"
     defect: str | None = None
     time_out: float = 5.0  # the time_out the box assumes (cycle_on_latency is a fraction of it)
+    late: float = 0.0  # every answer this fraction of time_out late as well (no knob: legal below 1)
 
     def __post_init__(self) -> None:
         if self.defect is not None and self.defect not in DEFECTS:
@@ -281,6 +289,8 @@ def _cycle(choices: Choices, action: int, cycle: Cycle) -> Reply:
 
 def _well_formed(choices: Choices, header: Header, frame: bytes, cycle: Cycle) -> Reply:
     action = header.action
+    if choices.defect == "answers-some-actions" and action in (wire.TOLERANCE, wire.REG_POSE):
+        return SILENT  # A1: read, and never answered
     if action in (wire.CYCLE_ON, wire.CYCLE_OFF):
         return _cycle(choices, action, cycle)
     if action == wire.PROG_IDX:

@@ -17,7 +17,7 @@ import argparse
 import signal
 import sys
 import threading
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 from .robots import Outcome, Robot, RobotChoices, random_choices
@@ -61,6 +61,8 @@ _LIST = [
                  "one pose in the middle of the trajectory has x = NaN", "B4", "NON-STRICT"),
     RobotVariant("slow-stream", replace(_CANONICAL, rate_factor=0.7),
                  "streams 30 % below the declared rate (35 Hz for 50 Hz)", "T2"),
+    RobotVariant("stream-45hz", replace(_CANONICAL, rate_factor=0.9),
+                 "streams 10 % below the declared rate (45 Hz for 50 Hz): judged at --rate-tolerance 5", "T2"),
     RobotVariant("stream-open", replace(_CANONICAL, leave_stream_open=True),
                  "never closes the stream connection (holds it until the box closes it, at most 30 s)", "S5"),
     RobotVariant("little-floats", replace(_CANONICAL, float_order="<"),
@@ -70,10 +72,18 @@ ROBOTS: dict[str, RobotVariant] = {v.name: v for v in _LIST}
 RANDOM = "random"
 
 
-def variant(name: str, seed: int | None = None) -> RobotVariant:
-    """A robot by name; ``random`` with ``seed`` is a random legal combination of the knobs."""
+def variant(name: str, seed: int | None = None, base_seed: int | None = None) -> RobotVariant:
+    """A robot by name; ``random`` with ``seed`` is a random legal combination of the knobs; a broken
+    robot with ``base_seed`` carries its one defect on a random legal base (drawn from that seed)."""
     if name != RANDOM:
-        return ROBOTS[name]
+        found = ROBOTS[name]
+        if base_seed is None or found.conforming:
+            return found
+        defect = {f.name: getattr(found.choices, f.name) for f in fields(RobotChoices)
+                  if getattr(found.choices, f.name) != getattr(_CANONICAL, f.name)}
+        base = random_choices(base_seed)
+        return replace(found, choices=replace(base, **defect),
+                       description=f"{found.description} (on the random legal base #{base_seed})")
     if seed is None:
         raise ValueError("the random robot needs --seed")
     choices = random_choices(seed)
@@ -97,6 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.impls.robot", description=__doc__.split("\n\n")[0])
     parser.add_argument("variant", nargs="?", help="which robot (see --list), or 'random'")
     parser.add_argument("--seed", type=int, help="random: the combination")
+    parser.add_argument("--base-seed", type=int, help="a broken robot: its random legal base")
     parser.add_argument("--flags", action="store_true", help="print the certify-robot flags the robot needs, exit")
     parser.add_argument("--target", default="127.0.0.1:9004", help="the box, HOST:PORT (default 127.0.0.1:9004)")
     parser.add_argument("--duration", type=float, default=2.0, help="primer trajectory seconds (default 2)")
@@ -113,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.variant not in ROBOTS and args.variant != RANDOM:
             raise ValueError(f"unknown robot {args.variant!r}; try --list")
-        chosen = variant(args.variant, args.seed)
+        chosen = variant(args.variant, args.seed, args.base_seed)
         if args.flags:
             print(" ".join(chosen.choices.suite_args()))
             return 0

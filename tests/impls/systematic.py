@@ -76,7 +76,7 @@ SYSTEMATIC: dict[str, Planted] = {
     "register-refused": _p("A3", "refuses-valid", "answers every valid register pose 1001", "refuse", REG, 0x1001),
     "tolerance-refused": _p("A3", "refuses-valid", "answers every valid tolerance request 1002", "refuse", TOL, 0x1002),
     # state: after an error, in a cycle, per connection
-    "sticky-error": _p("A1", "state-leak", "after an error answer, answers the next request with that error too",
+    "error-leaks": _p("A1", "state-leak", "after an error answer, answers the next request with that error too",
                        "sticky"),
     "swallow-after-error": _p("A1", "state-leak", "after an error answer, leaves the next request unanswered",
                               "swallow"),

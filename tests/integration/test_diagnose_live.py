@@ -60,7 +60,7 @@ def run(defect: str, seed: int, kind: str, asked: int, answered: int, error: int
     ("index-mod-128", "block-position", Action.POSE, Action.POSE, 0x1001),
     ("pose-twice", "action-not-echoed", Action.TOLERANCE, Action.POSE, 0),
     ("register-as-23", "wrong-code", Action.REGISTER_POSE, Action.POSE, 0),
-    ("sticky-error", "wrong-code", Action.NONE, Action.NONE, 0x1001),
+    ("error-leaks", "wrong-code", Action.NONE, Action.NONE, 0x1001),
     ("pose-refused-idle", "wrong-code", Action.POSE, Action.POSE, 0x1001),
     ("pose-refused-in-cycle", "wrong-code", Action.POSE, Action.POSE, 0x1001),
     ("count-over-100", "block-position", Action.TOLERANCE, Action.TOLERANCE, 0x1002),

@@ -156,7 +156,7 @@ def test_the_same_seed_sends_the_same_cases(tmp_path: Path) -> None:
 
 def test_a_budget_in_seconds_is_kept(tmp_path: Path) -> None:
     with patched_box() as box:
-        summary = Campaign(config(target_of(box), tmp_path, max_examples=None, duration_s=0.6,
+        summary = Campaign(config(target_of(box), tmp_path, max_examples=None, duration_s=3.0,
                                   stateful_share=0.3)).run()
     assert summary.examples > 0 and summary.stateful.steps > 0  # both phases ran, and it ended
 

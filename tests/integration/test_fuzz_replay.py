@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from conformance.evidence.vectors_file import REPO_VECTORS
-from conformance.fuzz.evidence import Failure, write_vectors
+from conformance.fuzz.failure_files import Failure, write_vectors
 from conformance.fuzz.replay import load_files, replay, summary_line
 from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target

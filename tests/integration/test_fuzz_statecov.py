@@ -1,4 +1,4 @@
-"""State coverage, steering and the shared budget (conformance/fuzz/statecov.py, machine.py, stateful.py, budget.py)."""
+"""State coverage, steering and the shared budget (conformance/fuzz/state_coverage.py, session_machine.py, session_runner.py, budget.py)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from conformance.fuzz.budget import Budget
 from conformance.fuzz.campaign import Campaign
 from conformance.fuzz.config import CampaignConfig
-from conformance.fuzz.machine import SessionContext, machine_for
-from conformance.fuzz.statecov import StateCoverage, Transition, space
+from conformance.fuzz.session_machine import SessionContext, machine_for
+from conformance.fuzz.state_coverage import StateCoverage, Transition, space
 from conformance.fuzz.strategies import Strategies
 from conformance.harness.target import Target
 from conformance.protocol import Action

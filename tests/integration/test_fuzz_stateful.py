@@ -1,4 +1,4 @@
-"""Stateful fuzzing (conformance/fuzz/stateful.py): sessions over command and stream connections."""
+"""Stateful fuzzing (conformance/fuzz/session_runner.py): sessions over command and stream connections."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Cycle, Decision, Reaction
 from conformance.fuzz.campaign import Campaign
-from conformance.fuzz.stateful import run_stateful
+from conformance.fuzz.session_runner import run_stateful
 from conformance.fuzz.strategies import Strategies
 from conformance.protocol import Action, ErrorCode, Frame, ProtocolError, Transport, answer
 from conformance.suite.sequence import load as load_sequence

@@ -22,7 +22,7 @@ from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, StreamDecoder, TransferType, answer, encode, request
 from conformance.protocol.errors import ProtocolError
 from conformance.protocol.frames import Frame
-from conformance.suite import session as session_mod
+from conformance.suite import run_state as session_mod
 from conformance.suite.case_judge import CaseVerdict, Inconclusive
 from conformance.suite.run_state import (
     LATE_CASES,

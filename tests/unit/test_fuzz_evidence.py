@@ -1,4 +1,4 @@
-"""Fuzz evidence (conformance/fuzz/evidence.py): vector files that validate and load, pcaps, summaries."""
+"""Fuzz evidence (conformance/fuzz/failure_files.py): vector files that validate and load, pcaps, summaries."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 import jsonschema
 
 from conformance.evidence.vectors_file import REPO_VECTORS, frame_from_dict, load
-from conformance.fuzz.evidence import Failure, clauses_of, write_pcap, write_summary, write_vectors
+from conformance.fuzz.failure_files import Failure, clauses_of, write_pcap, write_summary, write_vectors
 from conformance.fuzz.strategies import Strategies
 from conformance.harness.transcript import Endpoint, Kind, Transcript
 from conformance.protocol import Action, Profile, Transport, encode, encode_udp, pose_blocks, request

@@ -1,4 +1,4 @@
-"""The boundary-first schedule and the coverage of the input space (conformance/fuzz/schedule.py, coverage.py)."""
+"""The boundary-first schedule and the coverage of the input space (conformance/fuzz/schedule.py, input_coverage.py)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,15 @@ import struct
 
 import pytest
 
-from conformance.fuzz.coverage import EDGES_U8, EDGES_U16, SIZE_POINTS, VALUE_CLASSES, Coverage, float_class, size_point
+from conformance.fuzz.input_coverage import (
+    EDGES_U8,
+    EDGES_U16,
+    SIZE_POINTS,
+    VALUE_CLASSES,
+    Coverage,
+    float_class,
+    size_point,
+)
 from conformance.fuzz.schedule import FLOAT_SPECIALS, GARBAGE_SIZES, Schedule, boundary_counts
 from conformance.fuzz.strategies import BLOCK_ACTIONS, Strategies, _recount
 from conformance.protocol import (

@@ -13,7 +13,7 @@ from conformance.analyze.capture import CaptureReader
 from conformance.analyze.findings import BOX, ROBOT
 from conformance.model.verdicts import Verdict
 from conformance.monitor.faults import FaultPlan, corrupt, parse_fault
-from conformance.monitor.judge import MAX_CAUSES, LiveFindings, signature
+from conformance.monitor.live_findings import MAX_CAUSES, LiveFindings, signature
 from conformance.monitor.ring import Ring
 from conformance.monitor.split import Splitter
 from conformance.protocol import Action
@@ -193,7 +193,7 @@ def test_what_the_robot_did_after_a_fault() -> None:
 
 
 def test_a_judgement_that_fails_is_the_suites_error_and_the_line_goes_on(tmp_path: Path) -> None:
-    from conformance.monitor.wire import Wire
+    from conformance.monitor.line_recording import Wire
 
     class Broken:
         calls = 0

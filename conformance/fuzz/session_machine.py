@@ -10,9 +10,9 @@ answer on each connection; what a request may be answered comes from
 judged by the frame oracle (:mod:`.oracle`). Teardown checks liveness on a fresh
 connection (R2).
 
-Every answered request marks a transition of :class:`~.statecov.StateCoverage`;
+Every answered request marks a transition of :class:`~.state_coverage.StateCoverage`;
 :meth:`IsightSession.steer` walks straight to one transition (set the cycle, send the
-last request, send the request), which is how the runner (:mod:`.stateful`) reaches the
+last request, send the request), which is how the runner (:mod:`.session_runner`) reaches the
 transitions random sessions have not.
 
 :func:`machine_for` makes the class for one campaign: the rules are defined once here,
@@ -38,9 +38,10 @@ from ..model.verdicts import Verdict
 from ..protocol import BLOCK_LEN, REQUEST_SHAPE, Action, BlockType, Header, codec_for
 from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes
 from .config import CampaignConfig
+from .death_first import died, known_death
 from .executor import Executor, FuzzConnection, alive
 from .oracle import Expectation, Finding, Rule, judge
-from .statecov import OPEN, StateCoverage, Transition
+from .state_coverage import OPEN, StateCoverage, Transition
 from .strategies import FuzzCase, Strategies, _finite
 
 #: Frame categories the machine interleaves as malformed input (stream-safe: no truncation at EOF, no UDP).
@@ -147,13 +148,19 @@ class IsightSession(RuleBasedStateMachine):
         self.log.append(f"open {name}")
 
     def _fail(self, finding: Finding, case: FuzzCase, hang: bool = False) -> None:
+        """Death first: before a failure is reported the box's liveness is checked; a dead box is R2."""
         ctx = self.ctx
+        if not ctx.shrinking:
+            live = self.executor.check_alive()
+            if not alive(live):
+                death = died(finding, live)
+                if known_death(death, ctx.known):
+                    raise KnownFailure(death.describe())
+                raise StatefulHang(StatefulFailure(death, self, case), dead=True)
         if finding.key and finding.key in ctx.known and not ctx.shrinking:
             raise KnownFailure(finding.describe())
         if hang and not ctx.shrinking:
             raise StatefulHang(StatefulFailure(finding, self, case))
-        if not ctx.shrinking and not alive(self.executor.check_alive()):
-            raise StatefulHang(StatefulFailure(finding, self, case), dead=True)
         ctx.shrinking = True  # from now on every step runs: hypothesis is shrinking
         raise StatefulFailure(finding, self, case)
 

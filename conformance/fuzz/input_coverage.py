@@ -56,7 +56,6 @@ VALUE_CLASSES = ("zero", "-zero", "normal", "-normal", "subnormal", "-subnormal"
                  "max-finite", "-max-finite", "inf", "-inf", "qnan", "snan", "-nan")
 #: Size buckets: [2^k, 2^(k+1)) for k = 0..16, and the largest legal frame and one byte more.
 SIZE_POINTS = tuple(f"<{1 << (k + 1)}" for k in range(17)) + ("max-frame", "max-frame+1")
-HUGE = 1e30
 
 
 def field_space() -> dict[str, tuple[int, ...]]:

@@ -24,7 +24,7 @@ from ..model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from ..report import write_reports
 from ..report.summary import atomic_write_bytes
 from .hub import Hub
-from .judge import Cause
+from .live_findings import Cause
 
 __all__ = ["snapshot", "write_monitor_reports"]
 
@@ -148,6 +148,9 @@ def monitor_doc(hub: Hub) -> dict[str, Any]:
         "ring_bytes": hub.ring.disk_bytes() if hub.ring is not None else 0,
         "ring_error": str(hub.ring.error) if hub.ring is not None and hub.ring.error else None,
         "events": list(hub.events),
+        "alarms": [a.to_dict() for a in hub.alarms.all()],
+        "alarms_active": len(hub.alarms.active),
+        "alarms_raised": dict(hub.alarms.raised),
     }
 
 

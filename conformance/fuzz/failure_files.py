@@ -7,7 +7,7 @@ mishandled) and a ``comment`` saying what the box did. ``isight-conformance repl
 FILE`` resends it. The pcap is synthesised from the socket transcript of the
 evidence run (a fresh connection: the bytes, the probe, the liveness check) with
 :func:`~conformance.evidence.pcap.write_transcript`. A failing session of the state
-machine (:mod:`.stateful`) is also written as an ``isight-sequence-1`` file.
+machine (:mod:`.session_runner`) is also written as an ``isight-sequence-1`` file.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from ..evidence.vectors_file import frame_to_dict, write
 from ..harness.transcript import Transcript
 from ..protocol import Frame, Profile, ProtocolError, TransferType, Transport, parse_frame
 from ..suite.record import _CLAUSE
+from .last_words import LastWords
 from .strategies import FuzzCase
 
 
@@ -45,6 +46,7 @@ class Failure:
     found_s: float = 0.0  # seconds into the campaign when it was found
     keys: list[str] = field(default_factory=list)  # the oracle's finding keys (clause/rule/action/what)
     new_connections: list[bool] = field(default_factory=list)  # a death's sequence: which case opened a connection
+    last_words: LastWords | None = None  # what the box that died wrote (fuzz --restart-cmd keeps it)
 
     @property
     def malformed_answer(self) -> bool:
@@ -64,6 +66,7 @@ class Failure:
             "found_s": round(self.found_s, 3), "keys": self.keys,
             "vector": str(self.vector) if self.vector else None, "pcap": str(self.pcap) if self.pcap else None,
             "sequence": str(self.sequence) if self.sequence else None,
+            "last_words": self.last_words.to_dict() if self.last_words is not None else None,
         }
 
 
@@ -121,12 +124,15 @@ def write_vectors(path: Path, failure: Failure, profile: Profile, description: s
             where = f" (case {i} of {len(failure.cases)} of the sequence that kills the box, in this order)"
         comment = f"fuzz failure {failure.number} ({failure.kind}){where}: {case.describe()}. {failure.message}"
         entry = vector_entry(len(group["tests"]) + 1, case, profile, comment, clauses_of(case, failure.clauses))
-        entry["flags"] = flags + split_flags(case)
+        entry["flags"] = flags + split_flags(case) + (["BoxLastWords"] if failure.last_words is not None else [])
         group["tests"].append(entry)
     path.parent.mkdir(parents=True, exist_ok=True)
     notes: dict[str, str] = {}
     for flag in sorted({f for g in groups.values() for t in g["tests"] for f in t["flags"]}):
         notes[flag] = SEQUENCE_NOTES.get(flag) or _split_note(flag)
+    if failure.last_words is not None and groups:
+        words = failure.last_words
+        notes["BoxLastWords"] = f"{words.summary()}. What it wrote last:\n{words.shown_tail()}"
     if profile.byte_order != "big" or profile.float_byte_order != "big":
         description += (f" Profile: byte order {profile.byte_order}, float byte order {profile.float_byte_order} "
                         "(the vectors are in that order).")

@@ -14,7 +14,7 @@ allows: every session action (ProgIdx and the result request only with extension
 from every state, except a last answer of CycleOn in the idle state and of CycleOff in
 the on state (a box that accepts CycleOn is then on: only a refusal leaves it idle).
 :meth:`StateCoverage.unreached` gives what is left in a fixed order (seeded), so the
-steering of :mod:`.machine` walks toward it; ``to_dict()`` goes into ``fuzz-summary.json``.
+steering of :mod:`.session_machine` walks toward it; ``to_dict()`` goes into ``fuzz-summary.json``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
-"""Stateful fuzzing: sessions of the state machine (:mod:`.machine`), run in slices between the frame cases.
+"""Stateful fuzzing: sessions of the state machine (:mod:`.session_machine`), run in slices between the frame cases.
 
 A :class:`SessionRunner` runs *chunks*: a *steered* session that walks straight to the
-transitions of :class:`~.statecov.StateCoverage` no session has reached yet (at most
+transitions of :class:`~.state_coverage.StateCoverage` no session has reached yet (at most
 ``STEER_PER_CHUNK``, each tried at most twice: the box may refuse the way there; the
 first one also opens 16 connections at once and makes 32 quick reconnects), then one
 hypothesis run of ``RUNS_PER_CHUNK`` sessions of ``STEPS`` steps each (seeded from the
@@ -31,12 +31,15 @@ from hypothesis.stateful import run_state_machine_as_test
 
 from ..harness.transcript import Transcript
 from .config import CampaignConfig
-from .evidence import Failure, clauses_of, write_pcap, write_sequence, write_vectors
+from .death_first import DEATH_KEY
 from .executor import Executor, alive
+from .failure_files import Failure, clauses_of, write_pcap, write_sequence, write_vectors
 from .hyp import seed_machine
-from .machine import KnownFailure, SessionContext, StatefulFailure, StatefulHang, machine_for
-from .statecov import StateCoverage, Transition
+from .last_words import LastWords, telling
+from .session_machine import KnownFailure, SessionContext, StatefulFailure, StatefulHang, machine_for
+from .state_coverage import StateCoverage, Transition
 from .strategies import Strategies
+from .transcript_replay import replay_sends
 
 #: Steps per session (hypothesis's stateful_step_count) and sessions per hypothesis run.
 STEPS = 25
@@ -181,12 +184,35 @@ class SessionRunner:
                     conn.abort("steered session done")
 
     def _found(self, exc: StatefulFailure, shrunk: bool, how: str = "", stopped: str = "failure") -> None:
-        failure = _record(self.cfg, self.seed, self.number(), exc, shrunk, how)
+        confirmed, words = True, None
+        if exc.finding.key.startswith(DEATH_KEY):
+            box = self.cfg.box
+            first = len(box.incarnations) if box is not None else 0
+            said = [box.last_words()] if box is not None else []
+            confirmed, why = self._confirm_death(exc)
+            how = f"{how}; {why}" if how else why
+            words = telling(said + ([i.last_words(0.0) for i in box.incarnations[first:-1]] if box else []))
+        failure = _record(self.cfg, self.seed, self.number(), exc, shrunk, how, words)
+        failure.confirmed = confirmed
         self.failures.append(failure)
         if exc.finding.key:
             self.ctx.known.add(exc.finding.key)
         self.stopped = stopped
         self._after_failure()
+
+    def _confirm_death(self, exc: StatefulFailure) -> tuple[bool, str]:
+        """R2 confirmed by the restart replay: bring the box back, replay the session's writes, is it dead again?"""
+        if self.recover is None:
+            return False, "not confirmed: the campaign cannot restart the box (fuzz --restart-cmd CMD)"
+        if not self.recover():
+            return False, "not confirmed: the box did not come back"
+        cfg = self.cfg
+        tr = Transcript(case_id="FUZZ-stateful-death")
+        replay_sends(exc.transcript, cfg.profile, tr)
+        if alive(Executor(cfg.target, cfg.profile, tr, extension=cfg.extension).check_alive()):
+            return False, "not confirmed: replayed after a restart, the session's writes did not kill the box again"
+        exc.transcript = tr  # the evidence: the replay that killed it again
+        return True, "confirmed: after a restart, the session's writes replayed on fresh connections killed it again"
 
     def _after_failure(self) -> None:
         """After a failing session: is the box still there? A dead one is brought back, or the runner stops."""
@@ -213,14 +239,17 @@ def run_stateful(cfg: CampaignConfig, strategies: Strategies, campaign_seed: int
 
 
 def _record(cfg: CampaignConfig, campaign_seed: int, number: int, exc: StatefulFailure, shrunk: bool = True,
-            how: str = "") -> Failure:
+            how: str = "", words: LastWords | None = None) -> Failure:
     """The session failure's vector file (the failing request), sequence file and pcap, and a line in the log."""
     name = f"{cfg.name}-{number:03d}"
     f = exc.finding
     how = how or ("shrunk by hypothesis" if shrunk else "not shrunk: the box hung, each shrink step would wait time_out")
     message = f"{f.requirement}; the box {f.observed} (session of {len(exc.steps)} steps, {how})"
-    failure = Failure(number, "stateful", clauses_of(exc.case, [f.clause]), message, [exc.case] if exc.case.data else [],
-                      shrunk=shrunk, steps=exc.steps, keys=[f.key] if f.key else [])
+    clauses = clauses_of(exc.case, [f.clause])
+    if f.key.startswith(DEATH_KEY):  # the death first, then the trigger's clauses
+        clauses = ["R2", *(c for c in clauses if c != "R2")]
+    failure = Failure(number, "stateful", clauses, message, [exc.case] if exc.case.data else [],
+                      shrunk=shrunk, steps=exc.steps, keys=[f.key] if f.key else [], last_words=words)
     desc = f"isight-conformance fuzz: session failure {number} against {cfg.target} (seed {campaign_seed})"
     if failure.cases and cfg.report_dir is not None:
         failure.vector = write_vectors(cfg.report_dir / f"{name}.json", failure, cfg.profile, desc)
@@ -231,7 +260,8 @@ def _record(cfg: CampaignConfig, campaign_seed: int, number: int, exc: StatefulF
     cfg.log(f"fuzz: FAIL {number} [{', '.join(failure.clauses)}] {message}\n      steps: "
             + "; ".join(exc.steps) + f"\n      sequence: {failure.sequence}"
             + (f"\n      vector: {failure.vector}" if failure.vector else "")
-            + (f"\n      pcap: {failure.pcap}" if failure.pcap else ""))
+            + (f"\n      pcap: {failure.pcap}" if failure.pcap else "")
+            + (f"\n      box: {words.summary()}" if words is not None else ""))
     return failure
 
 

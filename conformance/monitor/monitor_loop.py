@@ -18,11 +18,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
+from ..harness.starvation import gauge, watch_loop
 from ..model.verdicts import CaseResult, SuiteInfo
 from .hub import Hub, MonitorSettings
+from .liveserve import LiveServers
+from .monitor_reports import write_monitor_reports
 from .proxy import TcpProxy
-from .report import write_monitor_reports
-from .udp import UdpProxy
+from .udp_proxy import UdpProxy
 from .view import View
 
 __all__ = ["ListenError", "MonitorOutcome", "monitor_main", "run_monitor"]
@@ -63,8 +65,26 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
         raise ListenError(exc.errno, exc.strerror or str(exc)) from None
     settings.listen = address
     print(f"{line} -> upstream {_fmt(settings.upstream)}", file=out, flush=True)
+    live = None
+    if settings.metrics is not None or settings.http is not None:
+        live = LiveServers(hub, report_dir, settings.metrics, settings.http)
+        try:
+            got = await live.start()
+        except OSError as exc:
+            await tcp.stop()
+            if udp is not None:
+                await udp.stop()
+            raise ListenError(exc.errno, f"--metrics/--http: {exc.strerror or exc}") from None
+        if "metrics" in got:
+            settings.metrics = got["metrics"]
+            print(f"metrics http://{_fmt(got['metrics'])}/metrics", file=out, flush=True)
+        if "http" in got:
+            settings.http = got["http"]
+            print(f"page http://{_fmt(got['http'])}/", file=out, flush=True)
     view.start(hub)
+    gauge().start()  # the monitor's own stalls: a T2 breach they could explain is INCONCLUSIVE (analyze.timing)
     loop = asyncio.get_running_loop()
+    stop_watch = watch_loop(loop)
     end = loop.time() + duration_s if duration_s else None
     next_checkpoint = loop.time() + checkpoint_s if checkpoint_s else None
     checkpoints = 0
@@ -75,7 +95,10 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
             now = loop.time()
             if end is not None and now >= end:
                 break
+            hub.tick()
             view.tick()
+            if live is not None:
+                live.tick()
             if next_checkpoint is not None and now >= next_checkpoint:
                 next_checkpoint = now + checkpoint_s
                 try:
@@ -86,10 +109,14 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
                     view.line(f"isight-conformance monitor: checkpoint: cannot write the reports: {exc.strerror or exc}")
     finally:
         view.stop()
+        if live is not None:
+            await live.stop()
         await tcp.stop()
         if udp is not None:
             await udp.stop()
         hub.finish()
+        stop_watch()
+        gauge().stop()
     suite, cases = write_monitor_reports(hub, report_dir, command)
     return MonitorOutcome(hub, suite, cases, checkpoints)
 

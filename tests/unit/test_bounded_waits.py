@@ -1,0 +1,69 @@
+"""What the engine learns from waits (suite/waits.py, suite/quiet.py's refused pattern), and the T2 excess figures."""
+
+from __future__ import annotations
+
+from conformance.harness.starvation import Stall, StarvationGauge, explains, starved_verdict
+from conformance.observed.stream_timing import jitter_excess_ms, rate_excess_ms, stream_stats
+from conformance.suite.quiet import CUT_S, Hangs, refused_key
+from conformance.suite.waits import REPEAT, RanOut
+
+
+def test_a_place_counts_only_when_its_case_failed_on_the_silence() -> None:
+    ran_out = RanOut()
+    for n in range(REPEAT):
+        ran_out.ran_out(f"legal-{n}", 6)
+        ran_out.case_ended(f"legal-{n}", failed_on_silence=False)  # a legal silence: learns nothing
+    assert ran_out.known(6) is None and ran_out.bound(6, 5.0) is None
+    for n in range(REPEAT):
+        ran_out.ran_out(f"case-{n}", 6)
+        ran_out.case_ended(f"case-{n}", failed_on_silence=True)
+    assert ran_out.known(6) == [f"case-{n}" for n in range(REPEAT)]
+    assert ran_out.bound(6, 5.0) == CUT_S and ran_out.bound(6, 0.1) == 0.1
+    assert ran_out.bound(5, 5.0) is None  # another place on the connection is not cut
+
+
+def test_an_answer_at_the_place_withdraws_the_pattern() -> None:
+    ran_out = RanOut()
+    for n in range(REPEAT):
+        ran_out.ran_out(f"case-{n}", 13)
+        ran_out.case_ended(f"case-{n}", failed_on_silence=True)
+    ran_out.answered_at(13)
+    assert ran_out.known(13) is None
+
+
+def test_the_refused_pattern_bounds_the_family_and_is_withdrawn_by_a_late_zero() -> None:
+    hangs = Hangs()
+    key = refused_key("reject")
+    assert key == refused_key("reject-should") != refused_key("not-request")  # one family for requests
+    for n in range(2):
+        hangs.note(key, f"case-{n}", hung=True, probe_answered=False)
+    assert hangs.bound("reject", False, 5.0) == CUT_S
+    assert hangs.bound("reject", True, 5.0) is None  # a case that judges R6 itself waits in full
+    assert hangs.bound("not-request", False, 5.0) is None
+    hangs.withdraw_refused("reject")
+    assert hangs.bound("reject", False, 5.0) is None
+
+
+def test_a_stall_explains_a_breach_no_larger_than_itself() -> None:
+    gauge = StarvationGauge()
+    gauge.note(100.0, 150.0)  # the timer woke 150 ms late at t=100 s
+    assert gauge.worst_ms(99.0, 101.0) == 150.0 and gauge.worst_ms(101.0, 102.0) == 0.0
+    assert explains(120.0, 150.0) and not explains(200.0, 150.0) and not explains(0.5, 1.0)
+    assert starved_verdict(120.0, 99.0, 101.0, source=gauge) is not None
+    assert starved_verdict(400.0, 99.0, 101.0, source=gauge) is None
+    assert starved_verdict(120.0, 200.0, 201.0, source=gauge) is None
+    assert Stall(1.0, 2.0).wall == 0.0
+
+
+def _stream(rate_hz: float, seconds: float = 3.0) -> list[float]:
+    return [i / rate_hz for i in range(int(rate_hz * seconds))]
+
+
+def test_a_slow_stream_is_off_by_more_than_a_stall_could_hide() -> None:
+    slow = stream_stats(_stream(45.0), 50.0)
+    right = stream_stats(_stream(50.0), 50.0)
+    assert slow is not None and right is not None
+    assert rate_excess_ms(right, 0.05) == 0.0 and jitter_excess_ms(right, 0.5) == 0.0
+    assert rate_excess_ms(slow, 0.05) > 100.0  # 3 s at 45 Hz is ~150 ms longer than 47.5 Hz allows
+    bursty = stream_stats([t + 0.1 * (i // 15) for i, t in enumerate(_stream(50.0))], 50.0)  # a 100 ms gap in 15
+    assert bursty is not None and 80.0 < jitter_excess_ms(bursty, 0.5) < 100.0
