@@ -308,14 +308,18 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         cases = results(config, key)
         if not cases:
             continue
-        causes[key] = root_causes(config, key)
+        from .diagnose.phase import run_phase
+
+        causes[key] = run_phase(state, cases, root_causes(config, key), session_facts(config, key))  # <= 20 s
         if state.settings.report_dir is None:
             continue
+        from .diagnose.repro import write_repros
         from .report import write_reports
 
         report_dir = Path(state.settings.report_dir) / (safe_name(key) if key else "")
         with signals.deferred():  # a second signal does not cut the reports short
             info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED, key=key)
             diff = write_reports(report_dir, info, cases, causes[key], baseline=config.stash.get(BASELINE, None))
+            write_repros(report_dir, causes[key], state.profile)
         config.stash.setdefault(BASELINE_DIFF, diff)
     config.stash[CAUSES] = next(iter(causes.values()), [])

@@ -169,9 +169,20 @@ def main_replay(args: argparse.Namespace) -> int:
 
 
 def _replay(args: argparse.Namespace) -> int:
+    from ..diagnose.repro import is_repro, replay_repros
     from .replay import load_files, replay, summary_line
 
     profile = profile_from_options(args)
+    repros = [f for f in args.files if is_repro(f)]  # rootcause-N.json: fixed / still present per root cause
+    if repros:
+        with _box(args, profile, "replay") as (target, _udp, _started):
+            print(f"replay: {len(repros)} root-cause repro(s) to {target}; profile {profile.describe()}", flush=True)
+            status = replay_repros(repros, target, profile, profile.time_out_ms / 1000, lambda line: print(line, flush=True))
+        args.files = [f for f in args.files if f not in repros]
+        if not args.files:
+            return EXIT_OK if status == 0 else EXIT_FAILED
+        rest = _replay(args)
+        return max(rest, EXIT_FAILED if status else EXIT_OK)
     try:
         vectors = load_files(args.files, args.tc or ())
     except (OSError, ValueError, KeyError) as exc:

@@ -165,6 +165,11 @@ class RootCause:
     level: Level = Level.MUST
     #: what kind of defect: "malformed-answers", "one-connection", "connection-leak", "unresponsive", ...
     kind: str = ""
+    #: the diagnose phase (conformance/diagnose/): True when an experiment confirmed the mechanism the title
+    #: names, False when none did (the title then starts "unconfirmed:"), None when no diagnosis ran
+    confirmed: bool | None = None
+    #: the hypotheses considered, the experiments that ruled each in or out (with their bytes), the repro file
+    diagnosis: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -175,4 +180,6 @@ class RootCause:
             "cases": list(self.cases),
             "level": self.level.value,
             "kind": self.kind,
+            "confirmed": self.confirmed,
+            "diagnosis": self.diagnosis,
         }

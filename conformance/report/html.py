@@ -51,6 +51,7 @@ from .html_cases import (
     pcap_href,
     print_cards,
 )
+from .html_diagnosis import diagnosis_view
 from .summary import (
     CLAUSES,
     FAMILIES,
@@ -204,6 +205,7 @@ def root_cause_views(root_causes: Sequence[RootCause], cases: Sequence[CaseResul
             "clauses": [clause_text(c) for c in rc.clauses], "evidence": hexdump(rc.evidence, limit=256),
             "n_cases": len(rc.cases), "counts": [(v, n) for v, n in counts.items() if n],
             "first": link.get(rc.cases[0], ("", ""))[0] if rc.cases else "",
+            "diagnosis": diagnosis_view(rc),
         })
     return views
 

@@ -117,6 +117,8 @@ def root_causes_of(doc: dict[str, Any]) -> list[RootCause]:
             id=str(r["id"]), clauses=tuple(str(x) for x in r.get("clauses", [])), title=str(r.get("title", "")),
             evidence=str(r.get("evidence", "")), cases=[str(x) for x in r.get("cases", [])],
             level=_level(r.get("level")), kind=str(r.get("kind", "")),
+            confirmed=r.get("confirmed") if isinstance(r.get("confirmed"), bool) else None,
+            diagnosis=r.get("diagnosis") if isinstance(r.get("diagnosis"), dict) else None,
         ))
     return out
 

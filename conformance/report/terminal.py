@@ -215,7 +215,29 @@ def _root_cause_lines(root_causes: Sequence[RootCause], cases: Sequence[CaseResu
             text = Text(f"      {cid}: {one_line(t.text, 300)}", style="dim")
             text.no_wrap, text.overflow = True, "ellipsis"
             lines.append(text)
+        proof = proof_line(rc)
+        if proof:
+            text = Text(f"      {proof}", style="dim")
+            text.no_wrap, text.overflow = True, "ellipsis"
+            lines.append(text)
     return lines
+
+
+def proof_line(rc: RootCause) -> str:
+    """How the diagnose phase settled a root cause: the experiment that confirmed it and the repro file, or
+    that none did ("" when no diagnosis ran)."""
+    d = rc.diagnosis
+    if not d:
+        return ""
+    repro = (d.get("repro") or {}).get("file", "")
+    ruled_out = sum(1 for h in d.get("hypotheses", []) if h.get("status") == "ruled out")
+    if not d.get("confirmed"):
+        return _("no experiment confirmed it ({n} other stories ruled out)").format(n=ruled_out)
+    found = next((h for h in d.get("hypotheses", []) if h.get("status") == "confirmed" and h.get("key") != "catalogue"),
+                 None)
+    where = found.get("experiment", "") if found else "session"
+    line = _("confirmed by experiment '{name}', {n} other stories ruled out").format(name=where, n=ruled_out)
+    return line + (_("; repro: {file} (replay it after a fix)").format(file=repro) if repro else "")
 
 
 def print_final_table(suite: SuiteInfo, cases: list[CaseResult], console: Console | None = None,

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from ..i18n import gettext
+from ..i18n.ordinals import nth_block
 from ..model.signature import Reply, Sig
 from ..model.verdicts import CaseResult, RootCause, Verdict
 from ..protocol import Action, parse_header
@@ -168,7 +169,7 @@ def block_position_cause(cases: Sequence[CaseResult], first_index: int) -> Claim
         what.append(gettext("answers 0000 to a wrong index at block {blocks}").format(
             blocks=", ".join(map(str, accepted_at))))
     exact = bool(accepted_at) and min(accepted_at) == k + 1
-    where = (gettext("from block {k} on") if exact else gettext("at some block up to the {k}th")).format(k=k + 1)
+    where = (gettext("from {block} on") if exact else gettext("at some block up to {block}")).format(block=nth_block(k + 1))
     title = gettext("The box judges block indexes wrongly {where}: it {what}; B3 asks for indexes "
                     "{first}, {second}, … rising by one to the last block").format(
         where=where, what=gettext(" and ").join(what), first=first_index, second=first_index + 1)

@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 from .framers import Framer
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
+from .systematic import ConnState
 
 POLL = 0.2
 WRITE_BOUND = 10.0  # seconds a peer may leave an answer unread before the box gives up on it
@@ -187,6 +188,7 @@ class ThreadBox:
         cycle = self.cycle if choices.cycle_scope == "box" else Cycle()
         latency = LATENCY[choices.latency] + choices.late * choices.time_out
         hung = choices.defect == "dead"
+        remembers = ConnState()
         mangle = _Mangle(choices.defect)
         while not self.stop_event.is_set():
             try:
@@ -201,7 +203,7 @@ class ThreadBox:
             framer.feed(data)
             answered = 0
             for event in framer.events():
-                reply = decide(choices, event, cycle)
+                reply = decide(choices, event, cycle, remembers)
                 if reply.hang:
                     hung = True
                     break
@@ -266,6 +268,8 @@ class ThreadBox:
                 sent = conn.send(view)
             except TimeoutError:
                 continue
+            except (BrokenPipeError, ConnectionResetError):
+                return False  # the peer went away (a repro replayed, a probe closed): nothing left to answer
             view = view[sent:]
         return True
 

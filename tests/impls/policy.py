@@ -14,6 +14,7 @@ import random
 import threading
 from dataclasses import dataclass, fields, replace
 
+from . import systematic
 from . import wire_format as wire
 from .framers import Close, Event, Frame, Framing, Garbage, Rejected
 from .wire_format import Check, Header
@@ -41,7 +42,7 @@ DEFECTS: dict[str, str] = {
     "quiet-after-n": "T1",
     "short-send-drops": "S6",
     "latency-grows": "T2",
-}
+} | {name: planted.clause for name, planted in systematic.SYSTEMATIC.items()}  # the root-cause benchmark's
 
 _RESUME = ("resume+1", "resume+5", "resume+12")
 #: knob -> its legal alternatives (the first is the default); the names are the legal table's knobs.
@@ -217,8 +218,16 @@ def answer(choices: Choices, action: int, error: int = wire.OK, value: int | Non
     )
 
 
-def decide(choices: Choices, event: Event, cycle: Cycle) -> Reply:
-    """The box's reaction to one framer event."""
+def decide(choices: Choices, event: Event, cycle: Cycle, conn: systematic.ConnState | None = None) -> Reply:
+    """The box's reaction to one framer event (``conn``: what its connection remembers, for the
+    systematic defects of :mod:`.systematic`)."""
+    if choices.defect in systematic.SYSTEMATIC:
+        reply: Reply = systematic.decide(choices, event, cycle, conn, _decide, answer)
+        return reply
+    return _decide(choices, event, cycle)
+
+
+def _decide(choices: Choices, event: Event, cycle: Cycle) -> Reply:
     if isinstance(event, Close):
         return CLOSE
     if isinstance(event, Garbage):

@@ -170,7 +170,7 @@ def test_a_box_counting_indexes_in_four_bits_gets_one_b3_root_cause_naming_the_p
     causes = find_root_causes(cases, SessionFacts())
     first = causes[0]
     assert (first.clauses, first.kind, first.level) == (("B3",), "block-position", Level.MUST)
-    assert "from block 17 on" in first.title
+    assert "from the 17th block on" in first.title
     assert "refuses valid requests of 17, 255 blocks" in first.title and "wrong index at block 17, 129" in first.title
     assert first.cases == ["B1-01[255-pose]", "B1-01[255-reg]", "B2-01[255]", "BND-01[17-pose]",
                            "BND-02[wrong-17th-pose]", "BND-02[wrong-129th-tol]"]
@@ -184,7 +184,7 @@ def test_with_the_catalogue_of_today_the_b3_cause_says_what_it_knows() -> None:
     cases = modulo_16_run(first=1, boundaries=False)
     causes = find_root_causes(cases, SessionFacts(first_index=1))
     assert causes[0].kind == "block-position" and causes[0].clauses == ("B3",)
-    assert "at some block up to the 255th" in causes[0].title and "indexes 1, 2, …" in causes[0].title
+    assert "at some block up to the 255th block" in causes[0].title and "indexes 1, 2, …" in causes[0].title
     assert causes[0].cases == ["B1-01[255-pose]", "B1-01[255-reg]", "B2-01[255]"]
     # read with the wrong first index, every block of those requests is off: no position to name
     assert all(c.kind != "block-position" for c in find_root_causes(modulo_16_run(1, False), SessionFacts()))
@@ -197,7 +197,7 @@ def test_a_box_refusing_every_block_request_has_no_position() -> None:
     closed = judged("B1-01[17-pose]", "B1 A1", Closed(True, 0.01), ok(POSE, "A1/B1: poses"), sent=poses(POSE, 17))
     answered_ok = judged("B1-01[3-pose]", "B1 A1", reply(POSE, 0x1001), ok(POSE, "A1/B1: poses"), sent=poses(POSE, 3))
     [cause] = [c for c in find_root_causes([closed, answered_ok]) if c.kind == "block-position"]
-    assert "up to the 3th" in cause.title and cause.cases == ["B1-01[17-pose]", "B1-01[3-pose]"]
+    assert "up to the 3rd block" in cause.title and cause.cases == ["B1-01[17-pose]", "B1-01[3-pose]"]
 
 
 # -- levels, and every FAIL ------------------------------------------------------------------------------
@@ -265,7 +265,7 @@ def test_a_fuzz_finding_on_a_block_request_joins_the_b3_position_cause() -> None
     cases = [*modulo_16_run(boundaries=False), fuzz]
     causes = find_root_causes(cases, SessionFacts())
     assert causes[0].kind == "block-position" and "FUZZ-01" in causes[0].cases
-    assert "from block 17 on" not in causes[0].title and "17, 255 blocks" in causes[0].title
+    assert "from the 17th block on" not in causes[0].title and "17, 255 blocks" in causes[0].title
     # a fuzz finding about a wrong index answered 0000 counts as accepted at that position
     wrong = raised("FUZZ-01", "R1 B3", CaseVerdict(
         Verdict.FAIL, "R1: a request with a wrong index MUST NOT be answered 0000", sent=poses(POSE, 20, wrong_at=16),

@@ -1,0 +1,217 @@
+"""The diagnose phase: after the catalogue, before the reports; at most :data:`BUDGET_S` seconds.
+
+:func:`diagnose` runs the experiment families (:mod:`.families`, :mod:`.reproduce`) against the
+box on fresh connections, then gives each root cause the mechanism that explains it
+(:mod:`.match`): its title becomes the mechanism's (threshold, clause, fix direction), its
+``diagnosis`` lists the hypotheses considered and the experiment (with its bytes) that ruled each
+in or out, and ``confirmed`` says whether one was confirmed. A root cause no experiment confirms
+is titled "unconfirmed: …" and comes after every confirmed one; two root causes one mechanism
+explains become one. Root causes the session's own live checks found (a box that never answers,
+one connection at a time, a death, connections never freed) were already proven on fresh
+connections and are kept as they are.
+
+Bounded: every wait is cut to what is left of the deadline, no exchange starts after it, and a box
+that stopped answering fresh connections is not probed at all.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..harness.target import Target
+from ..model.verdicts import CaseResult, Level, RootCause
+from ..protocol import Action, Profile
+from ..suite.rootcause import SessionFacts
+from ..suite.run_state import SessionState
+from . import deaths, families, match, titles
+from .experiments import BLOCK_ACTIONS, Prober
+from .families import CORE, CYCLES, NONE, POSE, Found
+from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
+from .repro import repro_entry
+from .reproduce import reproduce
+
+#: the phase's bound in seconds (on top of the catalogue; inside the 120 s per box)
+BUDGET_S = 20.0
+
+
+@dataclass
+class Diagnosed:
+    causes: list[RootCause]
+    repros: dict[str, tuple[tuple[bytes, Expect], ...]] = field(default_factory=dict)  # root cause id -> repro
+    elapsed_s: float = 0.0
+    exchanges: int = 0
+
+
+class _Lab:
+    """The families run so far: their experiments, mechanisms and stories."""
+
+    def __init__(self) -> None:
+        self.experiments: dict[str, Experiment] = {}
+        self.mechanisms: list[Mechanism] = []
+        self.stories: dict[str, tuple[Status, str, str]] = {}
+
+    def add(self, found: Found) -> Found:
+        self.experiments[found.experiment.name] = found.experiment
+        self.mechanisms += found.mechanisms
+        for kind, (status, why) in found.stories.items():
+            self.stories[kind] = (status, why, found.experiment.name)
+        return found
+
+
+def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: SessionFacts, target: Target | None,
+             profile: Profile, time_out_s: float, budget_s: float = BUDGET_S) -> Diagnosed:
+    """The root causes diagnosed (re-titled, re-ordered, merged), with their repros."""
+    start = time.monotonic()
+    causes = list(causes)
+    if not causes:
+        return Diagnosed(causes)
+    lab = _Lab()
+    facts_by = {c.id: match.facts_of(c, cases) for c in causes}
+    own: dict[str, Found] = {}
+    probed = [c for c in causes if c.kind not in match.SESSION_KINDS]
+    prober = None if target is None else Prober(target, profile, time_out_s, start + budget_s)
+    dead = {c.id: deaths.check(prober, c, cases) for c in causes if c.kind in deaths.DEATH_KINDS and prober is not None}
+    still_dead = any(v.confirmed for v in dead.values()) or (prober is None and bool(facts.unresponsive or facts.deaths))
+    if prober is not None and probed and not still_dead:
+        _run(prober, lab, probed, facts_by, cases, own)
+    out = _assign(causes, facts_by, lab, own, dead)
+    elapsed = round(time.monotonic() - start, 3)
+    for cause in out.causes:
+        if cause.diagnosis is not None:
+            cause.diagnosis["phase_s"] = elapsed
+    out.elapsed_s, out.exchanges = elapsed, prober.count if prober is not None else 0
+    return out
+
+
+def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, match.CauseFacts],
+         cases: Sequence[CaseResult], own: dict[str, Found]) -> None:
+    involved = set().union(*(facts_by[c.id].asked for c in probed))
+    p.exchange([p.valid_request(int(Action.CYCLE_OFF))], settle=False)  # the catalogue may have left a cycle on (S3: idle first)
+    alone = lab.add(families.answers(p, [*CORE, *(a for a in CYCLES if a in involved)])).alone
+    if p.unreachable:
+        return
+    usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
+    lab.add(families.size(p, usable))
+    lab.add(families.after_error(p, [NONE, POSE, *sorted(a for a in involved if a in CORE and a not in (NONE, POSE))],
+                                 alone))
+
+    def unexplained() -> list[RootCause]:
+        return [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
+
+    if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
+        lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
+    if unexplained():
+        lab.add(families.per_connection(p))
+    by_id = {c.id: c for c in cases}
+    for cause in unexplained():
+        member = next((by_id[i] for i in cause.cases if i in by_id and by_id[i].sent_hex
+                       and "…" not in by_id[i].sent_hex and by_id[i].signature is not None), None)
+        if member is not None and p.left() > 1.0:
+            own[cause.id] = reproduce(p, member, cause.title)
+
+
+def _session_diagnosis(cause: RootCause) -> dict[str, Any]:
+    h = Hypothesis(cause.kind, cause.title, Status.CONFIRMED, "session",
+                   "found by the session's own checks: NONE requests on fresh connections")
+    return {"confirmed": True, "mechanism": cause.kind, "catalogue_title": cause.title, "hypotheses": [h.to_dict()],
+            "experiments": [{"name": "session", "question": "a NONE request on a fresh connection, before and after "
+                             "the cases (the session's liveness checks)", "finding": cause.evidence, "exchanges": [],
+                             "exchange_count": 0}]}
+
+
+def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab: _Lab,
+            own: dict[str, Found], dead: dict[str, deaths.Verdict] | None = None) -> Diagnosed:
+    kept: list[RootCause] = []
+    repros: dict[str, tuple[tuple[bytes, Expect], ...]] = {}
+    owner: dict[int, RootCause] = {}  # id(mechanism) -> the root cause it already explains
+    for cause in causes:
+        if dead and cause.id in dead:  # a death the phase put to the test again
+            verdict = dead[cause.id]
+            cause.diagnosis = deaths.diagnosis(cause, verdict)
+            cause.confirmed = verdict.confirmed
+            if not verdict.confirmed:
+                cause.title = titles.unconfirmed(f"{cause.title} ({verdict.why})")
+            kept.append(cause)
+            continue
+        if cause.kind in match.SESSION_KINDS:
+            cause.confirmed, cause.diagnosis = True, _session_diagnosis(cause)
+            kept.append(cause)
+            continue
+        f = facts_by[cause.id]
+        mine = own.get(cause.id)
+        stories = dict(lab.stories)
+        experiments = dict(lab.experiments)
+        if mine is not None:
+            stories.update({k: (s, why, mine.experiment.name) for k, (s, why) in mine.stories.items()})
+            experiments[mine.experiment.name] = mine.experiment
+        chosen = match.pick(lab.mechanisms, f) or (mine.mechanisms[0] if mine is not None and mine.mechanisms else None)
+        if chosen is not None and id(chosen) in owner:
+            first = owner[id(chosen)]
+            first.cases += [c for c in cause.cases if c not in first.cases]
+            continue
+        hyps = match.hypotheses(f, cause.title, chosen, stories)
+        original = cause.title
+        if chosen is None:
+            cause.confirmed, cause.title = False, titles.unconfirmed(original)
+        else:
+            owner[id(chosen)] = cause
+            cause.confirmed, cause.title = True, chosen.title
+            if chosen.kind not in match.SAME_STORY.get(cause.kind, set()) and chosen.kind not in ("reproduces",
+                                                                                                   "order-dependent"):
+                cause.kind = chosen.kind
+                cause.clauses = chosen.clauses
+            repros[cause.id] = chosen.repro
+        used = {h.experiment for h in hyps if h.experiment}
+        cause.diagnosis = {
+            "confirmed": cause.confirmed, "mechanism": chosen.kind if chosen is not None else None,
+            "catalogue_title": original, "detail": chosen.to_dict() if chosen is not None else {},
+            "hypotheses": [h.to_dict() for h in hyps],
+            "experiments": [e.to_dict() for name, e in experiments.items() if name in used],
+        }
+        kept.append(cause)
+    return _ordered(kept, repros)
+
+
+def _rank(cause: RootCause) -> tuple[bool, bool, bool]:
+    """Confirmed first; then a broken MUST first; then a mechanism named (or the session's finding) before a
+    story only seen again on a fresh connection (the catalogue's order within, as sorted is stable)."""
+    mechanism = (cause.diagnosis or {}).get("mechanism")
+    return cause.confirmed is False, cause.level is not Level.MUST, mechanism in ("reproduces", "order-dependent")
+
+
+def _ordered(causes: list[RootCause], repros: dict[str, tuple[tuple[bytes, Expect], ...]]) -> Diagnosed:
+    """Confirmed root causes first (see :func:`_rank`), numbered again; cases re-pointed by :func:`relink`."""
+    ordered = sorted(causes, key=_rank)
+    renamed: dict[str, tuple[tuple[bytes, Expect], ...]] = {}
+    for n, cause in enumerate(ordered, 1):
+        new = f"RC{n}"
+        if cause.id in repros:
+            renamed[new] = repros[cause.id]
+            if cause.diagnosis is not None:
+                one_write = bool(cause.diagnosis.get("detail", {}).get("one_write"))
+                cause.diagnosis["repro"] = repro_entry(new, repros[cause.id], one_write)
+        cause.id = new
+    return Diagnosed(ordered, renamed)
+
+
+def relink(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> None:
+    """Every case a root cause explains carries that root cause's (new) id."""
+    owner = {case_id: cause.id for cause in causes for case_id in cause.cases}
+    for case in cases:
+        if case.root_cause is not None or case.id in owner:
+            case.root_cause = owner.get(case.id)
+
+
+def run_phase(state: SessionState, cases: Sequence[CaseResult], causes: Sequence[RootCause],
+              facts: SessionFacts) -> list[RootCause]:
+    """The phase for one box's session (the hook of the run): its root causes diagnosed, cases re-pointed.
+    The bundled reference box (no ``--target``) is not diagnosed."""
+    target = state.settings.target
+    if target is None or not causes:
+        return list(causes)
+    done = diagnose(causes, cases, facts, target, state.profile, state.time_out_s)
+    relink(done.causes, cases)
+    return done.causes
