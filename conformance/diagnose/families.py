@@ -32,6 +32,7 @@ from .hypotheses import (
     Mechanism,
     SizeFacts,
     Status,
+    answered_well,
     classify_alone,
     echo_story,
     frame_len,
@@ -262,7 +263,7 @@ def cycle(p: Prober, alone: dict[int, Alone]) -> Found:
     if inside is None:
         found.stories["cycle-dependent"] = (Status.UNTESTED, "no exchange made")
         return found
-    inside_ok = len(inside.answers) == 1 and inside.answers[0].action == POSE and inside.answers[0].error == 0
+    inside_ok = answered_well(POSE, inside.answers)
     alone_ok = alone.get(POSE) is not None and alone[POSE].kind == "ok"
     if started and alone_ok != inside_ok and POSE in alone:
         failing_refused = (inside.answers and inside.answers[0].error) if alone_ok else alone[POSE].kind == "refused"

@@ -231,6 +231,13 @@ def classify_alone(action: int, exchange: Exchange) -> Alone:
     return Alone(action, "ok", 1, a.action, a.error)
 
 
+def answered_well(action: int, answers: Sequence[Heard]) -> bool:
+    """One well-formed answer with the request's action and 0000: what :func:`classify_alone` calls ``ok`` for a
+    pose, read where no NONE follows (the pose inside a cycle). A malformed answer is never well answered, so a
+    box whose every answer is malformed (F3) shows no difference between the cycle's arms."""
+    return len(answers) == 1 and not answers[0].malformed and answers[0].action == action and answers[0].error == 0
+
+
 def echo_story(alone: Sequence[Alone]) -> tuple[str, int | None, frozenset[int]]:
     """Echo wrong for every action (``echo-all``, the constant action) vs for one (``echo-one``), from the
     requests answered once; ``("", None, {})`` when every action is echoed."""

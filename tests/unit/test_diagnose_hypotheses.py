@@ -14,6 +14,7 @@ from conformance.diagnose.hypotheses import (
     Reading,
     SizeFacts,
     Status,
+    answered_well,
     classify_alone,
     echo_story,
     index_candidates,
@@ -63,6 +64,16 @@ def test_a_cycle_request_refused_by_state_is_legal() -> None:
     """S2: CycleOn may be answered 0001 (not ready); CycleOff 0002 with no cycle on."""
     assert classify_alone(Action.CYCLE_ON, ex(Reading((ok(1, 1),)), Reading((ok(NONE),)))).kind == "ok"
     assert classify_alone(Action.CYCLE_OFF, ex(Reading((ok(2, 2),)), Reading((ok(NONE),)))).kind == "ok"
+
+
+def test_a_malformed_answer_is_never_a_pose_answered_well() -> None:
+    """The cycle experiment compares a pose inside a cycle with one alone: a box whose every answer is malformed
+    (wrong transfer type, F3) must look the same in both arms, not 'mishandles poses while no cycle is on' (S3)."""
+    bad = Heard(POSE, 0, b"\xfe\xfe", malformed="transfer type 20, expected 10 (F3)")
+    assert not answered_well(POSE, (bad,))
+    assert classify_alone(POSE, ex(Reading((bad,)), Reading((ok(NONE),)))).kind == "malformed"
+    assert answered_well(POSE, (ok(POSE),))
+    assert not answered_well(POSE, (ok(POSE, 0x1001),)) and not answered_well(POSE, (ok(POSE), ok(POSE)))
 
 
 def test_echo_wrong_for_every_action_vs_for_one() -> None:
