@@ -31,6 +31,13 @@ SMALL_RCVBUF = 2048
 ANSWER_LEN = HEADER_LEN + CHECK_LEN
 #: how many bytes of the stream a finding quotes around the first bad answer
 SHOWN = 48
+#: the pace probe: this many poses pipelined and read at once, for at most PACE_S, before a burst
+PACE_REQUESTS, PACE_S = 100, 2.0
+#: a burst is sized so the box's measured pace answers it in about BURST_S, and never below MIN_BURST
+BURST_S, MIN_BURST = 5.0, 500
+#: however slowly a box answers, a backpressure exchange stops reading this long after its last send
+#: (``Backlog.ended == "budget"``: the answers read are judged, the missing ones are not called lost)
+BUDGET_S = 12.0
 
 
 @dataclass
@@ -41,9 +48,12 @@ class Backlog:
     sent_bytes: int = 0
     received: bytearray = field(default_factory=bytearray)
     reads: int = 0  # recv() calls that returned data
-    ended: str = ""  # "", "closed", "reset", "silent" (time_out with answers still due), "blocked" (sends stalled)
+    ended: str = ""  # "", "closed", "reset", "silent" (time_out with answers still due), "blocked" (sends stalled),
+    # "budget" (answers still coming when BUDGET_S ran out: too slow a box to wait for, not a lost answer)
     unread_s: float = 0.0  # how long the suite read nothing at the start
     elapsed_s: float = 0.0
+    pace_hz: float = 0.0  # answers per second to the pace probe (0: no probe)
+    last_read_at: float = 0.0  # time.monotonic() of the last recv() that returned data
 
 
 @dataclass(frozen=True)
@@ -77,6 +87,7 @@ def _read(conn: TcpConnection, out: Backlog, size: int) -> bool:
     conn.transcript.add(conn.conn_id, Kind.RECV, data)
     out.received += data
     out.reads += 1
+    out.last_read_at = time.monotonic()
     return True
 
 
@@ -84,13 +95,37 @@ def _piece(rng: random.Random | None) -> int:
     return rng.randint(1, 24) if rng is not None else 65536
 
 
-def burst(conn: TcpConnection, frames: list[bytes], expect_bytes: int, time_out_s: float,
-          rng: random.Random | None = None, note: str = "", quiet_s: float | None = None) -> Backlog:
-    """Send every frame back to back, reading only when a send would block (so the box's send buffer fills),
-    then read until ``expect_bytes`` arrived, the box closed, or nothing came for ``quiet_s`` (default
-    ``time_out_s``). ``rng``: every read takes a random 1..24 bytes (split reads)."""
-    assert conn.sock is not None
+def pace(conn: TcpConnection, frame: bytes, expect_len: int, note: str = "") -> Backlog:
+    """The box's pace on this connection: PACE_REQUESTS frames sent at once and their answers read as they come,
+    for at most PACE_S. A box answering pipelined requests slowly (one at a time, with a pause) gets a smaller
+    burst; its answers cannot back up into a full send buffer anyway, since the box itself is the bottleneck."""
     out, start = Backlog(), time.monotonic()
+    if not conn.send(frame * PACE_REQUESTS, f"{note}: {PACE_REQUESTS} requests to measure the box's pace"):
+        out.ended = "reset" if conn.closed_by_peer is not None and conn.closed_by_peer.reset else "closed"
+        return out
+    out.requests, out.sent_bytes = PACE_REQUESTS, len(frame) * PACE_REQUESTS
+    _read_rest(conn, out, PACE_REQUESTS * expect_len, PACE_S, None, deadline=start + PACE_S)
+    out.ended = "" if out.ended in ("budget", "silent") else out.ended  # the pace alone judges nothing
+    out.elapsed_s = time.monotonic() - start
+    # the pace of the answers that came, up to the last one (a box that drops some is not taken for a slow one)
+    out.pace_hz = len(out.received) / expect_len / max(out.last_read_at - start, 1e-3) if out.received else 0.0
+    return out
+
+
+def burst_size(pace_hz: float, most: int) -> int:
+    """``most`` poses, or fewer (never below MIN_BURST) when the box's pace answers ``most`` in more than BURST_S."""
+    return max(min(most, int(pace_hz * BURST_S)), min(MIN_BURST, most))
+
+
+def burst(conn: TcpConnection, frames: list[bytes], expect_bytes: int, time_out_s: float,
+          rng: random.Random | None = None, note: str = "", quiet_s: float | None = None,
+          out: Backlog | None = None) -> Backlog:
+    """Send every frame back to back, reading only when a send would block (so the box's send buffer fills),
+    then read until ``expect_bytes`` arrived (in all, ``out``'s earlier reads included), the box closed, nothing
+    came for ``quiet_s`` (default ``time_out_s``) or BUDGET_S ran out. ``rng``: every read takes a random 1..24
+    bytes (split reads)."""
+    assert conn.sock is not None
+    out, start = out or Backlog(), time.monotonic()
     sock, data = conn.sock, b"".join(frames)
     view, sent, stalled_since = memoryview(data), 0, None
     while sent < len(data) and not out.ended:
@@ -112,10 +147,11 @@ def burst(conn: TcpConnection, frames: list[bytes], expect_bytes: int, time_out_
         if readable:
             _read(conn, out, _piece(rng))
     conn.sent_bytes += sent
-    out.sent_bytes = sent
-    out.requests = _whole(frames, sent)
-    _read_rest(conn, out, expect_bytes, time_out_s if quiet_s is None else quiet_s, rng)
-    out.elapsed_s = time.monotonic() - start
+    out.sent_bytes += sent
+    out.requests += _whole(frames, sent)
+    _read_rest(conn, out, expect_bytes, time_out_s if quiet_s is None else quiet_s, rng,
+               deadline=time.monotonic() + BUDGET_S)
+    out.elapsed_s += time.monotonic() - start
     return out
 
 
@@ -136,7 +172,8 @@ def late_stream(conn: TcpConnection, frame_at: Callable[[int], bytes], rate_hz: 
         out.requests += 1
         out.sent_bytes += len(data)
     out.unread_s = time.monotonic() - start
-    _read_rest(conn, out, out.requests * expect_len, time_out_s if quiet_s is None else quiet_s, None)
+    _read_rest(conn, out, out.requests * expect_len, time_out_s if quiet_s is None else quiet_s, None,
+               deadline=time.monotonic() + BUDGET_S)
     out.elapsed_s = time.monotonic() - start
     return out
 
@@ -152,16 +189,21 @@ def _whole(frames: list[bytes], sent: int) -> int:
 
 
 def _read_rest(conn: TcpConnection, out: Backlog, expect_bytes: int, time_out_s: float,
-               rng: random.Random | None) -> None:
+               rng: random.Random | None, deadline: float) -> None:
+    """Read until ``expect_bytes`` arrived, a close, nothing for ``time_out_s`` ("silent") or ``deadline``
+    while answers still come ("budget")."""
     assert conn.sock is not None
     last = time.monotonic()
     while len(out.received) < expect_bytes and not out.ended:
         readable, _, _ = select.select([conn.sock], [], [], 0.05)
+        now = time.monotonic()
         if readable:
             if _read(conn, out, _piece(rng)):
-                last = time.monotonic()
-        elif time.monotonic() - last > time_out_s:
+                last = now
+        elif now - last > time_out_s:
             out.ended = "silent"
+        if not out.ended and now > deadline and len(out.received) < expect_bytes:
+            out.ended = "budget"
 
 
 def judge_answers(out: Backlog, action: int, requests: int) -> Verdict | None:
@@ -184,6 +226,8 @@ def judge_answers(out: Backlog, action: int, requests: int) -> Verdict | None:
         offset += size
         good += 1
     tail = decoder.buffered
+    if good < requests and out.ended == "budget":
+        return None  # answers still coming, all intact so far: too slow to wait for, not lost (the case says so)
     if good < requests:
         why = {"closed": "then the box closed the connection", "reset": "then the box reset the connection",
                "silent": "then nothing more came for time_out", "blocked": "the box stopped reading"}.get(out.ended, "")
