@@ -14,6 +14,7 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
+from ..harness.starvation import is_loopback
 from ..model.signature import Sig, Signature
 from ..model.verdicts import CaseResult, Verdict, WireLine, broken_verdict
 from ..observed.connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, SessionRecord
@@ -221,7 +222,7 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
         (RATE_SPEC, judge_rate(stats, cfg.rate_tolerance), f"±{cfg.rate_tolerance * 100:g} % of the declared rate",
          lambda: rate_starved(stats, times, cfg.rate_tolerance)),
         (JITTER_SPEC, judge_jitter(stats, cfg.jitter_tolerance), f"{cfg.jitter_tolerance * 100:g} % of the period",
-         lambda: jitter_starved(stats, times, cfg.jitter_tolerance)),
+         lambda: jitter_starved(stats, times, cfg.jitter_tolerance, is_loopback(stream.peer.host))),
     ):
         details = {"interval_histogram": histogram, "stream": stats.describe(), "tolerance": tolerance,
                    "windows_hz": [round(w.rate_hz, 2) for w in stats.windows]}

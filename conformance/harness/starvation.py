@@ -13,6 +13,10 @@ both here:
   that long is INCONCLUSIVE ("the tester was starved"), never FAIL. A breach larger than
   any stall still FAILs: a robot at 45 Hz declared 50, a box whose latency grows, an answer
   after time_out;
+* the host's CPU pressure (Linux PSI, ``/proc/pressure/cpu``: how long some task waited for a CPU),
+  sampled by the same thread: when the peer runs on this host (a loopback address, as in a
+  bench or CI test), its own sends can be delayed by the same contention, which the suite's
+  timer cannot see. :func:`host_stall_ms` is that evidence for one stretch of time;
 * :func:`enable_rx_timestamps` / :func:`recv_stamped`: kernel receive timestamps
   (``SO_TIMESTAMPNS``, the time the segment reached the socket, from ``recvmsg``'s ancillary
   data) on the suite's monotonic clock, so arrival times are the wire's, not the moment the
@@ -46,6 +50,10 @@ SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
 SCM_TIMESTAMPNS = getattr(socket, "SCM_TIMESTAMPNS", SO_TIMESTAMPNS)
 #: recvmsg's ancillary buffer: room for one struct timespec
 _ANC = socket.CMSG_SPACE(16)
+#: Linux pressure stall information for the CPU (absent on other systems and old kernels: no evidence then)
+PSI_CPU = "/proc/pressure/cpu"
+#: the host's CPU pressure is sampled every this many timer wakes (every 50 ms)
+PSI_EVERY = 10
 STARVED_TEXT = "the tester was starved"
 
 
@@ -68,6 +76,9 @@ class StarvationGauge:
         self._users = 0
         self.started_at = 0.0
         self.wakes = 0
+        #: (monotonic, wall, cumulative µs during which some task waited for a CPU), oldest first
+        self._pressure: deque[tuple[float, float, int]] = deque(maxlen=RING)
+        self._psi_ok = True
 
     def start(self) -> StarvationGauge:
         with self._lock:
@@ -75,6 +86,7 @@ class StarvationGauge:
             if self._thread is None or not self._thread.is_alive():
                 self._stop.clear()
                 self._stalls.clear()  # a fresh watch (what it saw last time was judged when it stopped)
+                self._pressure.clear()
                 self.started_at = time.monotonic()
                 self._thread = threading.Thread(target=self._run, name="isight-starvation-gauge", daemon=True)
                 self._thread.start()
@@ -104,7 +116,33 @@ class StarvationGauge:
             if late_ms >= NOISE_MS:
                 with self._lock:
                     self._stalls.append(Stall(due, late_ms, time.time() - late_ms / 1000))
+            if self._psi_ok and self.wakes % PSI_EVERY == 1:
+                self._sample_pressure()
             due = max(due + self.period_s, now)  # after a stall, the next wake is a period from now
+
+    def _sample_pressure(self) -> None:
+        total = read_psi_some_us()
+        if total is None:
+            self._psi_ok = False
+            return
+        self.note_pressure(time.monotonic(), time.time(), total)
+
+    def note_pressure(self, at: float, wall: float, total_us: int) -> None:
+        """Record one sample of the host's cumulative CPU stall (PSI "some" total, µs) at ``at``/``wall``."""
+        with self._lock:
+            self._pressure.append((at, wall, total_us))
+
+    def host_stall_ms(self, since: float, until: float, wall: bool = False) -> float:
+        """How long some task on this host waited for a CPU between the samples around ``since``..``until``
+        (ms; 0 without samples covering both ends: no evidence)."""
+        with self._lock:
+            samples = list(self._pressure)
+        key = 1 if wall else 0
+        before = [s for s in samples if s[key] <= since]
+        after = [s for s in samples if s[key] >= until]
+        if not before or not after:
+            return 0.0
+        return (after[0][2] - before[-1][2]) / 1000.0
 
     def note(self, at: float, late_ms: float) -> None:
         """Record a stall seen elsewhere (e.g. an event loop's timer that fired late)."""
@@ -124,6 +162,41 @@ class StarvationGauge:
 
 
 _GAUGE = StarvationGauge()
+
+
+def read_psi_some_us(path: str = PSI_CPU) -> int | None:
+    """The host's cumulative CPU "some" stall (µs) from Linux PSI, or None where it cannot be read."""
+    try:
+        with open(path, encoding="ascii") as f:
+            first = f.readline()
+    except OSError:
+        return None
+    return parse_psi_total(first)
+
+
+def parse_psi_total(line: str) -> int | None:
+    """``some avg10=… total=N`` → N (None for any other line)."""
+    if not line.startswith("some "):
+        return None
+    for field_ in line.split():
+        if field_.startswith("total="):
+            try:
+                return int(field_[6:])
+            except ValueError:
+                return None
+    return None
+
+
+def is_loopback(host: str) -> bool:
+    """A peer on this host: 127.0.0.0/8, ::1 or ::ffff:127.x (the only peers whose CPU the suite shares)."""
+    import ipaddress
+
+    try:
+        addr = ipaddress.ip_address(host.strip("[]"))
+    except ValueError:
+        return host == "localhost"
+    mapped = getattr(addr, "ipv4_mapped", None)
+    return bool(addr.is_loopback or (mapped is not None and mapped.is_loopback))
 
 
 def watch_loop(loop: asyncio.AbstractEventLoop, source: StarvationGauge | None = None,
@@ -151,6 +224,12 @@ def gauge() -> StarvationGauge:
 def explains(excess_ms: float, worst_ms: float) -> bool:
     """A stall of ``worst_ms`` could explain a timing breach of ``excess_ms`` beyond its limit."""
     return worst_ms >= NOISE_MS and worst_ms >= excess_ms
+
+
+def host_starved_text(excess_ms: float, stall_ms: float, what: str) -> str:
+    return (f"{STARVED_TEXT}: {what} exceeds its limit by {excess_ms:.1f} ms while the peer runs on this host "
+            f"(a loopback address) and the host's CPU was contended around each breach (Linux PSI: some task waited "
+            f"{stall_ms:.0f} ms for a CPU), which could have delayed the peer's sends; not judged")
 
 
 def starved_text(excess_ms: float, worst_ms: float, what: str) -> str:

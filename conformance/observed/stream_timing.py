@@ -18,7 +18,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from ..harness.starvation import gauge, starved_text, starved_verdict
+from ..harness.starvation import gauge, host_starved_text, starved_text, starved_verdict
 from ..model.percentiles import percentile
 
 #: Below this many poses no rate is measured.
@@ -53,6 +53,8 @@ class StreamStats:
         return (f"{self.poses} poses in {self.duration_s:.3f} s: mean {self.mean_rate_hz:.2f} Hz "
                 f"(declared {self.declared_hz:g} Hz); |interval − {self.period_ms:.2f} ms| p50 {self.dev_p50_ms:.2f} ms, "
                 f"p99 {self.dev_p99_ms:.2f} ms, max {self.dev_max_ms:.2f} ms; {self.together} interval(s) under 0.5 ms")
+#: the host's CPU pressure is read around an interval this much wider on each side (its samples are 50 ms apart)
+PSI_MARGIN_S = 0.05
 
 
 def stream_stats(times_s: Sequence[float], declared_hz: float) -> StreamStats | None:
@@ -158,17 +160,26 @@ def rate_starved(stats: StreamStats, times: Sequence[float], tolerance: float) -
     return starved_verdict(excess, min(times), max(times), "the stream's rate", wall=True) if excess else None
 
 
-def jitter_starved(stats: StreamStats, times: Sequence[float], tolerance: float) -> str | None:
+def jitter_starved(stats: StreamStats, times: Sequence[float], tolerance: float,
+                   peer_local: bool = False) -> str | None:
     """The INCONCLUSIVE reason when the judging side's stalls could explain a jitter breach: every interval
-    off by more than the tolerance overlaps a stall at least that large, but for as many as the p99 allows."""
+    off by more than the tolerance overlaps a stall at least that large, but for as many as the p99 allows.
+    ``peer_local``: the sender runs on this host, so the host's CPU contention (PSI) around an interval can
+    explain it too (the sender's own stall, which the suite's timer cannot see)."""
     excess = jitter_excess_ms(stats, tolerance)
     if not excess:
         return None
     ordered, limit = sorted(times), tolerance * stats.period_ms
     off = [(ordered[i], ordered[i + 1], dev - limit) for i, dev in
            ((i, abs(v - stats.period_ms)) for i, v in enumerate(stats.intervals_ms)) if dev > limit]
+    allowed = len(stats.intervals_ms) // 100
+    what = f"the send-interval jitter ({len(off)} interval(s) off)"
     unexplained = [w for w in off if gauge().worst_ms(w[0], w[1], wall=True) < w[2]]
-    if len(unexplained) > len(stats.intervals_ms) // 100:
+    if len(unexplained) <= allowed:
+        return starved_text(excess, max(gauge().worst_ms(a, b, wall=True) for a, b, _ in off), what)
+    if not peer_local:
         return None
-    return starved_text(excess, max(gauge().worst_ms(a, b, wall=True) for a, b, _ in off),
-                        f"the send-interval jitter ({len(off)} interval(s) off)")
+    host = [(w, gauge().host_stall_ms(w[0] - PSI_MARGIN_S, w[1] + PSI_MARGIN_S, wall=True)) for w in unexplained]
+    if sum(1 for w, stall in host if stall < w[2]) > allowed:
+        return None
+    return host_starved_text(excess, max(stall for _, stall in host), what)

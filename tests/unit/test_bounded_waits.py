@@ -67,3 +67,29 @@ def test_a_slow_stream_is_off_by_more_than_a_stall_could_hide() -> None:
     assert rate_excess_ms(slow, 0.05) > 100.0  # 3 s at 45 Hz is ~150 ms longer than 47.5 Hz allows
     bursty = stream_stats([t + 0.1 * (i // 15) for i, t in enumerate(_stream(50.0))], 50.0)  # a 100 ms gap in 15
     assert bursty is not None and 80.0 < jitter_excess_ms(bursty, 0.5) < 100.0
+
+
+def test_the_psi_total_is_read_from_the_some_line_only() -> None:
+    from conformance.harness.starvation import parse_psi_total
+
+    assert parse_psi_total("some avg10=8.10 avg60=19.45 avg300=22.75 total=4994318517\n") == 4994318517
+    assert parse_psi_total("full avg10=0.00 avg60=0.00 avg300=0.00 total=7") is None
+    assert parse_psi_total("some avg10=1.00 total=x") is None
+
+
+def test_only_a_loopback_peer_shares_the_suites_cpu() -> None:
+    from conformance.harness.starvation import is_loopback
+
+    assert is_loopback("127.0.0.1") and is_loopback("127.3.2.1") and is_loopback("::1")
+    assert is_loopback("[::1]") and is_loopback("::ffff:127.0.0.1") and is_loopback("localhost")
+    assert not is_loopback("10.0.0.2") and not is_loopback("192.168.1.9") and not is_loopback("robot.plant")
+
+
+def test_the_host_stall_is_the_psi_growth_between_the_samples_around_a_stretch() -> None:
+    gauge = StarvationGauge()
+    for i, total in enumerate((0, 10_000, 60_000, 60_500)):  # µs: 10 ms, 50 ms, 0.5 ms of CPU waits
+        gauge.note_pressure(100.0 + i * 0.05, 1000.0 + i * 0.05, total)
+    assert gauge.host_stall_ms(100.05, 100.10) == 50.0
+    assert gauge.host_stall_ms(1000.0, 1000.15, wall=True) == 60.5
+    assert gauge.host_stall_ms(99.0, 100.1) == 0.0  # no sample before the stretch: no evidence
+    assert gauge.host_stall_ms(100.1, 101.0) == 0.0  # none after it either

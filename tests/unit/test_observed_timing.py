@@ -106,3 +106,39 @@ def test_unsorted_times_are_sorted():
     times = steady(50)
     stats = stream_stats(list(reversed(times)), RATE)
     assert stats is not None and stats.mean_rate_hz == pytest.approx(RATE)
+
+
+def _jittery(start: float) -> list[float]:
+    """150 poses at 50 Hz, every tenth sent 15 ms late (the next one on time): p99 jitter 15 ms."""
+    return [start + i * 0.02 + (0.015 if i % 10 == 5 else 0.0) for i in range(150)]
+
+
+def _gauge_with_pressure(monkeypatch, start: float, us_per_sample: int):
+    from conformance.harness.starvation import StarvationGauge
+    from conformance.observed import stream_timing
+
+    g = StarvationGauge()
+    for i in range(80):  # samples every 50 ms from before the stream to after it (wall clock)
+        g.note_pressure(i * 0.05, start - 0.5 + i * 0.05, i * us_per_sample)
+    monkeypatch.setattr(stream_timing, "gauge", lambda: g)
+
+
+def test_a_local_robots_jitter_under_host_cpu_contention_is_not_judged(monkeypatch):
+    from conformance.observed.stream_timing import jitter_starved
+
+    times = _jittery(5000.0)
+    stats = stream_stats(times, 50.0)
+    _gauge_with_pressure(monkeypatch, 5000.0, 45_000)  # 45 of every 50 ms some task waited for a CPU
+    reason = jitter_starved(stats, times, 0.25, peer_local=True)
+    assert reason is not None and "loopback" in reason and "PSI" in reason
+    assert jitter_starved(stats, times, 0.25, peer_local=False) is None  # a robot elsewhere: the breach stands
+
+
+def test_a_local_robots_jitter_on_a_quiet_host_still_fails(monkeypatch):
+    from conformance.observed.stream_timing import jitter_starved
+
+    times = _jittery(5000.0)
+    stats = stream_stats(times, 50.0)
+    _gauge_with_pressure(monkeypatch, 5000.0, 200)  # 0.4 % contention
+    assert not judge_jitter(stats, 0.25)[0]
+    assert jitter_starved(stats, times, 0.25, peer_local=True) is None
