@@ -52,8 +52,9 @@ class PoseClock:
     """The send times of one connection's pose frames, judged block by block."""
 
     def __init__(self, rate_hz: float, rate_tolerance: float, jitter_tolerance: float,
-                 intervals: Series | None = None, block: int = BLOCK) -> None:
+                 intervals: Series | None = None, block: int = BLOCK, peer_local: bool = False) -> None:
         self.rate_hz = rate_hz
+        self.peer_local = peer_local  # the robot runs on this host (its jitter may be the host's CPU contention)
         self.rate_tolerance = rate_tolerance
         self.jitter_tolerance = jitter_tolerance
         self.intervals = intervals  # where every measured interval also goes (the report's histogram)
@@ -93,7 +94,7 @@ class PoseClock:
             if j.rate_ok:
                 j.rate_ok, j.rate_text = ok, text
             ok, text = self._unless_starved(judge_jitter(stats, self.jitter_tolerance),
-                                            lambda: jitter_starved(stats, times, self.jitter_tolerance))
+                                            lambda: jitter_starved(stats, times, self.jitter_tolerance, self.peer_local))
             if j.jitter_ok:
                 j.jitter_ok, j.jitter_text = ok, text
             if len(j.described) < 8:

@@ -56,7 +56,7 @@ class TcpConversation:
         robot, box = (a, b) if robot_dir == 0 else (b, a)
         self.robot, self.box = robot, box
         self.label = f"conn {self.number} ({format_endpoint(*robot)} → {format_endpoint(*box)})"
-        self.judge = ConnJudge(ctx, self.label, "tcp", midstart=not handshake, box=box)
+        self.judge = ConnJudge(ctx, self.label, "tcp", midstart=not handshake, box=box, robot=robot)
         robot_reader = FrameReader(ctx.judged, TransferType.ROBOT_TO_BOX, self.judge.request)
         box_reader = FrameReader(ctx.judged, TransferType.BOX_TO_ROBOT, self.judge.answer)
         self.readers = [robot_reader, box_reader] if robot_dir == 0 else [box_reader, robot_reader]

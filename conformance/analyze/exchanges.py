@@ -25,6 +25,7 @@ from array import array
 from collections import deque
 from typing import Any
 
+from ..harness.starvation import is_loopback
 from ..model.verdicts import Verdict, broken_verdict
 from ..observed.connections import Exchange
 from ..observed.robot_frames import FrameRecord
@@ -71,7 +72,7 @@ class ConnJudge:
     """The judgements of one TCP connection (or one UDP conversation, ``transport="udp"``)."""
 
     def __init__(self, ctx: Context, label: str, transport: str = "tcp", midstart: bool = False,
-                 box: Any = None) -> None:
+                 box: Any = None, robot: Any = None) -> None:
         self.ctx = ctx
         self.label = label  # "conn 3 (10.0.0.2:51000 → 10.0.0.1:9004)"
         self.transport = transport
@@ -100,8 +101,9 @@ class ConnJudge:
         self.skipped: deque[tuple[Any, ...]] = deque(maxlen=SKIPPED_KEEP)  # malformed requests left unanswered
         self.pose_latency = Series(cap=1024)  # the poses' answer latencies (ms), in order
         self._latencies = array("d")  # the latest ones, before they go into pose_latency in a batch
+        # a robot on this host (loopback): the host's CPU contention can explain its jitter (harness.starvation)
         self.clock = PoseClock(ctx.profile.pose_rate_hz, ctx.config.rate_tolerance, ctx.config.jitter_tolerance,
-                               ctx.intervals)
+                               ctx.intervals, peer_local=robot is not None and is_loopback(str(robot[0])))
         # for the session: requests kept (FrameRecord, Exchange), first poses, refusals
         self.records: list[FrameRecord] = []
         self.exchanges: list[Exchange] = []
