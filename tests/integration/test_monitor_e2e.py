@@ -86,7 +86,8 @@ def test_bytes_pass_unchanged_and_the_box_log_matches(box, tmp_path: Path) -> No
 
 @pytest.mark.parametrize(("variant", "clause"), [("swapped-version", "F2"), ("late-cycle-on", "T1")])
 def test_a_broken_box_is_blamed_with_its_clause(tmp_path: Path, variant: str, clause: str) -> None:
-    profile = dataclasses.replace(DEFAULT_PROFILE, time_out_ms=1000)  # late-cycle-on answers after 6 s
+    # late-cycle-on answers after 6 s; 2 s (not 1) so that a loaded runner still connects the robot within time_out
+    profile = dataclasses.replace(DEFAULT_PROFILE, time_out_ms=2000)
     with start_box(variant) as impl:
         async def main():  # type: ignore[no-untyped-def]
             async with monitored(impl.port, tmp_path, profile=profile) as m:
