@@ -47,13 +47,23 @@ def _pose(isight: CaseContext) -> bytes:
     return encode(request(Action.POSE, pose_blocks([DEFAULT_POSE], isight.profile.first_index)), isight.profile)
 
 
-def _quiet_s(isight: CaseContext, conn: TcpConnection) -> float:
-    """How long to wait for answers still due: time_out, or 1 s once streams of two FAILed cases left a pose
-    unanswered for the whole time_out (bounded time, suite.waits)."""
-    return min(conn.stream_bound or isight.time_out_s, isight.time_out_s)
+#: why a wait was cut short (suite.waits): streams, or several requests in one write, of earlier FAILed cases
+STREAMS_LEFT = "streams of earlier cases left a pose unanswered for the whole time_out"
+WRITES_LEFT = "earlier cases' requests sent several in one write were left unanswered after the first (R4)"
 
 
-def _judge(isight: CaseContext, conn: TcpConnection, out: Backlog, what: str, quiet_s: float) -> None:
+def _quiet_s(isight: CaseContext, conn: TcpConnection, one_write: bool = False) -> tuple[float, str]:
+    """How long to wait for answers still due, and why it is short: time_out, or 1 s once two FAILed cases left a
+    stream's pose unanswered for the whole time_out, or (``one_write``: a burst) a later frame of one write."""
+    if one_write and conn.coalesced_bound is not None and conn.coalesced_bound < isight.time_out_s:
+        return conn.coalesced_bound, WRITES_LEFT
+    if conn.stream_bound is not None and conn.stream_bound < isight.time_out_s:
+        return conn.stream_bound, STREAMS_LEFT
+    return isight.time_out_s, ""
+
+
+def _judge(isight: CaseContext, conn: TcpConnection, out: Backlog, what: str, quiet: tuple[float, str]) -> None:
+    quiet_s, why = quiet
     isight.details[what] = {"requests": out.requests, "sent_bytes": out.sent_bytes, "received_bytes": len(out.received),
                             "reads": out.reads, "unread_s": round(out.unread_s, 3), "elapsed_s": round(out.elapsed_s, 3),
                             "pace_hz": round(out.pace_hz, 1), "ended": out.ended or "normally"}
@@ -65,9 +75,10 @@ def _judge(isight: CaseContext, conn: TcpConnection, out: Backlog, what: str, qu
     if bad is not None and out.ended == "silent" and quiet_s < isight.time_out_s:
         isight.close_all()
         if responsive(isight.check_alive()):
-            raise Inconclusive(f"{what}: {bad.observed} within {quiet_s * 1000:.0f} ms; streams of earlier cases "
-                               "left a pose unanswered for the whole time_out (the box still answers a fresh "
-                               "connection), so the wait ended there, not judged", signature=LOST, judged=("S6",))
+            seen = bad.observed.replace("; then nothing more came for time_out", "")
+            raise Inconclusive(f"{what}: {seen}, nothing more within {quiet_s * 1000:.0f} ms; {why} (the box still "
+                               "answers a fresh connection), so the wait ended there, not judged", signature=LOST,
+                               judged=("S6",))
     if bad is not None and out.ended == "silent" and conn.on_ran_out is not None:
         conn.on_ran_out(STREAM)  # a stream left unanswered for time_out: the pattern counts if this case FAILs
     if bad is not None:
@@ -83,7 +94,7 @@ def test_stream_read_late(isight: CaseContext) -> None:
     pose = _pose(isight)
     quiet = _quiet_s(isight, conn)
     out = late_stream(conn, lambda i: pose, isight.profile.pose_rate_hz, isight.time_out_s, ANSWER_LEN,
-                      isight.time_out_s, "stream read late", quiet)
+                      isight.time_out_s, "stream read late", quiet[0])
     _judge(isight, conn, out, "stream read late", quiet)
 
 
@@ -93,8 +104,8 @@ def test_stream_read_late(isight: CaseContext) -> None:
       "fills): one intact 0000 answer per pose, in order", checks=CHECKS)
 def test_burst(isight: CaseContext) -> None:
     conn = _connect(isight, "stream (burst)")
-    quiet = _quiet_s(isight, conn)
-    out = _burst(isight, conn, quiet, None, "burst")
+    quiet = _quiet_s(isight, conn, one_write=True)
+    out = _burst(isight, conn, quiet[0], None, "burst")
     _judge(isight, conn, out, "burst", quiet)
 
 
@@ -104,15 +115,15 @@ def test_burst(isight: CaseContext) -> None:
       "one intact 0000 answer per pose, in order", checks=CHECKS)
 def test_split_reads(isight: CaseContext) -> None:
     conn = _connect(isight, "stream (split reads)")
-    quiet = _quiet_s(isight, conn)
-    out = _burst(isight, conn, quiet, random.Random(isight.settings.seed), "burst, split reads")
+    quiet = _quiet_s(isight, conn, one_write=True)
+    out = _burst(isight, conn, quiet[0], random.Random(isight.settings.seed), "burst, split reads")
     _judge(isight, conn, out, "split reads", quiet)
 
 
 def _burst(isight: CaseContext, conn: TcpConnection, quiet: float, rng: random.Random | None, note: str) -> Backlog:
     """The pace probe, then the burst sized to it (BURST poses from a box that answers them in a few seconds)."""
     pose = _pose(isight)
-    out = pace(conn, pose, ANSWER_LEN, note)
+    out = pace(conn, pose, ANSWER_LEN, quiet, note)
     if out.ended:
         return out
     size = burst_size(out.pace_hz, BURST)

@@ -28,6 +28,7 @@ from ..protocol import (
     Transport,
     codec_for,
     decode_datagram,
+    frame_span,
     peek_action,
 )
 from .starvation import enable_rx_timestamps, recv_stamped
@@ -110,6 +111,17 @@ FLOOD_BYTES, FLOOD_PER_SENT, SHOWN_BYTES, MAX_DRAIN = 64 * 1024, 4, 64, 64
 # -- TCP ---------------------------------------------------------------------------------------
 
 
+def whole_frames(data: bytes, byte_order: str = "big") -> int:
+    """How many whole frames ``data`` starts with (a write of several requests, R4), up to the first that is not."""
+    at = count = 0
+    while at < len(data):
+        span = frame_span(data, at, byte_order)
+        if span <= 0 or at + span > len(data):
+            break
+        at, count = at + span, count + 1
+    return count
+
+
 class TcpConnection:
     """One recorded TCP connection to the box (the robot's side)."""
 
@@ -141,6 +153,12 @@ class TcpConnection:
         self.on_cut: Callable[[bytes, float], None] | None = None
         self.on_ran_out: Callable[[int], None] | None = None  # called with the answers read before
         self.stream_bound: float | None = None  # a pose stream's short wait for an overdue answer (suite.waits)
+        #: ... and for the answer to a later frame of one write whose earlier frames were answered (R4, A1);
+        #: on_coalesced(True) when such an answer came within time_out, on_coalesced(False) when it did not
+        self.coalesced_bound: float | None = None
+        self.on_coalesced: Callable[[bool], None] | None = None
+        self.write_frames = 0  # whole frames at the start of the last write
+        self.answers_at_write = 0  # answers read before the last write
 
     # -- lifecycle -------------------------------------------------------------------------
     def connect(self) -> TcpConnection:
@@ -242,6 +260,7 @@ class TcpConnection:
                 return False
         self.transcript.add(self.conn_id, Kind.SEND, data[:sent], note)
         self.sent_bytes += sent
+        self.write_frames, self.answers_at_write = whole_frames(data, self.profile.byte_order), self.answers
         return sent == len(data)
 
     def send_pieces(self, pieces: list[bytes], gap_s: float = 0.0, note: str = "") -> bool:
@@ -255,7 +274,28 @@ class TcpConnection:
 
     # -- receiving -------------------------------------------------------------------------
     def next_outcome(self, timeout_s: float | None = None, since: float | None = None) -> Outcome:
-        """The box's next answer, malformed bytes, close, or silence until the deadline."""
+        """The box's next answer, malformed bytes, close, or silence until the deadline (time_out by default;
+        for a later frame of a write whose earlier frames were answered, first the short coalesced_bound)."""
+        if timeout_s is None and self._coalesced_wait():
+            return self._coalesced_outcome(since)
+        return self._next_outcome(timeout_s, since)
+
+    def _coalesced_wait(self) -> bool:
+        """Waiting for the answer to a frame that shared its write with frames already answered (R4)."""
+        got = self.answers - self.answers_at_write
+        return self.write_frames > 1 and 0 < got < self.write_frames
+
+    def _coalesced_outcome(self, since: float | None) -> Outcome:
+        bound = self.coalesced_bound
+        outcome = self._next_outcome(bound, since) if bound is not None else Silence(0.0)
+        if bound is not None and isinstance(outcome, Silence) and self.on_cut is not None:
+            self.on_cut(b"", bound)  # the suite's rules may end the case here; else the wait goes on
+        outcome = self._next_outcome(None, since) if isinstance(outcome, Silence) else outcome
+        if self.on_coalesced is not None and not isinstance(outcome, Closed):
+            self.on_coalesced(not isinstance(outcome, Silence))
+        return outcome
+
+    def _next_outcome(self, timeout_s: float | None, since: float | None) -> Outcome:
         start = since if since is not None else time.monotonic()
         wait = self.time_out_s if timeout_s is None else timeout_s
         deadline = time.monotonic() + wait

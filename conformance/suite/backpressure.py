@@ -95,17 +95,23 @@ def _piece(rng: random.Random | None) -> int:
     return rng.randint(1, 24) if rng is not None else 65536
 
 
-def pace(conn: TcpConnection, frame: bytes, expect_len: int, note: str = "") -> Backlog:
+def pace(conn: TcpConnection, frame: bytes, expect_len: int, quiet_s: float, note: str = "") -> Backlog:
     """The box's pace on this connection: PACE_REQUESTS frames sent at once and their answers read as they come,
     for at most PACE_S. A box answering pipelined requests slowly (one at a time, with a pause) gets a smaller
-    burst; its answers cannot back up into a full send buffer anyway, since the box itself is the bottleneck."""
+    burst; its answers cannot back up into a full send buffer anyway, since the box itself is the bottleneck.
+    When the answers stopped coming, the rest are awaited up to ``quiet_s`` after the last one, and no burst
+    follows if they do not come (``ended == "silent"``: already answers lost, judged as the burst's would be)."""
     out, start = Backlog(), time.monotonic()
     if not conn.send(frame * PACE_REQUESTS, f"{note}: {PACE_REQUESTS} requests to measure the box's pace"):
         out.ended = "reset" if conn.closed_by_peer is not None and conn.closed_by_peer.reset else "closed"
         return out
     out.requests, out.sent_bytes = PACE_REQUESTS, len(frame) * PACE_REQUESTS
-    _read_rest(conn, out, PACE_REQUESTS * expect_len, PACE_S, None, deadline=start + PACE_S)
+    want = PACE_REQUESTS * expect_len
+    _read_rest(conn, out, want, PACE_S, None, deadline=start + PACE_S)
     out.ended = "" if out.ended in ("budget", "silent") else out.ended  # the pace alone judges nothing
+    stopped_s = time.monotonic() - (out.last_read_at or start)
+    if not out.ended and len(out.received) < want and stopped_s >= PACE_S / 2:
+        _read_rest(conn, out, want, max(0.0, quiet_s - stopped_s), None, deadline=time.monotonic() + BUDGET_S)
     out.elapsed_s = time.monotonic() - start
     # the pace of the answers that came, up to the last one (a box that drops some is not taken for a slow one)
     out.pace_hz = len(out.received) / expect_len / max(out.last_read_at - start, 1e-3) if out.received else 0.0

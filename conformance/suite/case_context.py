@@ -53,7 +53,7 @@ from .quiet import (
 )
 from .record import CaseRecord
 from .run_state import UNREACHABLE_AT_CONNECT, SessionState
-from .waits import STREAM
+from .waits import COALESCED, STREAM
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
 #: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).
@@ -116,10 +116,18 @@ class CaseContext:
             ran_out.answered_at(conn.answers - 1)
 
         def cut(data: bytes, wait_s: float) -> None:
-            place = conn.answers
+            place = COALESCED if not data else conn.answers
             cases = ran_out.known(place)
             if cases is None or not responsive(self.check_alive()):
                 return  # a dead box: the wait goes on, and R2 judges
+            if place == COALESCED:
+                nth = conn.answers - conn.answers_at_write + 1
+                raise Inconclusive(
+                    f"the box answered the first frame(s) of one write and left a later one unanswered for the whole "
+                    f"time_out in cases {', '.join(cases[:3])} (R4, A1); here answer {nth} of {conn.write_frames} "
+                    f"sent in one write did not come within {wait_s * 1000:.0f} ms either, so the wait ended there "
+                    "(the box still answers a fresh connection)",
+                    signature=Signature(Sig.SILENCE, "frames after the first of one write (R4)"), judged=("R4", "A1"))
             name = _action_name(data)
             raise Inconclusive(
                 f"the box left the request after {place} answer(s) on a connection unanswered for the whole time_out "
@@ -127,11 +135,19 @@ class CaseContext:
                 f"{wait_s * 1000:.0f} ms either, so the wait ended there (the box still answers a fresh connection)",
                 signature=Signature(Sig.SILENCE, name), judged=("A1", "T1"), sent=data)
 
+        def coalesced(answered: bool) -> None:
+            if answered:
+                ran_out.answered_at(COALESCED)
+            else:
+                ran_out.ran_out(self.info.id, COALESCED)
+
         conn.on_answered = answered
         conn.wait_bound = lambda c: ran_out.bound(c.answers, self.time_out_s)
         conn.stream_bound = ran_out.bound(STREAM, self.time_out_s)
         conn.on_cut = cut
         conn.on_ran_out = lambda place: ran_out.ran_out(self.info.id, place)
+        conn.coalesced_bound = ran_out.bound(COALESCED, self.time_out_s)
+        conn.on_coalesced = coalesced
 
     def _waits_behind_another(self) -> bool:
         """The box serves one connection at a time (the S4 preflight) and this case holds one open: a

@@ -6,7 +6,8 @@ of :meth:`~conformance.harness.client.TcpConnection.request`: a well-formed requ
 answer did not come within time_out. The pattern is where on its connection it happened,
 the number of answers the connection had carried before (a box that drops every Nth
 answer, or goes quiet on a connection after N answers, leaves the same place unanswered in
-every case that gets that far).
+every case that gets that far), a pose stream's overdue answer (:data:`STREAM`), or the
+answer to a later frame of one write whose first frames were answered (:data:`COALESCED`).
 
 A wait that ran out is *pending* until its case ends; it counts only when the case FAILed
 on that silence (a :data:`~.signature.Sig.SILENCE` verdict: the answer was required, not
@@ -30,6 +31,9 @@ REPEAT = 2
 STREAM = -1
 #: ... whose short wait is longer: a stream's answers may trail its poses (S6).
 STREAM_CUT_S = 1.0
+#: The place of the answer to a later frame of one write whose earlier frames were answered (R4: a box that
+#: answers only the first frame of a read leaves this place unanswered in every case that pipelines).
+COALESCED = -2
 
 
 @dataclass
@@ -71,4 +75,4 @@ class RanOut:
         """The short first wait for a request at ``place`` (None: wait in full)."""
         if self.known(place) is None:
             return None
-        return min(STREAM_CUT_S if place == STREAM else CUT_S, time_out_s)
+        return min(STREAM_CUT_S if place in (STREAM, COALESCED) else CUT_S, time_out_s)

@@ -93,3 +93,27 @@ def test_the_host_stall_is_the_psi_growth_between_the_samples_around_a_stretch()
     assert gauge.host_stall_ms(1000.0, 1000.15, wall=True) == 60.5
     assert gauge.host_stall_ms(99.0, 100.1) == 0.0  # no sample before the stretch: no evidence
     assert gauge.host_stall_ms(100.1, 101.0) == 0.0  # none after it either
+
+
+def test_a_write_of_several_requests_is_counted_frame_by_frame() -> None:
+    from conformance.harness.client import whole_frames
+    from conformance.protocol import Action, encode, request
+
+    none, pose = encode(request(Action.NONE)), encode(request(Action.POSE))
+    assert whole_frames(none) == 1
+    assert whole_frames(none + pose + none) == 3
+    assert whole_frames(none + pose[:7]) == 1  # a frame cut short is not counted
+    assert whole_frames(b"garbage" + none) == 0  # nor anything after bytes that start no frame
+
+
+def test_the_answer_to_a_later_frame_of_one_write_is_its_own_place() -> None:
+    from conformance.suite.waits import COALESCED, STREAM_CUT_S
+
+    ran_out = RanOut()
+    for case_id in ("R4-01", "A1-01")[:REPEAT]:
+        ran_out.ran_out(case_id, COALESCED)
+        ran_out.case_ended(case_id, failed_on_silence=True)
+    assert ran_out.bound(COALESCED, 5.0) == STREAM_CUT_S  # a later frame's answer may trail the first a little
+    assert ran_out.bound(3, 5.0) is None  # the plain places are not touched
+    ran_out.answered_at(COALESCED)
+    assert ran_out.bound(COALESCED, 5.0) is None
