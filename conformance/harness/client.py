@@ -1,4 +1,4 @@
-"""Recorded connections to a box, and what a box can do in answer (outcomes).
+"""Recorded connections to a box; what a box can do in answer are values (:mod:`.outcomes`, re-exported here).
 
 Nothing a box does raises out of here: an answer, bytes that do not parse, silence
 until the deadline, a close and a reset are all *values* (:data:`Outcome`). Only a
@@ -15,7 +15,7 @@ import select
 import socket
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 from ..protocol import (
     CLOSED,
@@ -28,98 +28,25 @@ from ..protocol import (
     Transport,
     codec_for,
     decode_datagram,
-    frame_span,
     peek_action,
+    whole_frames,
 )
+from .outcomes import Answer, Closed, Malformed, Outcome, Silence
 from .starvation import enable_rx_timestamps, recv_stamped
 from .target import Refused, Target, Unreachable, connect_failure, dial
 from .transcript import Endpoint, Kind, Transcript
 
-# -- outcomes ------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Answer:
-    """A well-formed answer frame."""
-
-    frame: Frame
-    latency_s: float
-    raw: bytes
-
-    def describe(self) -> str:
-        return f"answered {self.frame.describe()}"
-
-
-@dataclass(frozen=True)
-class Malformed:
-    """Bytes from the box that are not a conforming answer."""
-
-    error: ProtocolError
-    latency_s: float
-
-    @property
-    def raw(self) -> bytes:
-        return self.error.raw
-
-    def describe(self) -> str:
-        raw = self.error.raw
-        shown = raw[:SHOWN_BYTES].hex(" ") + (f" … ({len(raw)} bytes)" if len(raw) > SHOWN_BYTES else "")
-        return f"sent a malformed answer: {self.error} ({shown})"
-
-
-@dataclass(frozen=True)
-class Silence:
-    """Nothing arrived before the deadline (``skipped``: nothing came for these bytes, but the
-    box went on to answer what followed them)."""
-
-    waited_s: float
-    skipped: bool = False
-    raw = b""  # nothing arrived
-
-    def describe(self) -> str:
-        if self.skipped:
-            return "did not answer them (it went on to answer the request that followed)"
-        return f"stayed silent for {self.waited_s * 1000:.0f} ms"
-
-
-@dataclass(frozen=True)
-class Closed:
-    """The box closed (FIN) or reset (RST) the connection, or flooded it and the suite
-    stopped reading (``flood``: how many bytes had come)."""
-
-    reset: bool
-    latency_s: float
-    flood: int = 0
-    raw = b""  # no bytes, a FIN or RST
-
-    def describe(self) -> str:
-        if self.flood:
-            return (f"kept sending ({self.flood} bytes without a pause for an answer to be judged); the suite stopped "
-                    "reading and reset the connection (R5)")
-        return "reset the connection" if self.reset else "closed the connection"
-
-
-Outcome = Answer | Malformed | Silence | Closed
-
 #: A box may send FLOOD_BYTES on one connection, plus FLOOD_PER_SENT times what the suite sent on it (answers
 #: are no longer than the requests they answer); more is a flood: the suite stops reading and resets the
 #: connection, having recorded the first bytes as evidence (bounded memory and disk). Descriptions quote at
-#: most SHOWN_BYTES of what the box sent; drain() takes at most MAX_DRAIN outcomes (a box never quiet ends it).
-FLOOD_BYTES, FLOOD_PER_SENT, SHOWN_BYTES, MAX_DRAIN = 64 * 1024, 4, 64, 64
+#: most SHOWN_BYTES of what the box sent (.outcomes); drain() takes at most MAX_DRAIN outcomes (a box never quiet
+#: ends it).
+FLOOD_BYTES, FLOOD_PER_SENT, MAX_DRAIN = 64 * 1024, 4, 64
 
+
+__all__ = ["Answer", "Closed", "Malformed", "Outcome", "Silence", "TcpConnection", "UdpChannel"]
 
 # -- TCP ---------------------------------------------------------------------------------------
-
-
-def whole_frames(data: bytes, byte_order: str = "big") -> int:
-    """How many whole frames ``data`` starts with (a write of several requests, R4), up to the first that is not."""
-    at = count = 0
-    while at < len(data):
-        span = frame_span(data, at, byte_order)
-        if span <= 0 or at + span > len(data):
-            break
-        at, count = at + span, count + 1
-    return count
 
 
 class TcpConnection:
@@ -280,10 +207,8 @@ class TcpConnection:
             return self._coalesced_outcome(since)
         return self._next_outcome(timeout_s, since)
 
-    def _coalesced_wait(self) -> bool:
-        """Waiting for the answer to a frame that shared its write with frames already answered (R4)."""
-        got = self.answers - self.answers_at_write
-        return self.write_frames > 1 and 0 < got < self.write_frames
+    def _coalesced_wait(self) -> bool:  # for a frame that shared its write with frames already answered (R4)
+        return self.write_frames > 1 and 0 < self.answers - self.answers_at_write < self.write_frames
 
     def _coalesced_outcome(self, since: float | None) -> Outcome:
         bound = self.coalesced_bound

@@ -73,6 +73,7 @@ from .splitter import (
     peek_header,
     peek_transfer_type,
     split_bytes,
+    whole_frames,
 )
 from .stream import CLOSED, NEED_DATA, Event, StreamDecoder
 
@@ -88,4 +89,5 @@ __all__ = [
     "parse_header", "pose_blocks", "request", "tolerance_blocks", "value_blocks",
     "HeaderPeek", "Piece", "PieceKind", "Splitter", "find_plausible_header", "frame_span", "frame_spanner",
     "header_field_bytes", "peek_action", "peek_header", "peek_transfer_type", "split_bytes",
+    "whole_frames",
 ]

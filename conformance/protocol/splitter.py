@@ -164,6 +164,17 @@ def frame_span(data: bytes | bytearray, at: int = 0, byte_order: str = "big") ->
     return _layout(byte_order).span(data, at)
 
 
+def whole_frames(data: bytes | bytearray, byte_order: str = "big") -> int:
+    """How many whole frames ``data`` starts with (a write of several requests, R4), up to the first that is not."""
+    at = count = 0
+    while at < len(data):
+        span = frame_span(data, at, byte_order)
+        if span <= 0 or at + span > len(data):
+            break
+        at, count = at + span, count + 1
+    return count
+
+
 def frame_spanner(byte_order: str = "big") -> Callable[[bytes | bytearray, int], int]:
     """:func:`frame_span` bound to one byte order, for a hot loop."""
     return _layout(byte_order).span

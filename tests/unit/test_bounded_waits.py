@@ -96,8 +96,7 @@ def test_the_host_stall_is_the_psi_growth_between_the_samples_around_a_stretch()
 
 
 def test_a_write_of_several_requests_is_counted_frame_by_frame() -> None:
-    from conformance.harness.client import whole_frames
-    from conformance.protocol import Action, encode, request
+    from conformance.protocol import Action, encode, request, whole_frames
 
     none, pose = encode(request(Action.NONE)), encode(request(Action.POSE))
     assert whole_frames(none) == 1
