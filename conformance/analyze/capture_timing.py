@@ -9,7 +9,7 @@ measurement.
 
 The box side reuses the active suite's backlog figure (:meth:`StreamResult.backlog
 <conformance.suite.pose_stream.StreamResult.backlog>`: last-quarter p50 latency above
-first-quarter p50 + max(20 ms, 3×)) on an evenly spaced sample of the stream's answer
+first-quarter p50 + max(20 ms, first-quarter p50)) on an evenly spaced sample of the stream's answer
 latencies.
 """
 

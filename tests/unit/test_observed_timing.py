@@ -142,3 +142,21 @@ def test_a_local_robots_jitter_on_a_quiet_host_still_fails(monkeypatch):
     _gauge_with_pressure(monkeypatch, 5000.0, 200)  # 0.4 % contention
     assert not judge_jitter(stats, 0.25)[0]
     assert jitter_starved(stats, times, 0.25, peer_local=True) is None
+
+
+def test_a_latency_growing_two_ms_a_pose_is_a_backlog_whatever_its_base() -> None:
+    from conformance.suite.pose_stream import StreamResult
+
+    for base in (2.0, 20.0, 100.0):  # the box's own latency before the backlog starts
+        growing = StreamResult(rate_hz=50.0, latencies_ms=[base + 2.0 * i for i in range(150)])
+        first, last, bar = growing.backlog()
+        assert last > bar, (base, first, last, bar)
+
+
+def test_a_steady_latency_with_load_noise_is_no_backlog() -> None:
+    from conformance.suite.pose_stream import StreamResult
+
+    for base in (2.0, 20.0, 100.0):
+        noisy = [base + (7.0 if i % 3 == 0 else 0.0) + (15.0 if i > 140 else 0.0) for i in range(150)]
+        first, last, bar = StreamResult(rate_hz=50.0, latencies_ms=noisy).backlog()
+        assert last <= bar, (base, first, last, bar)
