@@ -30,6 +30,8 @@ one).
 from __future__ import annotations
 
 import asyncio
+import bisect
+import ipaddress
 import socket
 import struct
 import threading
@@ -137,12 +139,11 @@ class StarvationGauge:
         (ms; 0 without samples covering both ends: no evidence)."""
         with self._lock:
             samples = list(self._pressure)
-        key = 1 if wall else 0
-        before = [s for s in samples if s[key] <= since]
-        after = [s for s in samples if s[key] >= until]
-        if not before or not after:
+        times = [s[1 if wall else 0] for s in samples]  # ascending: sampled in order
+        first, last = bisect.bisect_right(times, since) - 1, bisect.bisect_left(times, until)
+        if first < 0 or last >= len(samples):
             return 0.0
-        return (after[0][2] - before[-1][2]) / 1000.0
+        return (samples[last][2] - samples[first][2]) / 1000.0
 
     def note(self, at: float, late_ms: float) -> None:
         """Record a stall seen elsewhere (e.g. an event loop's timer that fired late)."""
@@ -189,8 +190,6 @@ def parse_psi_total(line: str) -> int | None:
 
 def is_loopback(host: str) -> bool:
     """A peer on this host: 127.0.0.0/8, ::1 or ::ffff:127.x (the only peers whose CPU the suite shares)."""
-    import ipaddress
-
     try:
         addr = ipaddress.ip_address(host.strip("[]"))
     except ValueError:
