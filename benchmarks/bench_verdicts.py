@@ -19,6 +19,11 @@ time and peak resident memory (VmHWM) by :class:`tests.impls.matrix.Proc`:
   (T2 backlog) and the legal ``late-inside-timeout`` (every answer 100 ms late). Each is
   started by ``python -m tests.impls.box NAME``, exactly as the matrix does.
 
+``--serial-too`` runs each endpoint a second time with ``--lanes 1`` (one case at a time) and
+prints it beside the default run (``--lanes auto``: lanes for a slow box that serves several
+connections), the baseline in the same run. Peak RSS is the suite's main process (lane
+workers are separate processes).
+
 It prints one line per endpoint: exit code, wall time, peak RSS, the judgement against
 ``tests/impls/expectations.py`` and the first root cause the run reported. The load
 average before and after is printed too: the figures measure the machine as much as the
@@ -35,6 +40,7 @@ import statistics
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -51,11 +57,11 @@ ENDPOINTS = ["reference", "no-resync", "drops-coalesced", "one-at-a-time", "dead
 CONFORMING = ("reference", "late-inside-timeout")
 
 
-def run_reference(out: Path, limit: float) -> dict[str, object]:
-    work = out / "reference"
+def run_reference(out: Path, limit: float, extra: tuple[str, ...] = ()) -> dict[str, object]:
+    work = out / ("reference" + "-".join(("",) + extra))
     work.mkdir(parents=True, exist_ok=True)
     suite = Proc(suite_command() + ["run", "--quiet", "--report-dir", str(work / "report"),
-                                    "--pcap-dir", str(work / "pcaps")], work, "suite")
+                                    "--pcap-dir", str(work / "pcaps"), *extra], work, "suite")
     rc = suite.wait(limit)
     wall = time.monotonic() - suite.t0
     try:
@@ -77,9 +83,10 @@ def _rc_text(rc: dict[str, object]) -> str:
     return f"{rc.get('id')} [{clauses}] {rc.get('level', '')}: {str(rc.get('title', ''))[:60]}"
 
 
-def run_impl(name: str, out: Path, limit: float) -> dict[str, object]:
+def run_impl(name: str, out: Path, limit: float, extra: tuple[str, ...] = ()) -> dict[str, object]:
     args = argparse.Namespace(time_out=0, limit=limit, mem_limit=4096)
-    row = run_box(EXPECTATIONS[name], args, out, 0, False)
+    exp = EXPECTATIONS[name]
+    row = run_box(replace(exp, suite_args=(*exp.suite_args, *extra)), args, out / "-".join((name,) + extra), 0, False)
     return {"name": name, "exit": row.exit, "wall_s": row.wall_s, "peak_rss_mb": row.peak_rss_mb,
             "judgement": row.judgement, "root_cause": (row.root_causes or ["-"])[0][:90]}
 
@@ -102,6 +109,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", nargs="+", choices=ENDPOINTS, metavar="NAME", help="only these endpoints")
     parser.add_argument("--limit", type=float, default=900, metavar="S", help="hard bound per run (s)")
     parser.add_argument("--out", type=Path, help="keep the reports here (default: a temporary directory)")
+    parser.add_argument("--serial-too", action="store_true",
+                        help="also run each endpoint with --lanes 1 (one case at a time), printed beside the default "
+                             "(--lanes auto) as its baseline")
     args = parser.parse_args(argv)
     names = args.only or ENDPOINTS
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}  cores: {os.cpu_count()}")
@@ -112,11 +122,15 @@ def main(argv: list[str] | None = None) -> int:
         ok = True
         walls: dict[str, float] = {}
         for name in names:
-            r = run_reference(out, args.limit) if name == "reference" else run_impl(name, out, args.limit)
-            ok = ok and r["judgement"] == "ok"
-            walls[name] = float(r["wall_s"])  # type: ignore[arg-type]
-            print(f"{r['name']:<20} {r['exit']!s:>4} {r['wall_s']:>7.1f} {r['peak_rss_mb']:>8.1f}  "
-                  f"{r['judgement']!s:<24} {r['root_cause']}", flush=True)
+            for extra in [(), ("--lanes", "1")] if args.serial_too else [()]:
+                r = run_reference(out, args.limit, extra) if name == "reference" else run_impl(name, out, args.limit,
+                                                                                              extra)
+                ok = ok and r["judgement"] == "ok"
+                label = name + (" (lanes 1)" if extra else "")
+                if not extra:
+                    walls[name] = float(r["wall_s"])  # type: ignore[arg-type]
+                print(f"{label:<20} {r['exit']!s:>4} {r['wall_s']:>7.1f} {r['peak_rss_mb']:>8.1f}  "
+                      f"{r['judgement']!s:<24} {r['root_cause']}", flush=True)
     goals(walls)
     print(f"load average after:  {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0 if ok else 1

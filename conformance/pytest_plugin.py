@@ -26,6 +26,7 @@ plugin is inert in any other test session.
 from __future__ import annotations
 
 import fnmatch
+import json
 import time
 from collections.abc import Generator
 from dataclasses import replace
@@ -93,6 +94,7 @@ LANG_BEFORE = pytest.StashKey[str]()
 
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line("markers", "isight_case(info): an iSight conformance case (set by @case)")
+    config.addinivalue_line("markers", "isight_alone: this variant of a case that shares the box runs alone (run's lanes)")
     lang = config.getoption("isight_lang", None)
     if lang or wants_suite(config):  # the project's own tests keep English whatever the locale says
         config.stash[LANG_BEFORE] = i18n.current()  # the reports' language for this session; restored at its end
@@ -105,7 +107,7 @@ def pytest_configure(config: pytest.Config) -> None:
         from .xdist_hooks import XdistHooks
 
         settings = XdistHooks.worker_settings(config, settings)
-        config.pluginmanager.register(XdistHooks(), "isight-xdist")
+        config.pluginmanager.register(XdistHooks(config), "isight-xdist")
     sessions = {key: SessionState(replace(settings, target=t, targets=(t,)) if t is not None else settings)
                 for key, t in target_keys(settings).items()}
     config.stash[SESSIONS] = sessions
@@ -243,6 +245,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
     duration = (time.monotonic() - start) if start is not None else rep.duration
     result = result_of(info, ctx, exc, duration, skipped)
     item.config.stash[RESULTS][_key_of(item)].append(result)
+    if hasattr(item.config, "workerinput"):  # an xdist worker: the result travels with its report to the controller
+        rep.__dict__["isight_result"] = json.loads(json.dumps(result.to_dict(), default=str))
     _shape_report(rep, item, result)
     return rep
 

@@ -5,8 +5,13 @@
   shared cycle state; its cases must not run side by side).
 * The bundled box (no ``--target``) is started once, by the controller, and every worker
   is told where it listens.
-* Workers send their results (and what their session learnt about the box, for the root
-  causes) to the controller through ``workeroutput``; only the controller writes reports.
+* ``run --lanes N`` against one slow box: the cases that share the box
+  (:mod:`conformance.suite.lanes`) are dealt over N workers, and the rest run alone on one
+  worker once every lane is done (:class:`LaneScheduling`).
+* Each case's result travels with its test report, so the controller holds every finished
+  case even when the run is cut short; what each worker's session learnt about the box
+  (for the root causes) comes through ``workeroutput``. Only the controller writes reports,
+  its results in catalogue order.
 """
 
 from __future__ import annotations
@@ -19,13 +24,19 @@ import pytest
 
 from .harness.target import Target
 from .model.verdicts import CaseResult
+from .suite.lanes import ALONE
 from .suite.rootcause import SessionFacts
 from .suite.settings import SuiteSettings
 
 OUTPUT = "isight"
+#: ``run --lanes``: each case's scope (node id -> lane or :data:`~conformance.suite.lanes.ALONE`)
+LANE_PLAN = pytest.StashKey[dict[str, str]]()
 
 
 class XdistHooks:
+    def __init__(self, config: pytest.Config) -> None:
+        self.config = config
+
     @staticmethod
     def worker_settings(config: pytest.Config, settings: SuiteSettings) -> SuiteSettings:
         """On a worker of a run against the bundled box: the box the controller started."""
@@ -45,6 +56,9 @@ class XdistHooks:
         if config.getvalue("dist") not in ("load", "loadgroup") or not wants_suite(config):
             return None  # the user chose another distribution, or this is not a run of the cases: xdist's own
 
+        plan = config.stash.get(LANE_PLAN, None)
+        if plan:
+            return LaneScheduling(config, log, plan)
         return box_scheduling(config, log, [k for k in config.stash[SESSIONS] if k])
 
     def pytest_configure_node(self, node: Any) -> None:
@@ -57,7 +71,7 @@ class XdistHooks:
             node.workerinput["isight_label"] = state.target_label()
 
     def pytest_testnodedown(self, node: Any, error: object) -> None:
-        from .suite.collected import FACTS, RESULTS, SELECTED, SESSIONS
+        from .suite.collected import FACTS, SELECTED, SESSIONS
 
         sent = getattr(node, "workeroutput", {}).get(OUTPUT)
         if not sent:
@@ -65,7 +79,6 @@ class XdistHooks:
         data = json.loads(sent)
         config = node.config
         for key, box in data["boxes"].items():
-            config.stash[RESULTS].setdefault(key, []).extend(CaseResult.from_dict(r) for r in box["results"])
             facts = box["facts"]
             known = config.stash[FACTS].get(key)
             config.stash[FACTS][key] = SessionFacts.from_dict(facts).merged(known)
@@ -75,11 +88,23 @@ class XdistHooks:
         selected = config.stash[SELECTED]
         selected.extend(i for i in data["selected"] if i not in selected)
 
-    # -- a worker ---------------------------------------------------------------------------------
-    @pytest.hookimpl(trylast=True)
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_runtest_logreport(self, report: pytest.TestReport) -> None:
+        """On the controller: a worker's case result, as it finishes (before the run's progress sees it)."""
+        sent = getattr(report, "isight_result", None)
+        if sent is None or hasattr(self.config, "workerinput"):
+            return
+        from .suite.collected import RESULTS, SESSIONS
+
+        key = box_key(report.nodeid, [k for k in self.config.stash[SESSIONS] if k])
+        self.config.stash[RESULTS].setdefault(key, []).append(CaseResult.from_dict(sent))
+
+    # -- a worker, and the controller's order ------------------------------------------------------
+    @pytest.hookimpl(tryfirst=True)
     def pytest_sessionfinish(self, session: pytest.Session) -> None:
         config = session.config
         if not hasattr(config, "workeroutput"):
+            in_catalogue_order(config)
             return
         from .suite.collected import RESULTS, SELECTED, SESSIONS, facts_of
 
@@ -88,9 +113,7 @@ class XdistHooks:
             if not results:
                 continue
             state = config.stash[SESSIONS][key]
-            facts = facts_of(state)
-            boxes[key] = {"results": [r.to_dict() for r in results], "extension_how": state.extension_how,
-                          "facts": facts.to_dict()}
+            boxes[key] = {"extension_how": state.extension_how, "facts": facts_of(state).to_dict()}
         config.workeroutput[OUTPUT] = json.dumps({"boxes": boxes, "selected": config.stash.get(SELECTED, [])},
                                                  default=str)
 
@@ -113,3 +136,79 @@ def box_scheduling(config: pytest.Config, log: Any, keys: list[str]) -> Any:
             return "isight-box " + box_key(nodeid, keys)
 
     return BoxScheduling(config, log)
+
+
+def in_catalogue_order(config: pytest.Config) -> None:
+    """The controller's results in the order the catalogue lists the cases (lanes finish interleaved); a case
+    no worker reported as selected (a run cut short) keeps its place after them."""
+    from .suite.collected import RESULTS, SELECTED
+
+    selected: list[str] = config.stash.get(SELECTED, [])
+    order = {case_id: i for i, case_id in enumerate(selected)}
+    for results in config.stash.get(RESULTS, {}).values():
+        results.sort(key=lambda r: order.get(r.id, len(order)))
+
+
+def lane_scheduler_class() -> Any:
+    from xdist.scheduler import LoadScopeScheduling
+
+    class LaneScheduling(LoadScopeScheduling):
+        """Lanes first, one per worker, all at once; the cases that run alone go to one worker when
+        every lane is done. A worker runs its last case only once told there is no more work, so
+        every lane worker but the first is told at once, and the first keeps its lane's last case
+        until the alone scope follows it."""
+
+        def __init__(self, config: pytest.Config, log: Any, plan: dict[str, str]) -> None:
+            super().__init__(config, log)
+            self.plan = plan
+
+        def _split_scope(self, nodeid: str) -> str:
+            return self.plan.get(nodeid, ALONE)
+
+        def schedule(self) -> None:
+            assert self.collection_is_completed
+            if self.collection is None:  # type: ignore[has-type]  # (xdist's attribute, set below)
+                if not self._check_nodes_have_same_collection():
+                    self.log("**Different tests collected, aborting run**")
+                    return
+                collection: list[str] = list(next(iter(self.registered_collections.values())))
+                self.collection = collection
+                for nodeid in collection:
+                    self.workqueue.setdefault(self._split_scope(nodeid), {})[nodeid] = False
+            self._dispatch()
+
+        def mark_test_complete(self, node: Any, item_index: int, duration: float = 0) -> None:
+            nodeid = self.registered_collections[node][item_index]
+            self.assigned_work[node][self._split_scope(nodeid)][nodeid] = True
+            self._dispatch()
+
+        def _dispatch(self) -> None:
+            live = [n for n in self.nodes if not n.shutting_down]
+            if not live:
+                return
+            for node in live:  # a lane to each worker (nearly) without work
+                lanes = [s for s in self.workqueue if s != ALONE]
+                if lanes and self._pending_of(self.assigned_work.get(node, {})) <= 1:
+                    self._give(node, lanes[0])
+            if any(s != ALONE for s in self.workqueue):
+                return  # more lanes than workers: the next goes to whoever is nearly done
+            keeper = live[0]
+            for node in live[1:]:
+                node.shutdown()  # it has all it will get: it may run its last case
+            others = any(self._pending_of(self.assigned_work.get(n, {})) for n in self.nodes if n is not keeper)
+            if ALONE in self.workqueue and not others and self._pending_of(self.assigned_work.get(keeper, {})) <= 1:
+                self._give(keeper, ALONE)
+            if not self.workqueue:
+                keeper.shutdown()
+
+        def _give(self, node: Any, scope: str) -> None:
+            unit = self.workqueue.pop(scope)
+            self.assigned_work.setdefault(node, {})[scope] = unit
+            collection = self.registered_collections[node]
+            node.send_runtest_some([collection.index(nodeid) for nodeid, done in unit.items() if not done])
+
+    return LaneScheduling
+
+
+def LaneScheduling(config: pytest.Config, log: Any, plan: dict[str, str]) -> Any:  # noqa: N802 - a class, made late
+    return lane_scheduler_class()(config, log, plan)

@@ -151,7 +151,8 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
       checks={"no-0000": Requirement(("A3",), "a {action.name} request with {what} MUST NOT be answered 0000", accept=NOT_OK),
               "code": Requirement(("A3",), "a {action.name} request with {what} SHOULD be answered {error:04X}",
                                   level=Level.SHOULD,
-                                  accept=lambda action, **_: answered(action, [ACTION_ERROR[action]]))})
+                                  accept=lambda action, **_: answered(action, [ACTION_ERROR[action]]))},
+      shares_box=True)
 @pytest.mark.parametrize("action", [POSE, REG, TOL], ids=["pose", "register-pose", "tolerance"])
 def test_parse_error_codes(isight: CaseContext, action: Action) -> None:
     conn = isight.connect("malformed")
@@ -188,7 +189,8 @@ def test_cycle_codes(isight: CaseContext) -> None:
 
 @case("A4-01", ["A4"], Level.MUST, "NONE (action 00) is answered NONE with 0000",
       "each NONE request, on a fresh connection and three in a row on one connection, is answered NONE 0000",
-      checks={"": Requirement(("A4",), "action 00 is answered with action 00 and error 0000", accept=answered_allowed(NONE))})
+      checks={"": Requirement(("A4",), "action 00 is answered with action 00 and error 0000", accept=answered_allowed(NONE))},
+      shares_box=True)
 def test_none_answered(isight: CaseContext) -> None:
     isight.judge(isight.exchange(request(NONE), "NONE request on a fresh connection"))
     conn = isight.connect()

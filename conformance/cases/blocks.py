@@ -43,7 +43,7 @@ from conformance.suite.block_requests import (
 @case("B1-01", ["B1", "B3", "A1", "S3"], Level.MUST, "Pose and register-pose requests with 1, 3 and 255 blocks are answered 0000",
       "answered with the request's action (23 or 24) and error 0000",
       checks={"": Requirement(("A1", "B1"), "a well-formed {action.name} request with {count} block(s) is answered 0000",
-                              accept=lambda action, **_: answered_allowed(action))})
+                              accept=lambda action, **_: answered_allowed(action))}, shares_box=True)
 @pytest.mark.parametrize("action", [POSE, REG], ids=["pose", "register-pose"])
 @pytest.mark.parametrize("count", [1, 3, 255])
 def test_pose_block_counts(isight: CaseContext, action: Action, count: int) -> None:
@@ -53,7 +53,7 @@ def test_pose_block_counts(isight: CaseContext, action: Action, count: int) -> N
 
 
 @case("B1-02", ["B1", "B5", "A3", "R1"], Level.MUST, "A pose request whose block length is not 25 is not answered 0000",
-      "not 0000 (MUST); answered 1001 (SHOULD, A3)", checks={"": PARSE_ERROR})
+      "not 0000 (MUST); answered 1001 (SHOULD, A3)", checks={"": PARSE_ERROR}, shares_box=True)
 @pytest.mark.parametrize("action", [POSE, REG], ids=["pose", "register-pose"])
 @pytest.mark.parametrize("length", [24, 26], ids=["L24", "L26"])
 def test_pose_wrong_length(isight: CaseContext, action: Action, length: int) -> None:
@@ -67,7 +67,7 @@ def test_pose_wrong_length(isight: CaseContext, action: Action, length: int) -> 
 @case("B2-01", ["B2", "B3", "A1", "S3"], Level.MUST, "Tolerance requests with 1, 3 and 255 blocks are answered 0000",
       "answered TOLERANCE with error 0000",
       checks={"": Requirement(("A1", "B2"), "a well-formed tolerance request with {count} block(s) is answered 0000",
-                              accept=answered_allowed(TOL))})
+                              accept=answered_allowed(TOL))}, shares_box=True)
 @pytest.mark.parametrize("count", [1, 3, 255])
 def test_tolerance_block_counts(isight: CaseContext, count: int) -> None:
     values = [0.25 + 0.5 * i for i in range(count)]
@@ -77,7 +77,7 @@ def test_tolerance_block_counts(isight: CaseContext, count: int) -> None:
 
 
 @case("B2-02", ["B2", "B5", "A3", "R1"], Level.MUST, "A tolerance request whose block length is not 5 is not answered 0000",
-      "not 0000 (MUST); answered 1002 (SHOULD, A3)", checks={"": PARSE_ERROR})
+      "not 0000 (MUST); answered 1002 (SHOULD, A3)", checks={"": PARSE_ERROR}, shares_box=True)
 @pytest.mark.parametrize("length", [4, 6, 25], ids=["L4", "L6", "L25"])
 def test_tolerance_wrong_length(isight: CaseContext, length: int) -> None:
     first = isight.profile.first_index
@@ -95,7 +95,7 @@ def test_tolerance_wrong_length(isight: CaseContext, length: int) -> None:
 
 
 @case("B3-01", ["B3"], Level.MAY, "Which first block index the box expects (0 or 1)",
-      "recorded: how the box answers a one-pose request indexed 00 and one indexed 01")
+      "recorded: how the box answers a one-pose request indexed 00 and one indexed 01", shares_box=True)
 def test_first_index_discovery(isight: CaseContext) -> None:
     seen: dict[int, str] = {}
     accepts: list[int] = []
@@ -122,7 +122,7 @@ def test_first_index_discovery(isight: CaseContext) -> None:
 
 
 @case("B3-02", ["B3", "A3", "R1"], Level.MUST, "Block indexes with a gap, a repeat, a wrong start or descending are a parse error",
-      "not 0000 (MUST); answered 1001 for 23/24, 1002 for 25 (SHOULD, A3)", checks={"": PARSE_ERROR})
+      "not 0000 (MUST); answered 1001 for 23/24, 1002 for 25 (SHOULD, A3)", checks={"": PARSE_ERROR}, shares_box=True)
 @pytest.mark.parametrize("action", [POSE, REG, TOL], ids=list(ACTION_IDS.values()))
 @pytest.mark.parametrize("kind,relative", INDEX_ERRORS, ids=[k for k, _ in INDEX_ERRORS])
 def test_index_errors(isight: CaseContext, action: Action, kind: str, relative: list[int] | None) -> None:
@@ -145,7 +145,7 @@ def test_index_errors(isight: CaseContext, action: Action, kind: str, relative: 
       checks={"": Requirement(("B4",), "NaN or infinity SHOULD be treated as a parse error (not answered 0000)", accept=NOT_OK,
                               should=named_error,
                               should_clauses=("A3",), should_text="a parse error in a {action.name} request SHOULD be answered with the "
-                                          "action's error")})
+                                          "action's error")}, shares_box=True)
 @pytest.mark.parametrize("action,bits,where", [p[1:] for p in NON_FINITE], ids=[p[0] for p in NON_FINITE])
 def test_non_finite(isight: CaseContext, action: Action, bits: int, where: tuple[int, int]) -> None:
     bad = with_odd_float(action, bits, where, isight.profile)
@@ -160,7 +160,7 @@ def test_non_finite(isight: CaseContext, action: Action, bits: int, where: tuple
 @case("B4-02", ["B4", "A1", "A3"], Level.MUST, "Legal float32 edge values (-0.0, subnormals, max) are accepted",
       "answered with the request's action and 0000: the request is well-formed",
       checks={"": Requirement(("A1", "A3", "B4"), "float32 {bits:08X} is a legal value; the well-formed {action.name} request is "
-                              "answered 0000", accept=lambda action, **_: answered_allowed(action))})
+                              "answered 0000", accept=lambda action, **_: answered_allowed(action))}, shares_box=True)
 @pytest.mark.parametrize("action", [POSE, TOL], ids=["pose", "tolerance"])
 @pytest.mark.parametrize("bits", [b for _, b in EDGE_FLOATS], ids=[n for n, _ in EDGE_FLOATS])
 def test_edge_floats(isight: CaseContext, action: Action, bits: int) -> None:
@@ -174,7 +174,8 @@ def test_edge_floats(isight: CaseContext, action: Action, bits: int) -> None:
 
 @case("B5-01", ["B5", "A3", "R1"], Level.MUST, "A request whose block type, count or length does not fit its action is not answered 0000",
       "not 0000 (MUST); for 23/24 answered 1001, for 25 answered 1002 (SHOULD, A3); "
-      "for 00/01/02 PROTOCOL.md names no code: a non-zero error, silence or a close", checks={"": PARSE_ERROR})
+      "for 00/01/02 PROTOCOL.md names no code: a non-zero error, silence or a close", checks={"": PARSE_ERROR},
+      shares_box=True)
 @pytest.mark.parametrize("action,btype,count,length,body_kind", [c[1:] for c in SHAPE_CASES], ids=[c[0] for c in SHAPE_CASES])
 def test_wrong_shape(isight: CaseContext, action: int, btype: int, count: int, length: int, body_kind: str) -> None:
     first = isight.profile.first_index

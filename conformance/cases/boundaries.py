@@ -53,7 +53,7 @@ from conformance.suite.boundary_requests import (
       "1, 2, 15, 16, 17, 31, 32, 100, 127, 128, 129, 254 and 255 blocks, each answered with the request's action "
       "and 0000 (in any cycle state, S3); one connection, one request after the other",
       checks={"": Requirement(("A1", "A3"), "a well-formed {action.name} request with {count} blocks (indexes "
-                              "{first} to {last}) is answered 0000", accept=answered_ok)})
+                              "{first} to {last}) is answered 0000", accept=answered_ok)}, shares_box=True)
 @pytest.mark.parametrize("action", ACTIONS, ids=ACTION_IDS)
 def test_block_count_boundaries(isight: CaseContext, action: Action) -> None:
     first = isight.profile.first_index
@@ -74,7 +74,7 @@ def test_block_count_boundaries(isight: CaseContext, action: Action) -> None:
                               "{index:02x} (expected {expected:02x}) is a parse error and MUST NOT be answered 0000",
                               accept=NOT_OK, should=named_error, should_clauses=("A3",),
                               should_text="a parse error in a {action.name} request SHOULD be answered with the "
-                                          "action's error")})
+                                          "action's error")}, shares_box=True)
 @pytest.mark.parametrize("action", ACTIONS, ids=ACTION_IDS)
 def test_wrong_index_positions(isight: CaseContext, action: Action) -> None:
     first = isight.profile.first_index
@@ -105,7 +105,8 @@ def test_wrong_index_positions(isight: CaseContext, action: Action) -> None:
       "finite float32 of either sign, 1e6 and -1e6 in every float, a negative value in each coordinate and in a "
       "tolerance; one connection, one request after the other",
       checks={"": Requirement(("A1", "A3", "B4"), "float32 {bits:08X} ({name}) in {where} is a legal value; the "
-                              "well-formed {action.name} request is answered 0000", accept=answered_ok)})
+                              "well-formed {action.name} request is answered 0000", accept=answered_ok)},
+      shares_box=True)
 @pytest.mark.parametrize("action", ACTIONS, ids=ACTION_IDS)
 def test_legal_float_values(isight: CaseContext, action: Action) -> None:
     items = [(label, encode(request(action, blks), isight.profile), {"name": label, "where": where, "bits": bits})

@@ -24,7 +24,7 @@ from conformance.suite.frame_checks import (
 
 
 @case("F1-01", ["F1"], Level.MUST, "Answers start with FE FE", "every answer's first two bytes are fe fe",
-      checks={"answered": ANSWERED_0, "": Requirement(("F1",), "the start word is FE FE")})
+      checks={"answered": ANSWERED_0, "": Requirement(("F1",), "the start word is FE FE")}, shares_box=True)
 def test_answer_start_word(isight: CaseContext) -> None:
     _, raw = answer_bytes(isight)
     got = header_field_bytes(raw, "start_word")
@@ -34,7 +34,7 @@ def test_answer_start_word(isight: CaseContext) -> None:
 
 @case("F1-02", ["F1", "A5", "R1"], Level.MUST, "A frame with a wrong start word is not answered 0000",
       "silence, a non-zero error, or a close; never 0000",
-      checks={"": Requirement(("A5",), f"a frame that is not a request {NOT_0000}", accept=NOT_OK)})
+      checks={"": Requirement(("A5",), f"a frame that is not a request {NOT_0000}", accept=NOT_OK)}, shares_box=True)
 def test_wrong_start_word(isight: CaseContext) -> None:
     bad = bytearray(encode(POSE))
     bad[0:2] = b"\xfe\xff"
@@ -42,7 +42,7 @@ def test_wrong_start_word(isight: CaseContext) -> None:
 
 
 @case("F2-01", ["F2"], Level.MUST, "Answers carry version 00 01", "bytes 2-3 of every answer are 00 01",
-      checks={"answered": ANSWERED_0, "": Requirement(("F2",), "the version is 00 01")})
+      checks={"answered": ANSWERED_0, "": Requirement(("F2",), "the version is 00 01")}, shares_box=True)
 def test_answer_version(isight: CaseContext) -> None:
     _, raw = answer_bytes(isight)
     got = header_field_bytes(raw, "version")
@@ -52,14 +52,15 @@ def test_answer_version(isight: CaseContext) -> None:
 
 @case("F2-02", ["F2", "A5", "R1"], Level.MUST, "A frame with version 00 02 is not answered 0000",
       "silence, a non-zero error, or a close; never 0000",
-      checks={"": Requirement(("A5",), f"a frame with version ≠ 00 01 {NOT_0000}", accept=NOT_OK)})
+      checks={"": Requirement(("A5",), f"a frame with version ≠ 00 01 {NOT_0000}", accept=NOT_OK)}, shares_box=True)
 def test_wrong_version(isight: CaseContext) -> None:
     bad = encode_raw(Header(version=0x0002, action=Action.NONE))
     isight.judge(isight.send_malformed(bad, "NONE request with version 00 02"))
 
 
 @case("F3-01", ["F3"], Level.MUST, "Answers carry transfer type 10", "byte 4 of every answer is 10",
-      checks={"answered": ANSWERED, "": Requirement(("F3",), "box→robot frames carry transfer type 10")})
+      checks={"answered": ANSWERED, "": Requirement(("F3",), "box→robot frames carry transfer type 10")},
+      shares_box=True)
 def test_answer_transfer_type(isight: CaseContext) -> None:
     for action in (Action.NONE, Action.POSE):
         outcome = isight.exchange(request(action) if action is Action.NONE else POSE, f"{action.name} request")
@@ -80,7 +81,7 @@ def test_request_with_box_direction(isight: CaseContext) -> None:
 @case("F5-01", ["F5", "A2"], Level.MUST, "An answer is exactly 12 + N×L + 2 bytes",
       "the NONE answer is 14 bytes and nothing else follows",
       checks={"none": Requirement(("A4",), "NONE is answered 0000", accept=answered_allowed(Action.NONE)),
-              "": Requirement(("F5", "A1"), "one answer of exactly 12+N×L+2 bytes")})
+              "": Requirement(("F5", "A1"), "one answer of exactly 12+N×L+2 bytes")}, shares_box=True)
 def test_answer_length(isight: CaseContext) -> None:
     conn = isight.connect()
     isight.judge(conn.request(request(Action.NONE), "NONE request"), "none", sent=b"")
@@ -105,7 +106,7 @@ def test_tcp_check_zero(isight: CaseContext) -> None:
 @case("F6-02", ["F6"], Level.SHOULD, "A TCP receiver accepts a correct CRC in the check field",
       "the request with a CRC in its check field is answered like one with 00 00",
       checks={"": Requirement(("F6",), "a TCP receiver SHOULD ignore the check field (accept a correct CRC as well as 00 00)",
-                              accept=answered_allowed(Action.POSE))})
+                              accept=answered_allowed(Action.POSE))}, shares_box=True)
 def test_tcp_check_crc_accepted(isight: CaseContext) -> None:
     # indexed from the profile's first index: a box taking 01 first refuses a block indexed 00 (B3), not the CRC
     frame = request(Action.POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)], isight.profile.first_index))

@@ -33,7 +33,7 @@ from conformance.suite.sequence import latency_figures, pieces_of
 @case("R2-01", ["R2", "A5"], Level.MUST, "After garbage, new connections are still accepted and answered",
       "the garbage is not answered 0000, and a fresh connection gets NONE answered 0000",
       checks={"": Requirement(("A5",), "bytes that are not a request MUST NOT be answered 0000", accept=NOT_OK),
-              "alive": ALIVE})
+              "alive": ALIVE}, shares_box=True)
 @pytest.mark.parametrize("kind", list(GARBAGE))
 def test_garbage_then_fresh_connection(isight: CaseContext, kind: str) -> None:
     bad = GARBAGE[kind]
@@ -43,7 +43,7 @@ def test_garbage_then_fresh_connection(isight: CaseContext, kind: str) -> None:
 
 @case("R2-02", ["R2"], Level.MUST, "A header then a reset leaves the box answering new connections",
       "after a connection sends a pose header (12 bytes) and resets, a fresh connection gets NONE answered 0000",
-      checks={"alive": ALIVE})
+      checks={"alive": ALIVE}, shares_box=True)
 def test_header_then_reset(isight: CaseContext) -> None:
     conn = isight.connect("abuser")
     header = conn.codec.encode(valid_frames(isight)["pose"])[:12]
@@ -59,7 +59,7 @@ def test_header_then_reset(isight: CaseContext) -> None:
 @case("R3-01", ["R3", "A1"], Level.MUST, "A frame sent one byte per segment is answered like the whole frame",
       "the same action and error code as for the whole frame, within time_out",
       checks={"whole": WHOLE, "": Requirement(("R3",), "a frame split down to one byte per segment is handled like the whole "
-                                              "frame", accept=LIKE_WHOLE)})
+                                              "frame", accept=LIKE_WHOLE)}, shares_box=True)
 @pytest.mark.parametrize("name", ["none", "pose", "tolerance"])
 def test_one_byte_segments(isight: CaseContext, name: str) -> None:
     frame = valid_frames(isight)[name]
@@ -75,7 +75,7 @@ def test_one_byte_segments(isight: CaseContext, name: str) -> None:
       "four requests sent as one byte stream cut into random 1-8 byte pieces (2 ms apart) get four answers in order, "
       "each like the whole request's",
       checks={"whole": WHOLE, "": Requirement(("R3",), "request {n} of a randomly split stream is answered like the whole",
-                                              accept=LIKE_WHOLE)})
+                                              accept=LIKE_WHOLE)}, shares_box=True)
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_random_splits(isight: CaseContext, seed: int) -> None:
     frames = list(valid_frames(isight).values())
@@ -143,7 +143,7 @@ def test_bounded_resources(isight: CaseContext) -> None:
       "the valid request right after the garbage, on the same connection, is answered 0000, or the connection is "
       "closed; staying silent is NON-STRICT",
       checks={"": Requirement(("R6",), "after garbage the box SHOULD resynchronise on the next valid header or close the "
-                              "connection", accept=resynced)})
+                              "connection", accept=resynced)}, shares_box=True)
 @pytest.mark.parametrize("kind", list(RESYNC_GARBAGE))
 def test_resynchronise(isight: CaseContext, kind: str) -> None:
     bad = RESYNC_GARBAGE[kind]

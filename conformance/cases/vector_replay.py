@@ -56,7 +56,7 @@ from conformance.suite.vector_checks import (
                               accept=lambda vector, action, conflict="block", **_: valid_expect(vector, action,
                                                                                                 conflict),
                               inconclusive=lambda action, **_: answered(action, [ErrorCode.NOT_READY]) if action is Action.CYCLE_ON else None,
-                              inconclusive_text="S2: CycleOn answered 0001 (box not ready)")})
+                              inconclusive_text="S2: CycleOn answered 0001 (box not ready)")}, shares_box=True)
 @pytest.mark.parametrize("vector", params("valid"))
 def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = applicable(isight, vector)
@@ -90,7 +90,8 @@ def test_valid_vector(isight: CaseContext, vector: Vector | None) -> None:
       "not 0000 (MUST: silence, a non-zero error or a close); a B3-B5 parse error of 23/24/25 answered 1001/1002 (SHOULD, A3)",
       checks={"": Requirement(("R1",), "vector {vector.name} breaks {clauses} and MUST NOT be answered 0000", accept=NOT_OK,
                               should=lambda named, action, **_: None if named is None else answered(action, [named]),
-                              should_clauses=("A3",), should_text="a parse error under {clause} SHOULD be answered {named:04X}")})
+                              should_clauses=("A3",), should_text="a parse error under {clause} SHOULD be answered {named:04X}")},
+      shares_box=True)
 @pytest.mark.parametrize("vector", params("invalid"))
 def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = applicable(isight, vector)
@@ -113,7 +114,8 @@ def test_invalid_vector(isight: CaseContext, vector: Vector | None) -> None:
 
 
 @case("R1-11", ["R1", "B4", "F6", "A3"], Level.MAY, "Acceptable golden vectors: what the box did",
-      "recorded: accepting (0000) or rejecting are both allowed (a SHOULD, or a point PROTOCOL.md leaves open)")
+      "recorded: accepting (0000) or rejecting are both allowed (a SHOULD, or a point PROTOCOL.md leaves open)",
+      shares_box=True)
 @pytest.mark.parametrize("vector", params("acceptable"))
 def test_acceptable_vector(isight: CaseContext, vector: Vector | None) -> None:
     v = applicable(isight, vector)

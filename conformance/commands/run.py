@@ -9,16 +9,19 @@ list), 1 something did, 2 usage error or unreachable target, 3 the run was cut s
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import sys
 from dataclasses import replace
 from pathlib import Path
 
 from ..endpoints.bundled import bundled_or_target
+from ..harness.concurrency import probe_lanes
 from ..harness.target import check_reachable
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_USAGE
 from ..report.run_comparison import load_baseline
 from ..report.rundirs import default_run_dirs
+from ..suite.lanes import AUTO_LANES
 from ..suite.settings import SuiteSettings, add_suite_options
 from .fleet import main_fleet
 from .registry import Command
@@ -43,6 +46,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--baseline", metavar="OLD", default=None,
                        help=_("an earlier run (summary.json or its report directory): print what changed since it "
                             "at the end and add the comparison to report.html (see 'diff')"))
+    group.add_argument("--lanes", default="auto", metavar="N|auto",
+                       help=_("run the cases that share the box (malformed and parse cases, each on its own "
+                            "connections) side by side on N workers, the rest one at a time after them; auto "
+                            "(default): 3 when the box is slow to answer (20 ms or more) and serves two connections "
+                            "at once, else 1"))
     fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
     fleet.add_argument("--targets", metavar="FILE", default=None,
                        help=_("test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
@@ -56,6 +64,7 @@ def main_run(args: argparse.Namespace) -> int:
     try:
         settings = SuiteSettings.resolve(lambda dest: getattr(args, dest, None))
         expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
+        parse_lanes(getattr(args, "lanes", "1"))  # a bad --lanes is a usage error before anything starts
         baseline = load_baseline(getattr(args, "baseline", None))  # a bad baseline stops the run before it starts
     except (ValueError, OSError) as exc:
         print(f"isight-conformance run: {exc}", file=sys.stderr)
@@ -77,7 +86,38 @@ def main_run(args: argparse.Namespace) -> int:
     with bundled_or_target(settings.target, settings.udp_target, settings.profile) as (target, udp, box):
         if box is not None:
             settings = replace(settings, target=target, udp_target=udp, target_label=settings.target_label or box.label)
-        return run_suite(settings, expected, quiet=args.quiet, baseline=baseline, verbose=args.verbose)
+        lanes = choose_lanes(getattr(args, "lanes", "1"), settings)
+        return run_suite(settings, expected, quiet=args.quiet, baseline=baseline, verbose=args.verbose, lanes=lanes)
+
+
+def parse_lanes(text: str) -> int:
+    """``--lanes``: 0 for auto, else the number of lanes (ValueError on anything else)."""
+    if text == "auto":
+        return 0
+    if not text.isdigit() or not 1 <= int(text) <= 16:
+        raise ValueError(f"--lanes: expected auto or a number from 1 to 16, got {text!r}")
+    return int(text)
+
+
+def choose_lanes(text: str, settings: SuiteSettings) -> int:
+    """The lanes to run with: as asked, or (auto) what :func:`probe_lanes` finds; 1 without pytest-xdist."""
+    wanted = parse_lanes(text)
+    if wanted == 1:
+        return 1
+    if importlib.util.find_spec("xdist") is None:
+        if wanted:
+            print("isight-conformance run: --lanes needs pytest-xdist (pip install 'isight-conformance[xdist]'); "
+                  "running one case at a time", file=sys.stderr)
+        return 1
+    why = "as asked"
+    if not wanted:
+        assert settings.target is not None
+        probe = probe_lanes(settings.target, settings.profile, settings.time_out_s)
+        wanted, why = probe.lanes(AUTO_LANES), probe.why
+    if wanted > 1:
+        print(f"isight-conformance run: {wanted} lanes ({why}): the cases that share the box run side by side, "
+              "the rest one at a time after them", file=sys.stderr)
+    return wanted
 
 
 COMMAND = Command(

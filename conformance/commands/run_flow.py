@@ -29,6 +29,8 @@ from ..protocol.clauses import all_clauses, clause_ids
 from ..protocol.clauses import families as registry_families
 from ..report.run_comparison import Baseline, print_comparison
 from ..suite.collected import BASELINE, BASELINE_DIFF, CAUSES, results, suite_info
+from ..suite.lanes import ALONE
+from ..suite.lanes import plan as lane_plan
 from ..suite.record import CaseRecord, info_of
 from ..suite.settings import SuiteSettings
 
@@ -45,9 +47,12 @@ def read_expected_failures(path: Path) -> set[str]:
 class _RunPlugin:
     """Watches the run: the catalogue collected, progress, collection errors."""
 
-    def __init__(self, progress: Any = None, baseline: Baseline | None = None) -> None:
+    def __init__(self, progress: Any = None, baseline: Baseline | None = None, lanes: int = 1,
+                 plan: dict[str, str] | None = None) -> None:
         self.progress = progress
         self.baseline = baseline
+        self.lanes = lanes  # collecting: plan this many lanes
+        self.plan = plan  # running: each case's lane (run under pytest-xdist)
         self.config: pytest.Config | None = None
         self.collected: list[CaseRecord] = []
         self.collect_errors: list[str] = []
@@ -55,9 +60,17 @@ class _RunPlugin:
     def pytest_configure(self, config: pytest.Config) -> None:
         self.config = config
         config.stash[BASELINE] = self.baseline  # the report writers compare with it (report.html once)
+        if self.plan:
+            from ..xdist_hooks import LANE_PLAN
+
+            config.stash[LANE_PLAN] = self.plan
+            if self.progress is not None:  # under xdist the controller collects nothing: the plan has the count
+                self.progress.start(len(self.plan))
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.collected = [info for item in session.items if (info := info_of(item)) is not None]
+        if self.lanes > 1:
+            self.plan = lane_plan(session.items, self.lanes)
         if self.progress is not None:
             self.progress.start(len(self.collected))
 
@@ -93,6 +106,15 @@ def collect(settings: SuiteSettings) -> list[CaseRecord] | None:
     plugin = _RunPlugin()
     code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
     return None if code not in (0, 5) or plugin.collect_errors else plugin.collected
+
+
+def plan_lanes(settings: SuiteSettings, lanes: int) -> dict[str, str] | None:
+    """Each selected case's lane (:mod:`conformance.suite.lanes`); None if no two lanes would have work."""
+    plugin = _RunPlugin(lanes=lanes)
+    code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
+    if code not in (0, 5) or plugin.collect_errors or not plugin.plan:
+        return None
+    return plugin.plan if len({s for s in plugin.plan.values() if s != ALONE}) > 1 else None
 
 
 def catalogue_markdown(cases: list[CaseRecord]) -> str:
@@ -150,18 +172,20 @@ def list_cases(settings: SuiteSettings, fmt: str = "text") -> int:
 
 
 def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, baseline: Baseline | None = None,
-              verbose: bool = False) -> int:
+              verbose: bool = False, lanes: int = 1) -> int:
     """Run the selected cases against ``settings.target`` (known to answer), show progress and the final
-    table, and return the exit status."""
+    table, and return the exit status. ``lanes`` > 1: the cases that share the box run side by side on
+    that many pytest-xdist workers (:mod:`conformance.suite.lanes`), the rest one at a time after them."""
     from rich.console import Console
 
     from ..report.terminal import Progress, print_final_table
 
     console = Console(stderr=False)
     progress = Progress(console=console, quiet=quiet, verbose=verbose)
-    plugin = _RunPlugin(progress, baseline)
+    plan = plan_lanes(settings, lanes) if lanes > 1 else None
+    plugin = _RunPlugin(progress, baseline, plan=plan)
     try:
-        code = pytest.main(_pytest_args(settings), plugins=[plugin])
+        code = pytest.main(_pytest_args(settings) + (["-n", str(lanes)] if plan else []), plugins=[plugin])
     except KeyboardInterrupt:  # a signal between pytest's own handlers: the plugin wrote what it could
         code = pytest.ExitCode.INTERRUPTED
     finally:

@@ -99,6 +99,9 @@ class CaseRecord:
     requirement: str = ""  # what PROTOCOL.md asks, in words (default: the clauses, level and title)
     #: what the case judges, by name ("" is the default requirement)
     checks: Mapping[str, Requirement] = field(default_factory=lambda: MappingProxyType({}))
+    #: the case may run beside other such cases on their own connections (``run``'s lanes,
+    #: :mod:`conformance.suite.lanes`): it sets no cycle or extension state and judges no timing
+    shares_box: bool = False
 
     @property
     def family(self) -> str:
@@ -123,7 +126,7 @@ class CaseRecord:
 
 def record(id: str, clauses: list[str] | tuple[str, ...], level: Level | str, title: str, expect: str,
            needs: tuple[str, ...] = (), requirement: str = "",
-           checks: Mapping[str, Requirement] | None = None) -> CaseRecord:
+           checks: Mapping[str, Requirement] | None = None, shares_box: bool = False) -> CaseRecord:
     """A checked record: the ID's form and every clause ID against the registry."""
     if not _ID.match(id):
         raise ValueError(f"case id {id!r} must look like 'F1-01' or 'SEQ-S1'")
@@ -131,14 +134,14 @@ def record(id: str, clauses: list[str] | tuple[str, ...], level: Level | str, ti
     if bad or not clauses:
         raise ValueError(f"case {id}: unknown clause IDs {bad or clauses}")
     return CaseRecord(id, tuple(clauses), Level(level), title, expect, tuple(needs), requirement,
-                      MappingProxyType(dict(checks or {})))
+                      MappingProxyType(dict(checks or {})), shares_box)
 
 
 def case(id: str, clauses: list[str] | tuple[str, ...], level: Level | str, title: str, expect: str,
          needs: tuple[str, ...] = (), requirement: str = "",
-         checks: Mapping[str, Requirement] | None = None) -> Callable[[F], F]:
+         checks: Mapping[str, Requirement] | None = None, shares_box: bool = False) -> Callable[[F], F]:
     """Mark a test function as conformance case ``id`` (see :class:`CaseRecord`)."""
-    info = record(id, clauses, level, title, expect, needs, requirement, checks)
+    info = record(id, clauses, level, title, expect, needs, requirement, checks, shares_box)
 
     def deco(fn: F) -> F:
         return pytest.mark.isight_case(info)(fn)

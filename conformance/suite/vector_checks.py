@@ -25,6 +25,7 @@ from ..protocol.answers import Cycle
 from ..protocol.constants import CHECK_LEN
 from .case_context import CaseContext
 from .case_judge import Skip, answered, answered_allowed
+from .lanes import ALONE_MARK, stateless_frame
 from .record import Expect
 
 VECTORS_DIR = REPO_VECTORS / "frames"
@@ -43,7 +44,10 @@ VECTORS, MISSING = load()
 
 
 def params(result: str) -> list[Any]:
-    chosen = [pytest.param(v, id=v.name) for v in VECTORS if v.result == result]
+    """The vectors of one kind. A valid or acceptable one that may change the box's state (a CycleOn, a
+    ProgIdx, two frames) runs alone; an invalid one is refused by a legal box, whatever its action."""
+    chosen = [pytest.param(v, id=v.name, marks=() if result == "invalid" or stateless_frame(v.data)
+                           else getattr(pytest.mark, ALONE_MARK)) for v in VECTORS if v.result == result]
     return chosen or [pytest.param(None, id="no-vectors")]
 
 
