@@ -24,13 +24,11 @@ import pytest
 
 from .harness.target import Target
 from .model.verdicts import CaseResult
-from .suite.lanes import ALONE
+from .suite.lanes import ALONE, LANE_PLAN
 from .suite.rootcause import SessionFacts
 from .suite.settings import SuiteSettings
 
 OUTPUT = "isight"
-#: ``run --lanes``: each case's scope (node id -> lane or :data:`~conformance.suite.lanes.ALONE`)
-LANE_PLAN = pytest.StashKey[dict[str, str]]()
 
 
 class XdistHooks:

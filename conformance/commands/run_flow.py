@@ -29,7 +29,7 @@ from ..protocol.clauses import all_clauses, clause_ids
 from ..protocol.clauses import families as registry_families
 from ..report.run_comparison import Baseline, print_comparison
 from ..suite.collected import BASELINE, BASELINE_DIFF, CAUSES, results, suite_info
-from ..suite.lanes import ALONE
+from ..suite.lanes import ALONE, LANE_PLAN
 from ..suite.lanes import plan as lane_plan
 from ..suite.record import CaseRecord, info_of
 from ..suite.settings import SuiteSettings
@@ -61,8 +61,6 @@ class _RunPlugin:
         self.config = config
         config.stash[BASELINE] = self.baseline  # the report writers compare with it (report.html once)
         if self.plan:
-            from ..xdist_hooks import LANE_PLAN
-
             config.stash[LANE_PLAN] = self.plan
             if self.progress is not None:  # under xdist the controller collects nothing: the plan has the count
                 self.progress.start(len(self.plan))

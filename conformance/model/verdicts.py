@@ -147,6 +147,8 @@ class SuiteInfo:
     not_run: list[str] = field(default_factory=list)
     #: the version of the clause registry the verdicts cite
     registry_version: str = ""
+    #: lanes the cases that share the box ran in side by side (``run --lanes``); 1: one case at a time
+    lanes: int = 1
 
 
 @dataclass

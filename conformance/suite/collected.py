@@ -18,6 +18,7 @@ import pytest
 from .. import __version__
 from ..model.signature import DeathKind
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
+from .lanes import LANE_PLAN, lanes_of
 from .rootcause import SessionFacts, find_root_causes
 from .run_state import SessionState
 from .settings import SuiteSettings
@@ -65,6 +66,7 @@ def suite_info(config: pytest.Config, interrupted: bool = False, key: str = "") 
         cases_total=max(len(selected), len(done)),
         not_run=not_run,
         registry_version=_registry_version(),
+        lanes=lanes_of(config.stash.get(LANE_PLAN, None)),
     )
 
 

@@ -31,6 +31,13 @@ ALONE_MARK = "isight_alone"
 STATELESS = frozenset({Action.NONE, Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE})
 #: lanes ``run --lanes auto`` uses for a slow box that serves several connections
 AUTO_LANES = 3
+#: a run in lanes: each case's scope (node id -> a lane or :data:`ALONE`), on the controller's config
+LANE_PLAN = pytest.StashKey[dict[str, str]]()
+
+
+def lanes_of(plan: dict[str, str] | None) -> int:
+    """How many lanes a plan deals cases into (1: none, one case at a time)."""
+    return max(1, len({scope for scope in (plan or {}).values() if scope != ALONE}))
 
 
 def lane_name(i: int) -> str:

@@ -20,13 +20,13 @@ CASES = ["F1-*", "F2-*", "B1-*", "B2-02*", "A3-01*", "R2-01*", "A3-02", "S3-*", 
 ALONE = ("A3-02", "S3-", "T1-")
 
 
-def _run(port: int, lanes: str, out: Path) -> tuple[subprocess.CompletedProcess[str], list[dict]]:
+def _run(port: int, lanes: str, out: Path) -> tuple[subprocess.CompletedProcess[str], dict]:
     args = [sys.executable, "-m", "conformance", "run", "--quiet", "--target", f"127.0.0.1:{port}", "--lanes", lanes,
             "--report-dir", str(out / "r"), "--pcap-dir", str(out / "p")]
     for glob in CASES:
         args += ["--cases", glob]
     proc = subprocess.run(args, capture_output=True, text=True, timeout=240)
-    return proc, json.loads((out / "r" / "summary.json").read_text())["cases"]
+    return proc, json.loads((out / "r" / "summary.json").read_text())
 
 
 def _span(pcap: str) -> tuple[float, float] | None:
@@ -37,13 +37,16 @@ def _span(pcap: str) -> tuple[float, float] | None:
 def test_lanes_on_a_slow_box_keep_the_serial_verdicts_and_run_the_alone_cases_alone(tmp_path: Path) -> None:
     box = start_box("late-inside-timeout")
     try:
-        serial, one = _run(box.port, "1", tmp_path / "serial")
-        laned, three = _run(box.port, "auto", tmp_path / "lanes")
+        serial, serial_doc = _run(box.port, "1", tmp_path / "serial")
+        laned, laned_doc = _run(box.port, "auto", tmp_path / "lanes")
     finally:
         box.stop()
     assert serial.returncode == 0 and laned.returncode == 0, laned.stderr[-2000:]
     assert "3 lanes" in laned.stderr and "serves two connections at once" in laned.stderr
     assert "lanes" not in serial.stderr
+    assert serial_doc["suite"]["lanes"] == 1 and laned_doc["suite"]["lanes"] == 3  # the report says how it ran
+    assert "3 lanes: the cases that share the box ran side by side" in (tmp_path / "lanes/r/report.html").read_text()
+    one, three = serial_doc["cases"], laned_doc["cases"]
     assert [(c["id"], c["verdict"]) for c in three] == [(c["id"], c["verdict"]) for c in one]
     assert len(three) >= 20
     found = {c["id"]: _span(c["pcap"]) for c in three if c["pcap"] and Path(c["pcap"]).exists()}
