@@ -14,24 +14,38 @@ TAIL_LINES = 100
 #: ... and at most this many bytes of one chunk's hex, and this many decoded events of it.
 MAX_HEX_BYTES = 256
 MAX_EVENTS = 8
+#: ... and decode at most this many events of one case: a box that floods sends megabytes, millions of
+#: headers, and decoding them all for lines nobody reads cost a run a minute of CPU
+MAX_DECODED = 1_000
+NOT_DECODED = f"not decoded: the case's first {MAX_DECODED} events are; the pcap has every byte"
 _ARROW = {Kind.SEND: "→", Kind.RECV: "←"}
 
 
-def _summaries(decoder: StreamDecoder, data: bytes) -> str:
+class _Budget:
+    """The events a case's wire log may still decode (:data:`MAX_DECODED`)."""
+
+    def __init__(self) -> None:
+        self.left = MAX_DECODED
+
+
+def _summaries(decoder: StreamDecoder, data: bytes, budget: _Budget) -> str:
+    if budget.left <= 0:
+        return f"({NOT_DECODED})"
     parts = []
     decoder.receive_data(data)
     count = 0
     for event in decoder.events():  # a flood of garbage decodes to thousands: name a few, count the rest
         count += 1
-        if count > MAX_EVENTS:
-            continue
-        if isinstance(event, Frame):
-            parts.append(event.describe())
-        else:
-            parts.append(f"[{event.clause}] {event.message}")
+        budget.left -= 1
+        if count <= MAX_EVENTS:
+            parts.append(event.describe() if isinstance(event, Frame) else f"[{event.clause}] {event.message}")
+        if budget.left <= 0:
+            break
     if count > MAX_EVENTS:
         parts.append(f"… and {count - MAX_EVENTS} more")
-    if decoder.buffered:
+    if budget.left <= 0:
+        parts.append(f"(the rest {NOT_DECODED})")
+    elif decoder.buffered:
         parts.append(f"({decoder.buffered} bytes of an incomplete frame)")
     return "; ".join(parts)
 
@@ -42,15 +56,17 @@ def _hex(data: bytes) -> str:
 
 def wire_lines(transcript: Transcript, profile: Profile, limit: int = MAX_LINES, tail: int = TAIL_LINES) -> list[WireLine]:
     """The first ``limit`` and the last ``tail`` events of a case as report lines (a note between them
-    says how many are left out); every chunk is still decoded, so the tail's summaries stay in step."""
+    says how many are left out); every chunk is still decoded, so the tail's summaries stay in step, up to
+    :data:`MAX_DECODED` events of the case (then the lines say so)."""
     start = transcript.started or 0.0
     decoders: dict[tuple[int, str], StreamDecoder] = {}
+    budget = _Budget()
     head: list[WireLine] = []
     last: deque[WireLine] = deque(maxlen=tail)
     total = 0
     for event in transcript.events:
         total += 1
-        line = _line(event, transcript, profile, decoders, start)
+        line = _line(event, transcript, profile, decoders, start, budget)
         if len(head) < limit:
             head.append(line)
         else:
@@ -62,7 +78,7 @@ def wire_lines(transcript: Transcript, profile: Profile, limit: int = MAX_LINES,
 
 
 def _line(event: WireEvent, transcript: Transcript, profile: Profile, decoders: dict[tuple[int, str], StreamDecoder],
-          start: float) -> WireLine:
+          start: float, budget: _Budget) -> WireLine:
     t_ms = round((event.t - start) * 1000, 3)
     info = transcript.connections.get(event.conn)
     if event.kind in _ARROW and info is not None:
@@ -76,7 +92,7 @@ def _line(event: WireEvent, transcript: Transcript, profile: Profile, decoders: 
             key = (event.conn, event.kind)
             if key not in decoders:
                 decoders[key] = StreamDecoder(profile, expect)
-            summary = _summaries(decoders[key], event.data)
+            summary = _summaries(decoders[key], event.data, budget)
         if event.note:
             summary = f"{event.note}: {summary}" if summary else event.note
         if len(event.data) > MAX_HEX_BYTES:

@@ -175,7 +175,7 @@ def test_write_summary_shape(tmp_path):
     assert list(doc["suite"])[:5] == ["version", "started", "duration_s", "target", "profile"]
     assert set(doc["suite"]) == {"version", "started", "duration_s", "target", "profile", "udp_target", "extension",
                                  "expected_failures", "command", "role", "complete", "cases_total", "not_run",
-                                 "registry_version", "lang"}
+                                 "registry_version", "lanes", "lang"}
     assert doc["suite"]["registry_version"] == registry_version()
     assert all(case["clauses"] for case in doc["cases"])
     assert doc["suite"]["profile"]["tcp_check"] == "zero-or-crc"

@@ -9,7 +9,7 @@ import pytest
 from conformance.harness.transcript import Endpoint, Kind, Transcript
 from conformance.model.verdicts import WireLine
 from conformance.protocol import Action, Profile, Transport, answer, encode, request
-from conformance.suite.wirelog import MAX_EVENTS, MAX_HEX_BYTES, MAX_LINES, TAIL_LINES, wire_lines
+from conformance.suite.wirelog import MAX_DECODED, MAX_EVENTS, MAX_HEX_BYTES, MAX_LINES, TAIL_LINES, wire_lines
 
 PROFILE = Profile()
 NONE_REQUEST = encode(request(Action.NONE))
@@ -195,8 +195,29 @@ def test_a_flood_gives_a_log_of_bounded_size_that_says_how_much_was_left_out() -
     assert small[MAX_LINES].summary == f"… {450 - MAX_LINES - TAIL_LINES} more events (not shown; see the pcap)"
     assert large[MAX_LINES].summary == f"… {1_500 - MAX_LINES - TAIL_LINES} more events (not shown; see the pcap)"
     assert size(without_cut(large)) == size(without_cut(small))  # more input, not one character more of log
+    decoded = [line for line in without_cut(large) if "not decoded" not in line.summary]  # the first events
+    assert len(decoded) == MAX_DECODED // 111
     for line in without_cut(large):
         assert len(line.hex) <= 3 * MAX_HEX_BYTES
+    for line in decoded:
         assert line.summary.count("[F2]") + line.summary.count("NONE") == MAX_EVENTS  # 111 events: 8 named
         assert f"… and {2 * 55 + 1 - MAX_EVENTS} more [" in line.summary  # ... the rest counted
     assert large[1].summary.endswith(f"[1000 bytes: the first {MAX_HEX_BYTES} shown]")
+
+
+def test_a_flood_is_decoded_up_to_a_bound_per_case_and_the_lines_say_so() -> None:
+    """A box flooding headers sends megabytes, millions of events: the case's first MAX_DECODED events are
+    decoded, the lines after say they are not (the pcap has them)."""
+    transcript = transcript_with()
+    transcript.open("tcp", Endpoint("127.0.0.1", 5001), Endpoint("127.0.0.1", 9004), "other")
+    transcript.add(2, Kind.RECV, NONE_ANSWER)
+    header = bytes.fromhex("fe fe 00 01 10 23 ff ff ff 00 00 00")  # 255 x 65535 announced: an oversized header
+    for _ in range(3):
+        transcript.add(1, Kind.RECV, header * (MAX_DECODED // 2))
+    lines = wire_lines(transcript, PROFILE)
+    assert "NONE" in next(line for line in lines if line.conn == 2 and line.kind == Kind.RECV).summary
+    first, second, third = (line.summary for line in lines if line.conn == 1 and line.kind == Kind.RECV)
+    assert "skipped" in first and "not decoded" not in first
+    assert f"… and {MAX_DECODED // 2 - MAX_EVENTS} more" in first
+    assert "skipped" in second and "(the rest not decoded: the case's first 1000 events are" in second
+    assert third.startswith("(not decoded: the case's first 1000 events are; the pcap has every byte)")
