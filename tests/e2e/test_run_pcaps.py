@@ -317,7 +317,8 @@ def test_the_dissector_flags_malformed_frames_in_the_fuzz_pcap(run: Run) -> None
     ctx = run.contexts["FUZZ-01"]
     pkts, _ = packets(Path(ctx.pcap), run.tcp_port, run.udp_port)
     flagged = [p for p in pkts if p.flagged]
-    assert len(flagged) > 50, "the fuzz case sent malformed frames: the dissector should flag many packets"
+    # (at least ten: 21 were flagged when eight suites shared two cores, hundreds on a quiet machine)
+    assert len(flagged) >= 10, "the fuzz case sent malformed frames: the dissector should flag many packets"
     # FUZZ-01 runs for two seconds, so how many examples fit depends on the machine's load: every example's
     # bytes (and its probe) are in the pcap, so there are at least as many payload packets as examples
     examples = ctx.details["fuzz"]["examples"]

@@ -296,7 +296,8 @@ def test_a_box_answering_only_pings_fails_each_case_within_bounded_time(tmp_path
     assert "ERROR" not in verdicts.values(), verdicts
     assert verdicts["SEQ-E4"] == "SKIP"  # no extension: detection saw silence
     assert all(c["message"] for c in cases.values() if c["verdict"] != "PASS")
-    assert all(c["duration_s"] < 6 for c in cases.values()), {k: c["duration_s"] for k, c in cases.items()}
+    # bounded: a few time_outs at most, with room for a loaded runner's CPU (R2-01's 64 KiB took 6.1 s at load 7)
+    assert all(c["duration_s"] < 10 for c in cases.values()), {k: c["duration_s"] for k, c in cases.items()}
     assert elapsed < 90
 
 
