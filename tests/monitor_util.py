@@ -11,6 +11,7 @@ import asyncio
 import io
 import json
 import struct
+import time
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
@@ -73,8 +74,10 @@ async def monitored(box_port: int, tmp_path: Path, faults: list[str] | tuple[str
     m = Monitored(settings, tmp_path / "report", io.StringIO())
     view = m.view = View(m.view_out, tty=tty)
     task = asyncio.ensure_future(run_monitor(settings, m.report_dir, view, m.stop, out=io.StringIO()))
-    for _ in range(500):  # the monitor sets settings.listen to the address it got
-        if settings.listen[1] or task.done():
+    deadline = time.monotonic() + 20  # bounded; a loaded runner may take seconds to bind
+    while time.monotonic() < deadline:  # the monitor sets settings.listen (.http, .metrics) to the addresses it got
+        bound = [settings.listen] + [a for a in (settings.http, settings.metrics) if a is not None]
+        if all(address[1] for address in bound) or task.done():
             break
         await asyncio.sleep(0.01)
     if task.done():
