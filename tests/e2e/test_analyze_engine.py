@@ -122,7 +122,9 @@ def test_a_broken_box_fails_its_clause_and_the_robot_is_not_blamed(runs, name, e
     assert c[clause].verdict is Verdict.FAIL, (clause, c[clause].message)
     assert "frame" in c[clause].message
     assert c[clause].received_hex  # the box's bytes
-    robot_fails = {k for k, x in c.items() if x.verdict is Verdict.FAIL and k.endswith("-robot")}
+    # not blamed for the box's defect; the in-process robot's own pace on a loaded runner is T2's business (the
+    # bursty-robot test), and ten workers on two cores once stalled it past even LOOSE's tolerance
+    robot_fails = {k for k, x in c.items() if x.verdict is Verdict.FAIL and k.endswith("-robot") and "-T2-" not in k}
     assert robot_fails == set()
 
 
