@@ -1,7 +1,7 @@
 """What a subcommand is: a :class:`Command`, one per module of :mod:`conformance.commands`.
 
 A new command is a module here defining ``COMMAND = Command(...)`` and one line in
-:data:`conformance.commands.COMMANDS` (the registry, in ``--help`` order).
+:data:`conformance.commands.NAMES` (the registry, in ``--help`` order).
 """
 
 from __future__ import annotations
