@@ -27,6 +27,7 @@ skips) and the search stays linear in the bytes.
 from __future__ import annotations
 
 import enum
+import re
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -38,6 +39,8 @@ from .levels import Level
 from .profile import Profile
 
 _START = b"\xfe\xfe"
+_FE = b"\xfe"
+_NOT_FE = re.compile(b"[^\xfe]")
 #: A rejected header is at most this long: a box may resume searching anywhere inside it.
 _SKIP = HEADER_LEN
 
@@ -226,7 +229,14 @@ class Reader:
         chain: list[int] = []
         q = p
         tail: tuple[int, int] | None = None
-        while q < self.n and self.spot(q).kind == BAD and self.spot(q).junk:
+        while q < self.n:
+            stretch = self._fe_stretch(q)
+            if stretch > q:
+                chain.extend(range(q, stretch))
+                q = stretch
+                continue
+            if not (self.spot(q).kind == BAD and self.spot(q).junk):
+                break
             nxt = self.targets(q)
             if len(nxt) != 1:
                 break
@@ -242,6 +252,20 @@ class Reader:
         for k, at in enumerate(chain):
             self._runs[at] = (exit_at, len(chain) - k + extra)
         return self._runs[p]
+
+    def _fe_stretch(self, q: int) -> int:
+        """Where a stretch of FE bytes from ``q`` stops being uniform junk: each offset before
+        it begins a header of FE bytes only (version FEFE, F2, not a request) and goes on only to
+        the next, which is one too. ``q`` when there is none, else the last such offset + 1.
+
+        The same answer :meth:`spot` and :meth:`targets` give one offset at a time, without
+        classifying each (64 KiB of FE is 64k offsets)."""
+        data, width = self.data, HEADER_LEN + 1
+        if data[q : q + width] != _FE * width:
+            return q
+        found = _NOT_FE.search(data, q)
+        fe_end = self.n if found is None else found.start()
+        return fe_end - HEADER_LEN
 
     def resume_targets(self, p: int) -> list[int]:
         """Where a receiver that rejects the header at ``p`` may go on: the first start word

@@ -227,6 +227,27 @@ def test_a_junk_run_stops_where_a_receiver_has_a_choice(data: bytes, run: tuple[
     assert reader(data).junk_run(0) == run
 
 
+class _OneByOne(Reader):
+    """The Reader without its FE shortcut: every offset classified, as before it."""
+
+    def _fe_stretch(self, q: int) -> int:
+        return q
+
+
+_PIECES = st.sampled_from([b"\xfe" * 13, b"\xfe" * 40, b"\xfe", b"\xfe\xfe", NONE, POSE, POSE_HEADER, BAD_INDEX,
+                           HALF_HEADER, b"hello", b"\x00"])
+
+
+@given(st.lists(_PIECES, max_size=6), st.booleans())
+def test_a_stretch_of_fe_walked_at_once_is_the_stretch_walked_offset_by_offset(pieces: list[bytes], eof: bool) -> None:
+    """The shortcut over headers made of FE only (64 KiB of FE is 64k offsets) changes no run:
+    every offset's run is the one the offset-by-offset walk finds."""
+    data = b"".join(pieces)
+    fast, slow = reader(data, eof=eof), _OneByOne(data, P, True, Cycle.UNKNOWN, eof)
+    for p in range(len(data)):
+        assert fast.junk_run(p) == slow.junk_run(p), p
+
+
 # -- End and Explanation -----------------------------------------------------------------------------
 
 
