@@ -22,6 +22,7 @@ import enum
 from dataclasses import dataclass, replace
 from math import isfinite
 
+from .codec import codec_for
 from .constants import ACTION_ERROR, EXTENSION_ACTIONS, START_WORD, VERSION, Action, ResultCode, TransferType, Transport
 from .errors import DirectionError, FloatError, ProtocolError, StartWordError, UnknownActionError, VersionError
 from .frames import Frame, Header, ToleranceBlock, ValueBlock
@@ -170,8 +171,11 @@ def rule_for_error(error: ProtocolError, profile: Profile, transport: Transport 
     clause = error.clause
     action = request_action(error.header)
     msg = error.message
-    if transport is Transport.UDP and clause in ("F7", "F5"):
-        return Expectation(Rule.DROP, clause, action, msg)
+    if transport is Transport.UDP:
+        damage = (clause, msg) if clause in ("F7", "F5") else codec_for(profile).datagram_damage(error.raw)
+        if damage is not None:  # a receiver may check the datagram before its header (R7): dropping it is right
+            said = msg if damage[1] == msg else f"{damage[1]}; and {clause}: {msg}"
+            return Expectation(Rule.DROP, damage[0], action, said)
     if isinstance(error, _NOT_REQUEST) or action is None:
         return Expectation(Rule.NOT_REQUEST, clause, action, msg)
     if action in EXTENSION_ACTIONS and not extension:

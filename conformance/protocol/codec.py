@@ -288,6 +288,23 @@ class Codec:
             self._check_answer_content(data, action, error_code, blocks)
         return new_frame(ttype, action, blocks, error_code, check)
 
+    def datagram_damage(self, data: bytes) -> tuple[str, str] | None:
+        """R7: why a UDP datagram is not one intact frame (its clause and what is wrong), or None.
+
+        Whatever else is wrong with it: a receiver may check a datagram's length and CRC before
+        it reads the header, so a datagram that breaks both B5 and F7 may be dropped as damaged."""
+        size = len(data)
+        if size < HEADER_LEN + CHECK_LEN:
+            return "F5", f"{size} bytes, shorter than the 14 bytes of the smallest frame"
+        count, blen = self.header.unpack_from(data)[5:7]
+        end = HEADER_LEN + count * blen
+        if size != end + CHECK_LEN:
+            return "F5", f"{size} bytes, but N={count} L={blen} make the frame {end + CHECK_LEN}"
+        want = self.check_bytes(bytes(data[:end]))
+        if data[end:] != want:
+            return "F7", f"check {bytes(data[end:]).hex(' ')}, expected {self.profile.crc} CRC {want.hex(' ')}"
+        return None
+
     def check_header(self, data: bytes, expect: TransferType | None = None) -> tuple[TransferType, Action, BlockType]:
         """F1, F2, F3, A5 and the action's shape (B5/B1/B2/E1–E3/A2) of 12 header bytes."""
         fail = self._fail

@@ -47,6 +47,7 @@ from conformance.protocol.answers import (
     unanswered,
     zero_allowed_for_malformed,
 )
+from conformance.protocol.levels import Level
 
 STRICT = Profile()
 LENIENT = Profile(strict=False)
@@ -205,6 +206,14 @@ EXPECTATIONS = [
     ("udp-trailing", encode(request(A.POSE, pose_blocks([(0.0,) * 6])), STRICT, UDP) + b"\x00", {"transport": UDP},
      Rule.DROP, "F5", 0x23, None, None),
     ("udp-zero-check", NONE, {"transport": UDP}, Rule.DROP, "F7", 0x00, None, None),
+    # ... whatever else is wrong with it: a receiver may check a datagram before its header (B5 and F7: drop)
+    ("udp-b5-bad-crc", raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25),
+     {"transport": UDP}, Rule.DROP, "F7", 0x23, None, None),
+    ("udp-b5-short", crc(raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25))[:-3],
+     {"transport": UDP}, Rule.DROP, "F5", 0x23, None, None),
+    # an intact datagram that breaks B5 is a malformed request like any (A3: 1001 SHOULD)
+    ("udp-b5-crc-ok", crc(raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25)),
+     {"transport": UDP}, Rule.REJECT, "B5", 0x23, None, 0x1001),
 ]
 
 
@@ -225,6 +234,16 @@ def test_what_a_box_may_do_with_these_bytes(data: bytes, kw: dict[str, Any], rul
 def test_an_extension_request_carries_the_values_its_answer_may_hold(data: bytes, values: set[int] | None) -> None:
     """E2/E3 judge the answer's block whether or not the request had a CRC in its check field (F6)."""
     assert expectation(data).values == (None if values is None else frozenset(values))
+
+
+def test_a_damaged_datagram_that_is_also_malformed_may_be_dropped_silently() -> None:
+    """The fuzzer's datagram a legal box dropped: B5 (block type 0x10) with a wrong CRC. Dropping it is
+    what R7 asks; answering it 1001 breaks R7's SHOULD; 0000 breaks its MUST."""
+    exp = expectation(raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25), transport=UDP)
+    assert "CRC" in exp.message and "B5" in exp.message
+    assert unanswered(exp, False, "stayed silent") == []
+    assert [f.level for f in judge_answer(exp, Seen(action=0x23, error=0x1001))] == [Level.SHOULD]
+    assert [f.level for f in judge_answer(exp, Seen(action=0x23, error=0))] == [Level.MUST]
 
 
 def test_a_float_error_is_left_open_by_a_lenient_profile() -> None:
