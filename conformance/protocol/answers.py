@@ -114,6 +114,7 @@ class Expectation:
     values: frozenset[int] | None = None  # 26/27: acceptable block values of the answer
     after_error: bool = False  # follows a parse error in the same bytes (R6: resync is a SHOULD)
     probe: bool = False  # the valid probe request a tester sends behind the bytes it judges
+    damaged: bool = False  # a UDP datagram with a wrong CRC or length too: dropping it silently is right (R7)
 
     @property
     def valid(self) -> bool:
@@ -168,14 +169,21 @@ def non_finite(frame: Frame) -> bool:
 def rule_for_error(error: ProtocolError, profile: Profile, transport: Transport = Transport.TCP,
                    extension: bool = True) -> Expectation:
     """What a box may do with bytes that do not parse (a typed error of the codec)."""
+    clause, msg = error.clause, error.message
+    if transport is Transport.UDP:
+        if clause in ("F7", "F5"):
+            return Expectation(Rule.DROP, clause, request_action(error.header), msg)
+        damage = codec_for(profile).datagram_damage(error.raw)
+        if damage is not None:  # R7 lets a receiver that checks the datagram first drop it; one that reads
+            exp = _rule_for_error(error, profile, extension)  # the header first treats it as any such error
+            return replace(exp, damaged=True, message=f"{msg}; and {damage[0]}: {damage[1]}")
+    return _rule_for_error(error, profile, extension)
+
+
+def _rule_for_error(error: ProtocolError, profile: Profile, extension: bool) -> Expectation:
     clause = error.clause
     action = request_action(error.header)
     msg = error.message
-    if transport is Transport.UDP:
-        damage = (clause, msg) if clause in ("F7", "F5") else codec_for(profile).datagram_damage(error.raw)
-        if damage is not None:  # a receiver may check the datagram before its header (R7): dropping it is right
-            said = msg if damage[1] == msg else f"{damage[1]}; and {clause}: {msg}"
-            return Expectation(Rule.DROP, damage[0], action, said)
     if isinstance(error, _NOT_REQUEST) or action is None:
         return Expectation(Rule.NOT_REQUEST, clause, action, msg)
     if action in EXTENSION_ACTIONS and not extension:
@@ -285,6 +293,8 @@ def _values(exp: Expectation, seen: Seen, what: str) -> list[Finding]:
 
 def unanswered(exp: Expectation, after_garbage: bool, how: str) -> list[Finding]:
     """What is wrong with the box not answering the event ``exp`` at all."""
+    if exp.damaged:
+        return []
     if exp.rule is Rule.ANSWER:
         if after_garbage:
             return [Finding(Level.SHOULD, "R6", f"R6: after bytes that are not a frame the box SHOULD resynchronise on the "

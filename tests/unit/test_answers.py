@@ -206,12 +206,11 @@ EXPECTATIONS = [
     ("udp-trailing", encode(request(A.POSE, pose_blocks([(0.0,) * 6])), STRICT, UDP) + b"\x00", {"transport": UDP},
      Rule.DROP, "F5", 0x23, None, None),
     ("udp-zero-check", NONE, {"transport": UDP}, Rule.DROP, "F7", 0x00, None, None),
-    # ... whatever else is wrong with it: a receiver may check a datagram before its header (B5 and F7: drop)
-    ("udp-b5-bad-crc", raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25),
-     {"transport": UDP}, Rule.DROP, "F7", 0x23, None, None),
+    # a malformed and damaged datagram: the malformed request's rule (read header first), or dropped (R7)
     ("udp-b5-short", crc(raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25))[:-3],
-     {"transport": UDP}, Rule.DROP, "F5", 0x23, None, None),
-    # an intact datagram that breaks B5 is a malformed request like any (A3: 1001 SHOULD)
+     {"transport": UDP}, Rule.REJECT, "B5", 0x23, None, 0x1001),
+    ("udp-b5-bad-crc", raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25),
+     {"transport": UDP}, Rule.REJECT, "B5", 0x23, None, 0x1001),
     ("udp-b5-crc-ok", crc(raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25)),
      {"transport": UDP}, Rule.REJECT, "B5", 0x23, None, 0x1001),
 ]
@@ -236,14 +235,19 @@ def test_an_extension_request_carries_the_values_its_answer_may_hold(data: bytes
     assert expectation(data).values == (None if values is None else frozenset(values))
 
 
-def test_a_damaged_datagram_that_is_also_malformed_may_be_dropped_silently() -> None:
-    """The fuzzer's datagram a legal box dropped: B5 (block type 0x10) with a wrong CRC. Dropping it is
-    what R7 asks; answering it 1001 breaks R7's SHOULD; 0000 breaks its MUST."""
-    exp = expectation(raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25), transport=UDP)
-    assert "CRC" in exp.message and "B5" in exp.message
+def test_a_damaged_datagram_that_is_also_malformed_may_be_dropped_or_refused() -> None:
+    """The fuzzer's datagrams: B5 with a wrong CRC. A box that checks the CRC first drops it (R7); one
+    that reads the header first refuses it like any malformed request (A3: 1001 SHOULD; and for a
+    malformed CycleOff any non-zero code). Both are legal; 0000 never is."""
+    pose = raw(bytes(50), action=A.POSE, block_type=0x10, block_count=2, block_length=25)
+    exp = expectation(pose, transport=UDP)
+    assert exp.damaged and "CRC" in exp.message and not expectation(crc(pose), transport=UDP).damaged
     assert unanswered(exp, False, "stayed silent") == []
-    assert [f.level for f in judge_answer(exp, Seen(action=0x23, error=0x1001))] == [Level.SHOULD]
+    assert judge_answer(exp, Seen(action=0x23, error=0x1001)) == []
+    assert [f.level for f in judge_answer(exp, Seen(action=0x23, error=0x1002))] == [Level.SHOULD]
     assert [f.level for f in judge_answer(exp, Seen(action=0x23, error=0))] == [Level.MUST]
+    cycle_off = expectation(bytes.fromhex("fefe000101020080000000000000"), transport=UDP)
+    assert cycle_off.damaged and judge_answer(cycle_off, Seen(action=0x02, error=0x0002)) == []
 
 
 def test_a_float_error_is_left_open_by_a_lenient_profile() -> None:
