@@ -42,7 +42,7 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Each test marked with its tier (its directory); then the end-to-end runs against tests/impls first,
     the longest first (their ``impls(seconds=...)`` hint).
 
-    Under pytest-xdist with small scheduling chunks (the README's ``-n 6 --maxschedchunk 2``) every worker
+    Under pytest-xdist with small scheduling chunks (the README's ``-n 8 --maxschedchunk 2``) every worker
     then starts on one of them and the short tests fill in around them, instead of a worker being left with
     a two-minute run at the end. The sort is stable and the same on every worker, as xdist requires."""
     def weight(item: pytest.Item) -> float:
