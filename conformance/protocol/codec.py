@@ -263,11 +263,7 @@ class Codec:
         _start, _version, _tt, _act, _bt, count, blen, error_code = self.header.unpack_from(data)
         end = HEADER_LEN + count * blen
         if size != end + CHECK_LEN:
-            raise fail(
-                LengthError,
-                f"{size} bytes, but N={count} L={blen} make the frame 12+{count}*{blen}+2 = {end + CHECK_LEN}",
-                data, min(size, end + CHECK_LEN),
-            )
+            raise fail(LengthError, _length_text(size, count, blen), data, min(size, end + CHECK_LEN))
         check = (data[end] << 8) | data[end + 1]
         if transport is Transport.TCP or transport == "tcp":
             policy = self._tcp_check
@@ -279,31 +275,30 @@ class Codec:
         else:
             want = self.check_bytes(bytes(data[:end]))
             if data[end:] != want:
-                got = bytes(data[end:]).hex(" ")
-                raise fail(
-                    CheckError, f"check {got}, expected {self.profile.crc} CRC {want.hex(' ')}", data, end, "F7"
-                )
+                raise fail(CheckError, self._crc_text(data[end:], want), data, end, "F7")
         blocks = self._parse_blocks(data, btype, count) if count else ()
         if ttype is TransferType.BOX_TO_ROBOT:
             self._check_answer_content(data, action, error_code, blocks)
         return new_frame(ttype, action, blocks, error_code, check)
 
     def datagram_damage(self, data: bytes) -> tuple[str, str] | None:
-        """R7: why a UDP datagram is not one intact frame (its clause and what is wrong), or None.
-
-        Whatever else is wrong with it: a receiver may check a datagram's length and CRC before
-        it reads the header, so a datagram that breaks both B5 and F7 may be dropped as damaged."""
+        """R7: why a UDP datagram is not one intact frame (its clause and what is wrong), or None,
+        whatever else is wrong with it (:meth:`parse` names the header's errors first, but a
+        receiver may check a datagram's length and CRC before it reads the header)."""
         size = len(data)
         if size < HEADER_LEN + CHECK_LEN:
             return "F5", f"{size} bytes, shorter than the 14 bytes of the smallest frame"
         count, blen = self.header.unpack_from(data)[5:7]
         end = HEADER_LEN + count * blen
         if size != end + CHECK_LEN:
-            return "F5", f"{size} bytes, but N={count} L={blen} make the frame {end + CHECK_LEN}"
+            return "F5", _length_text(size, count, blen)
         want = self.check_bytes(bytes(data[:end]))
         if data[end:] != want:
-            return "F7", f"check {bytes(data[end:]).hex(' ')}, expected {self.profile.crc} CRC {want.hex(' ')}"
+            return "F7", self._crc_text(data[end:], want)
         return None
+
+    def _crc_text(self, got: bytes, want: bytes) -> str:
+        return f"check {bytes(got).hex(' ')}, expected {self.profile.crc} CRC {want.hex(' ')}"
 
     def check_header(self, data: bytes, expect: TransferType | None = None) -> tuple[TransferType, Action, BlockType]:
         """F1, F2, F3, A5 and the action's shape (B5/B1/B2/E1–E3/A2) of 12 header bytes."""
@@ -420,3 +415,8 @@ def codec_for(profile: Profile = DEFAULT_PROFILE) -> Codec:
             _CODECS.clear()
         codec = _CODECS[profile] = Codec(profile)
     return codec
+
+
+def _length_text(size: int, count: int, blen: int) -> str:
+    """F5: a frame whose size is not what its header's N and L make."""
+    return f"{size} bytes, but N={count} L={blen} make the frame 12+{count}*{blen}+2 = {HEADER_LEN + count * blen + CHECK_LEN}"
