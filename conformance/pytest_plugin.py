@@ -1,15 +1,15 @@
 """The pytest plugin (entry point ``pytest11: isight``): thin, like pytest-timeout.
 
 Options live in one group (``isight``) and are resolved once, in ``pytest_configure``,
-into :class:`~conformance.suite.settings.SuiteSettings` (``isight-conformance run``
+into :class:`~conformance.runtime.settings.SuiteSettings` (``isight-conformance run``
 passes its settings as the same flags). Every hook forwards:
 
 * the ``isight`` fixture makes the case's :class:`~conformance.suite.case_context.CaseContext`
   (its transcript recorded to a pcap) and asks the session whether the case may run
-  (:meth:`~conformance.suite.run_state.SessionState.before_case`);
+  (:meth:`~conformance.runtime.run_state.SessionState.before_case`);
 * ``pytest_pyfunc_call`` closes the case's connections and hands what it raised to
-  :meth:`~conformance.suite.run_state.SessionState.after_case` (liveness, R2/S5);
-* ``pytest_runtest_makereport`` turns it into a CaseResult (:mod:`conformance.suite.results`)
+  :meth:`~conformance.runtime.run_state.SessionState.after_case` (liveness, R2/S5);
+* ``pytest_runtest_makereport`` turns it into a CaseResult (:mod:`conformance.engine.results`)
   and shapes pytest's report (verdict words, the evidence section);
 * ``pytest_sessionfinish`` finds the root causes and writes the reports, also for a run
   cut short by Ctrl-C, SIGTERM or SIGHUP (marked INCOMPLETE, the cases not run listed).
@@ -35,11 +35,8 @@ from pathlib import Path
 import pytest
 
 from . import __version__, i18n
-from .harness.transcript import Transcript
-from .model.verdicts import CaseResult, RootCause, Verdict
-from .suite import signals
-from .suite.case_context import CaseContext
-from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
+from .engine import signals
+from .engine.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
     BASELINE,
     BASELINE_DIFF,
     CAUSES,
@@ -57,10 +54,13 @@ from .suite.collected import (  # noqa: F401 - CAUSES, results, suite_info, root
     target_keys,
     wants_suite,
 )
+from .engine.results import attach_evidence, result_of, safe_name
+from .harness.transcript import Transcript
+from .model.verdicts import CaseResult, RootCause, Verdict
+from .runtime.run_state import SessionState
+from .runtime.settings import SuiteSettings, add_suite_options
+from .suite.case_context import CaseContext
 from .suite.record import info_of
-from .suite.results import attach_evidence, result_of, safe_name
-from .suite.run_state import SessionState
-from .suite.settings import SuiteSettings, add_suite_options
 
 CTX = pytest.StashKey[CaseContext]()
 CASE_START = pytest.StashKey[float]()

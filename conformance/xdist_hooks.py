@@ -6,7 +6,7 @@
 * The bundled box (no ``--target``) is started once, by the controller, and every worker
   is told where it listens.
 * ``run --lanes N`` against one slow box: the cases that share the box
-  (:mod:`conformance.suite.lanes`) are dealt over N workers, and the rest run alone on one
+  (:mod:`conformance.engine.lanes`) are dealt over N workers, and the rest run alone on one
   worker once every lane is done (:class:`LaneScheduling`).
 * Each case's result travels with its test report, so the controller holds every finished
   case even when the run is cut short; what each worker's session learnt about the box
@@ -22,11 +22,11 @@ from typing import Any
 
 import pytest
 
+from .engine.lanes import ALONE, LANE_PLAN
+from .engine.rootcause import SessionFacts
 from .harness.target import Target
 from .model.verdicts import CaseResult
-from .suite.lanes import ALONE, LANE_PLAN
-from .suite.rootcause import SessionFacts
-from .suite.settings import SuiteSettings
+from .runtime.settings import SuiteSettings
 
 OUTPUT = "isight"
 
@@ -49,7 +49,7 @@ class XdistHooks:
     @pytest.hookimpl(tryfirst=True)
     def pytest_xdist_make_scheduler(self, config: pytest.Config, log: Any) -> Any:
         """``load`` (``-n N``'s default) and ``loadgroup`` schedule by box: one box's cases on one worker."""
-        from .suite.collected import SESSIONS, wants_suite
+        from .engine.collected import SESSIONS, wants_suite
 
         if config.getvalue("dist") not in ("load", "loadgroup") or not wants_suite(config):
             return None  # the user chose another distribution, or this is not a run of the cases: xdist's own
@@ -60,7 +60,7 @@ class XdistHooks:
         return box_scheduling(config, log, [k for k in config.stash[SESSIONS] if k])
 
     def pytest_configure_node(self, node: Any) -> None:
-        from .suite.collected import STATE
+        from .engine.collected import STATE
 
         state = node.config.stash[STATE]
         if state.settings.target is None and len(state.settings.targets) < 2:  # the bundled box: start it once
@@ -69,7 +69,7 @@ class XdistHooks:
             node.workerinput["isight_label"] = state.target_label()
 
     def pytest_testnodedown(self, node: Any, error: object) -> None:
-        from .suite.collected import FACTS, SELECTED, SESSIONS
+        from .engine.collected import FACTS, SELECTED, SESSIONS
 
         sent = getattr(node, "workeroutput", {}).get(OUTPUT)
         if not sent:
@@ -92,7 +92,7 @@ class XdistHooks:
         sent = getattr(report, "isight_result", None)
         if sent is None or hasattr(self.config, "workerinput"):
             return
-        from .suite.collected import RESULTS, SESSIONS
+        from .engine.collected import RESULTS, SESSIONS
 
         key = box_key(report.nodeid, [k for k in self.config.stash[SESSIONS] if k])
         self.config.stash[RESULTS].setdefault(key, []).append(CaseResult.from_dict(sent))
@@ -104,7 +104,7 @@ class XdistHooks:
         if not hasattr(config, "workeroutput"):
             in_catalogue_order(config)
             return
-        from .suite.collected import RESULTS, SELECTED, SESSIONS, facts_of
+        from .engine.collected import RESULTS, SELECTED, SESSIONS, facts_of
 
         boxes = {}
         for key, results in config.stash.get(RESULTS, {}).items():
@@ -139,7 +139,7 @@ def box_scheduling(config: pytest.Config, log: Any, keys: list[str]) -> Any:
 def in_catalogue_order(config: pytest.Config) -> None:
     """The controller's results in the order the catalogue lists the cases (lanes finish interleaved); a case
     no worker reported as selected (a run cut short) keeps its place after them."""
-    from .suite.collected import RESULTS, SELECTED
+    from .engine.collected import RESULTS, SELECTED
 
     selected: list[str] = config.stash.get(SELECTED, [])
     order = {case_id: i for i, case_id in enumerate(selected)}

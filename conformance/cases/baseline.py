@@ -8,9 +8,9 @@ INCONCLUSIVE quickly instead of each waiting out its own time_out.
 
 from __future__ import annotations
 
-from conformance.harness.client import Answer
 from conformance.protocol import Action, encode, request
 from conformance.suite import (
+    Answer,
     CaseContext,
     Level,
     Requirement,

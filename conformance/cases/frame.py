@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from conformance.harness.client import Answer, Malformed
 from conformance.protocol import Action, Header, Transport, encode, encode_raw, header_field_bytes, pose_blocks, request
 from conformance.protocol.constants import START_BYTES
 from conformance.suite import (
@@ -10,18 +9,28 @@ from conformance.suite import (
     ANSWERED_0,
     NOT_0000,
     NOT_OK,
+    Answer,
     CaseContext,
     Level,
+    Malformed,
     Requirement,
     answered,
     answered_allowed,
     case,
 )
-from conformance.suite.frame_checks import (
-    POSE,
-    answer_bytes,
-)
 
+# -- the family's helpers: Helpers of the F cases (conformance/cases/frame.py): the pose request and an answer's bytes.
+POSE = request(Action.POSE, pose_blocks([(500.0, 0.0, 300.0, 180.0, 0.0, 90.0)]))
+
+
+def answer_bytes(isight: CaseContext, action: Action = Action.NONE) -> tuple[Answer, bytes]:
+    outcome = isight.exchange(request(action), f"{action.name} request")
+    isight.judge(outcome, "answered", sent=b"", action=action)
+    assert isinstance(outcome, Answer)
+    return outcome, outcome.raw
+
+
+# -- the cases
 
 @case("F1-01", ["F1"], Level.MUST, "Answers start with FE FE", "every answer's first two bytes are fe fe",
       checks={"answered": ANSWERED_0, "": Requirement(("F1",), "the start word is FE FE")}, shares_box=True)

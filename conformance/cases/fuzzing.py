@@ -19,7 +19,11 @@ case's. For longer campaigns use ``isight-conformance fuzz`` (docs/FUZZING.md).
 from __future__ import annotations
 
 from conformance.fuzz.catalogue_campaign import FINDINGS, FRAMES_S, SESSION_S, judge_campaign, run_campaign
-from conformance.suite import CaseContext, Level, case
+from conformance.suite import (
+    CaseContext,
+    Level,
+    case,
+)
 
 
 @case("FUZZ-01", ["R1", "R2", "A1", "A3", "A5", "B3", "B4", "B5", "F5", "R6"], Level.MUST,

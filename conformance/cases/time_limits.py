@@ -4,14 +4,44 @@ from __future__ import annotations
 
 import time
 
-from conformance.protocol import Action, request
-from conformance.suite import CaseContext, Level, Requirement, answered, case
-from conformance.suite.sequence import PoseStream, latency_figures
-from conformance.suite.time_limit_checks import (
-    judge_within_time_out,
-    timed_requests,
+from conformance.protocol import Action, Frame, encode, pose_blocks, request, tolerance_blocks
+from conformance.suite import (
+    DEFAULT_POSE,
+    Answer,
+    CaseContext,
+    Level,
+    Outcome,
+    PoseStream,
+    Requirement,
+    answered,
+    case,
+    latency_figures,
 )
 
+
+# -- the family's helpers: Helpers of the T cases (conformance/cases/time_limits.py): the requests timed and the time_out check.
+def timed_requests(isight: CaseContext) -> list[Frame]:
+    first = isight.profile.first_index
+    pose = request(Action.POSE, pose_blocks([DEFAULT_POSE], first))
+    return [
+        request(Action.NONE),
+        request(Action.TOLERANCE, tolerance_blocks([0.5], first)),
+        request(Action.REGISTER_POSE, pose_blocks([DEFAULT_POSE], first)),
+        request(Action.CYCLE_ON),
+        *[pose] * 20,
+        request(Action.CYCLE_OFF),
+        request(Action.POSE, pose_blocks([DEFAULT_POSE] * 255, first)),  # the largest legal frame
+    ]
+
+
+def judge_within_time_out(isight: CaseContext, outcome: Outcome, frame: Frame, where: str) -> None:
+    if isinstance(outcome, Answer):
+        isight.latencies_ms.append(outcome.latency_s * 1000)
+    isight.judge(outcome, sent=encode(frame, isight.profile), action=frame.action, where=where,
+                 time_out_ms=isight.time_out_s * 1000)
+
+
+# -- the cases
 
 @case("T1-01", ["T1", "A1"], Level.MUST, "Every answer arrives within time_out",
       "each request of a session (NONE, Tolerance, RegisterPose, CycleOn, 20 poses, CycleOff, a 255-pose frame) "

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .. import __version__
+from ..engine.rootcause import find_root_causes
 from ..evidence.pcap import write_transcript
 from ..harness.starvation import gauge, watch_loop
 from ..harness.transcript import ConnectionInfo, Transcript, WireEvent
@@ -24,7 +25,6 @@ from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from ..observed.connections import SessionRecord
 from ..report import write_reports
-from ..suite.rootcause import find_root_causes
 from .checks import judge
 from .listener import CertifyListener
 from .records import CertifyConfig, RunRecord

@@ -18,7 +18,7 @@ from ..analyze.analysis_report import write_analysis
 from ..analyze.engine import CaptureError, analyze
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
-from ..suite.profile_options import profile_from_options
+from ..runtime.profile_options import profile_from_options
 from .options import add_profile_group
 from .registry import Command
 

@@ -23,7 +23,7 @@ from ..certify.records import INJECTIONS, CertifyConfig
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_USAGE
 from ..report.rundirs import default_run_dirs, drop_if_empty
-from ..suite.profile_options import profile_from_options
+from ..runtime.profile_options import profile_from_options
 from .options import add_profile_group, parse_listen
 from .registry import Command
 

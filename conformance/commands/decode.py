@@ -8,7 +8,7 @@ import sys
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..protocol import ProtocolError, TransferType, Transport, parse_frame
-from ..suite.profile_options import profile_from_options
+from ..runtime.profile_options import profile_from_options
 from .options import add_profile_group
 from .registry import Command
 

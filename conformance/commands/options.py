@@ -1,9 +1,9 @@
 """Option helpers the command modules share: the profile group, the fuzzer's target options
 and ``--listen`` parsing.
 
-The profile options themselves are defined once in :mod:`conformance.suite.profile_options`
+The profile options themselves are defined once in :mod:`conformance.runtime.profile_options`
 (the pytest plugin adds the same ones); the suite's own options in
-:mod:`conformance.suite.settings`.
+:mod:`conformance.runtime.settings`.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import argparse
 from typing import Any
 
 from ..i18n import _
-from ..suite.profile_options import add_profile_options
+from ..runtime.profile_options import add_profile_options
 
 
 def add_profile_group(p: argparse.ArgumentParser, title: str = "profile") -> None:

@@ -8,7 +8,7 @@ import sys
 from ..endpoints.loop import new_event_loop
 from ..endpoints.robot import RobotSession, run_robot
 from ..i18n import N_, _
-from ..suite.profile_options import profile_from_options
+from ..runtime.profile_options import profile_from_options
 from .options import add_profile_group
 from .registry import Command
 

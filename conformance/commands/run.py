@@ -15,14 +15,14 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..endpoints.bundled import bundled_or_target
+from ..engine.lanes import AUTO_LANES
 from ..harness.concurrency import probe_lanes
 from ..harness.target import check_reachable
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_USAGE
 from ..report.run_comparison import load_baseline
 from ..report.rundirs import default_run_dirs
-from ..suite.lanes import AUTO_LANES
-from ..suite.settings import SuiteSettings, add_suite_options
+from ..runtime.settings import SuiteSettings, add_suite_options
 from .fleet import main_fleet
 from .registry import Command
 from .run_flow import list_cases, read_expected_failures, run_suite

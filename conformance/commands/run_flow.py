@@ -23,16 +23,16 @@ from typing import Any
 import pytest
 
 from .. import i18n
+from ..engine.collected import BASELINE, BASELINE_DIFF, CAUSES, results, suite_info
+from ..engine.lanes import ALONE, LANE_PLAN
+from ..engine.lanes import plan as lane_plan
 from ..model.exit_codes import EXIT_FAILED, EXIT_INCOMPLETE, EXIT_OK, EXIT_USAGE
 from ..model.verdicts import RootCause
 from ..protocol.clauses import all_clauses, clause_ids
 from ..protocol.clauses import families as registry_families
 from ..report.run_comparison import Baseline, print_comparison
-from ..suite.collected import BASELINE, BASELINE_DIFF, CAUSES, results, suite_info
-from ..suite.lanes import ALONE, LANE_PLAN
-from ..suite.lanes import plan as lane_plan
+from ..runtime.settings import SuiteSettings
 from ..suite.record import CaseRecord, info_of
-from ..suite.settings import SuiteSettings
 
 
 def read_expected_failures(path: Path) -> set[str]:
@@ -107,7 +107,7 @@ def collect(settings: SuiteSettings) -> list[CaseRecord] | None:
 
 
 def plan_lanes(settings: SuiteSettings, lanes: int) -> dict[str, str] | None:
-    """Each selected case's lane (:mod:`conformance.suite.lanes`); None if no two lanes would have work."""
+    """Each selected case's lane (:mod:`conformance.engine.lanes`); None if no two lanes would have work."""
     plugin = _RunPlugin(lanes=lanes)
     code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
     if code not in (0, 5) or plugin.collect_errors or not plugin.plan:
@@ -173,7 +173,7 @@ def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, b
               verbose: bool = False, lanes: int = 1) -> int:
     """Run the selected cases against ``settings.target`` (known to answer), show progress and the final
     table, and return the exit status. ``lanes`` > 1: the cases that share the box run side by side on
-    that many pytest-xdist workers (:mod:`conformance.suite.lanes`), the rest one at a time after them."""
+    that many pytest-xdist workers (:mod:`conformance.engine.lanes`), the rest one at a time after them."""
     from rich.console import Console
 
     from ..report.terminal import Progress, print_final_table

@@ -11,7 +11,7 @@ from ..endpoints.serve import main_serve
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_FAILED
 from ..protocol.answers import SENDABLE_RESULTS
-from ..suite.profile_options import profile_from_options
+from ..runtime.profile_options import profile_from_options
 from .options import add_profile_group
 from .registry import Command
 

@@ -1,7 +1,7 @@
 """The diagnose phase: each candidate root cause's competing explanations, told apart by live experiments.
 
 After the catalogue, :func:`.phase.diagnose` takes the root causes read from the verdicts
-(:mod:`conformance.suite.rootcause`) and, within a bounded time (:data:`.phase.BUDGET_S`),
+(:mod:`conformance.engine.rootcause`) and, within a bounded time (:data:`.phase.BUDGET_S`),
 sends the few requests that tell their stories apart, each on a fresh connection:
 
 * :mod:`.hypotheses`: the typed values (what was heard, an experiment, a hypothesis and its

@@ -21,11 +21,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..engine.rootcause import SessionFacts
 from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
-from ..suite.rootcause import SessionFacts
-from ..suite.run_state import SessionState
+from ..runtime.run_state import SessionState
 from . import deaths, families, match, titles
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found

@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..suite.profile_options import PROFILE_OPTIONS
-from ..suite.settings import SUITE_OPTIONS, SuiteSettings, add_suite_options
+from ..runtime.profile_options import PROFILE_OPTIONS
+from ..runtime.settings import SUITE_OPTIONS, SuiteSettings, add_suite_options
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -38,7 +38,7 @@ from ..evidence.pcap import PcapRecorder
 from ..harness.client import Silence
 from ..harness.transcript import Transcript
 from ..model.verdicts import Verdict
-from ..suite.profile_options import profile_flags
+from ..runtime.profile_options import profile_flags
 from .budget import Budget
 from .config import CampaignConfig, new_seed
 from .death import RESTART_HINT, STOPPED, Seen, death_key, find_killer

@@ -41,13 +41,13 @@ from ..harness.exchange import (
     send_and_collect,
 )
 from ..harness.liveness import check_alive, responsive, unreachable_outcome
+from ..harness.quiet import CUT_S
+from ..harness.quiet import HANG_CASES as REFUSED_REPEAT
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
 from ..model.verdicts import Verdict
 from ..protocol import Action, Frame, Profile, Transport, codec_for
 from ..protocol.framings import End
-from ..suite.quiet import CUT_S
-from ..suite.quiet import HANG_CASES as REFUSED_REPEAT
 from .oracle import Finding, Judgement, judge
 from .strategies import FuzzCase
 

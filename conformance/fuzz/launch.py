@@ -17,14 +17,14 @@ from typing import TYPE_CHECKING
 
 from ..endpoints.bundled import Bundled, bundled_or_target
 from ..harness.client import TcpConnection
+from ..harness.extension_probe import detect_extension
 from ..harness.target import Target, Unreachable, check_reachable
 from ..harness.transcript import Transcript
 from ..i18n import _
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..protocol import DEFAULT_PORT, Profile
 from ..report.rundirs import default_run_dirs
-from ..suite.extension import detect_extension
-from ..suite.profile_options import profile_from_options
+from ..runtime.profile_options import profile_from_options
 from .database import resolve_database
 from .failure_lines import report_lines
 from .gating import box_child

@@ -74,12 +74,12 @@ class TcpConnection:
         self.before_connect: Callable[[socket.socket], None] | None = None  # e.g. a small SO_RCVBUF
         self.answers = 0  # answers (and malformed answers) read so far
         self.rx_at = self.last_arrival = math.inf  # when the last chunk, and the last answer returned, arrived
-        #: bounded time (suite.waits): a short first wait for request()'s answer, on_cut(request, wait) when it ran
+        #: bounded time (harness.waits): a short first wait for request()'s answer, on_cut(request, wait) when it ran
         #: out (it may raise), on_ran_out when the wait ran out time_out
         self.wait_bound: Callable[[TcpConnection], float | None] | None = None
         self.on_cut: Callable[[bytes, float], None] | None = None
         self.on_ran_out: Callable[[int], None] | None = None  # called with the answers read before
-        self.stream_bound: float | None = None  # a pose stream's short wait for an overdue answer (suite.waits)
+        self.stream_bound: float | None = None  # a pose stream's short wait for an overdue answer (harness.waits)
         #: ... and for the answer to a later frame of one write whose earlier frames were answered (R4, A1);
         #: on_coalesced(True) when such an answer came within time_out, on_coalesced(False) when it did not
         self.coalesced_bound: float | None = None

@@ -1,7 +1,7 @@
 """What a defect looks like, as data: a verdict's :class:`Signature` and the session's :class:`Death`.
 
-The judging routine (:mod:`conformance.suite.case_judge`), the run's state (:mod:`conformance.suite.run_state`),
-the certify checks and the FUZZ cases set a signature on the verdicts they raise; :mod:`conformance.suite.rootcause` groups the
+The judging routine (:mod:`conformance.suite.case_judge`), the run's state (:mod:`conformance.runtime.run_state`),
+the certify checks and the FUZZ cases set a signature on the verdicts they raise; :mod:`conformance.engine.rootcause` groups the
 verdicts that share one under one root cause, and reads the answer's fields
 (:class:`Reply`) to find a field that is wrong the same way in every answer. Nothing is
 written as a string and parsed back: ``str(signature)`` is only for people.

@@ -35,7 +35,7 @@ from ..model.verdicts import VERDICT_ORDER, CaseResult, Level, RootCause, SuiteI
 from ..protocol import DEFAULT_PROFILE
 from ..protocol.clauses import all_clauses
 from ..protocol.clauses import families as registry_families
-from ..suite.profile_options import PROFILE_OPTIONS
+from ..runtime.profile_options import PROFILE_OPTIONS
 from .clausetext import clause_text
 from .diff import SECTIONS, RunDiff, summary_line
 from .html_cases import (

@@ -33,14 +33,7 @@ from ..harness.exchange import (
     send_and_collect,
 )
 from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
-from ..harness.target import Target, Unreachable
-from ..harness.transcript import Transcript
-from ..model.signature import Sig, Signature
-from ..model.verdicts import Level, Verdict
-from ..protocol import Action, Frame, encode, peek_action, peek_header
-from ..protocol.framings import Explanation
-from .case_judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
-from .quiet import (
+from ..harness.quiet import (
     CUT_S,
     HANG_CLAUSE,
     KIND_WORDS,
@@ -51,9 +44,16 @@ from .quiet import (
     pattern_key,
     refused_key,
 )
+from ..harness.target import Target, Unreachable
+from ..harness.transcript import Transcript
+from ..harness.waits import COALESCED, STREAM
+from ..model.signature import Sig, Signature
+from ..model.verdicts import Level, Verdict
+from ..protocol import Action, Frame, encode, peek_action, peek_header
+from ..protocol.framings import Explanation
+from ..runtime.run_state import UNREACHABLE_AT_CONNECT, SessionState
+from .case_judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
 from .record import CaseRecord
-from .run_state import UNREACHABLE_AT_CONNECT, SessionState
-from .waits import COALESCED, STREAM
 
 #: After the probe's answer, how long to keep reading for extras written with it (an answer nobody
 #: asked for, A1; a close): the box's own pace, 5 to 50 ms (see harness.exchange.Settle).

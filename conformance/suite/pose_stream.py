@@ -17,12 +17,12 @@ from ..harness.client import Answer, Malformed, Outcome, Silence, TcpConnection
 from ..harness.liveness import check_alive, responsive
 from ..harness.starvation import gauge, starved_share, starved_text
 from ..harness.trajectory import PrimerTrajectory
+from ..harness.waits import STREAM
 from ..model.percentiles import percentile
 from ..model.signature import Sig, Signature
 from ..model.verdicts import Level
 from ..protocol import Action, pose_blocks, request
 from .case_judge import Expect, Inconclusive, answered, check, fail
-from .waits import STREAM
 
 DEFAULT_POSE = PrimerTrajectory().home
 
@@ -55,7 +55,7 @@ class StreamResult:
     max_send_lag_ms: float = 0.0
     elapsed_s: float = 0.0
     started_at: float = 0.0  # monotonic: for the starvation gauge's stalls over the stream
-    cut_s: float = 0.0  # the overdue answer was awaited only this long (bounded time: suite.waits), the box alive
+    cut_s: float = 0.0  # the overdue answer was awaited only this long (bounded time: harness.waits), the box alive
     sent_at: list[float] = field(default_factory=list)  # monotonic send time of each pose
 
     @property

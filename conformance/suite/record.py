@@ -25,6 +25,7 @@ import pytest
 
 from ..harness.client import Outcome
 from ..model.verdicts import Level
+from ..protocol import Action, peek_header
 from ..protocol.clauses import clause_ids
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -100,7 +101,7 @@ class CaseRecord:
     #: what the case judges, by name ("" is the default requirement)
     checks: Mapping[str, Requirement] = field(default_factory=lambda: MappingProxyType({}))
     #: the case may run beside other such cases on their own connections (``run``'s lanes,
-    #: :mod:`conformance.suite.lanes`): it sets no cycle or extension state and judges no timing
+    #: :mod:`conformance.engine.lanes`): it sets no cycle or extension state and judges no timing
     shares_box: bool = False
 
     @property
@@ -162,3 +163,15 @@ def info_of(item: pytest.Item) -> CaseRecord | None:
     if target and pid.endswith(target):  # several boxes: the box is not part of the case's ID
         pid = pid[: -len(target)].removesuffix("-")  # only the dash pytest put before the box's key
     return info.with_param(pid) if pid else info
+
+
+#: the mark of a case that must run alone (a golden vector that carries a CycleOn, say): no lane shares the box
+ALONE_MARK = "isight_alone"
+#: actions whose requests change no state a box keeps between requests
+STATELESS = frozenset({Action.NONE, Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE})
+
+
+def stateless_frame(data: bytes) -> bool:
+    """One frame (or less: a frame cut short) whose action changes no box state."""
+    head = peek_header(data)
+    return head is not None and head.action in STATELESS and len(data) <= head.frame_length

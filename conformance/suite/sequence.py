@@ -263,7 +263,7 @@ class SequenceRunner:
         for k, (item, frame) in enumerate(zip(items, frames)):
             wait = self._wait(None, path)
             # a full time_out wait is the connection's own (None): the bounded-time rules for a later frame of one
-            # write apply (suite.waits.COALESCED)
+            # write apply (harness.waits.COALESCED)
             outcome = conn.next_outcome(None if wait >= conn.time_out_s else wait, since=start)
             self._record(outcome)
             self._judge(outcome, {**step, **item}, frame.action, f"{path} answer {k + 1}/{len(frames)}",

@@ -339,7 +339,7 @@ def run_cases(tmp_path: Path, target: str, globs: tuple[str, ...], args: tuple[s
 
 def test_every_must_clause_is_cited_by_a_must_case() -> None:
     from conformance.commands.run_flow import collect
-    from conformance.suite.settings import SuiteSettings
+    from conformance.runtime.settings import SuiteSettings
 
     cases = collect(SuiteSettings())
     assert cases, "the catalogue did not load"

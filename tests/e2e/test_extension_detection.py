@@ -16,6 +16,7 @@ import pytest
 
 from conformance.endpoints.behaviour import BoxBehaviour, BoxConfig, Decision, Reaction
 from conformance.harness.client import TcpConnection
+from conformance.harness.extension_probe import detect_extension
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
 from conformance.protocol import (
@@ -32,7 +33,6 @@ from conformance.protocol import (
     encode_raw,
     value_blocks,
 )
-from conformance.suite.extension import detect_extension
 from tests.boxes import ScriptedBox, answering, silent
 from tests.e2e.test_cases_extension_udp import Patch, failing, reference_box, run_suite, verdicts
 

@@ -22,6 +22,7 @@ from conformance.endpoints.loop import BoxThread
 from conformance.harness.transcript import Transcript
 from conformance.model.verdicts import Level, Verdict
 from conformance.protocol import Action, ProtocolError, StreamDecoder, answer, encode
+from conformance.runtime.settings import SuiteSettings
 from conformance.suite.case_context import CaseContext, SessionState
 from conformance.suite.case_judge import CaseVerdict, Inconclusive
 from conformance.suite.record import CaseRecord
@@ -33,7 +34,6 @@ from conformance.suite.sequence import (
     pieces_of,
     run_sequence,
 )
-from conformance.suite.settings import SuiteSettings
 from tests.unit.test_sequence_format import _write
 
 ROOT = Path(__file__).resolve().parents[2]

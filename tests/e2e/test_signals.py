@@ -1,4 +1,4 @@
-"""A run cut short (conformance/suite/signals.py): SIGTERM, SIGHUP and Ctrl-C still write the reports,
+"""A run cut short (conformance/engine/signals.py): SIGTERM, SIGHUP and Ctrl-C still write the reports,
 which say INCOMPLETE and list the cases not run; the exit status is 3."""
 
 from __future__ import annotations

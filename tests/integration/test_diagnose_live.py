@@ -16,11 +16,11 @@ import pytest
 
 from conformance.diagnose import repro
 from conformance.diagnose.phase import BUDGET_S, diagnose
+from conformance.engine.rootcause import SessionFacts
 from conformance.harness.target import Target
 from conformance.model.signature import Reply, Sig, Signature
 from conformance.model.verdicts import CaseResult, Level, RootCause, Verdict
 from conformance.protocol import Action, Profile
-from conformance.suite.rootcause import SessionFacts
 from tests.impls.boxcore import ThreadBox
 from tests.impls.policy import Choices, random_choices
 from tests.impls.systematic import FIXED, SYSTEMATIC

@@ -35,10 +35,10 @@ from conformance.protocol import (
     pose_blocks,
     request,
 )
+from conformance.runtime.run_state import SessionState
+from conformance.runtime.settings import SuiteSettings
 from conformance.suite.case_context import CaseContext
 from conformance.suite.record import CaseRecord
-from conformance.suite.run_state import SessionState
-from conformance.suite.settings import SuiteSettings
 from tests.boxes import ScriptedBox, answering
 
 pytestmark = pytest.mark.timeout(60)

@@ -7,8 +7,8 @@ from conformance.endpoints.loop import BoxThread
 from conformance.harness.client import TcpConnection
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
+from conformance.runtime.settings import SuiteSettings
 from conformance.suite.pose_stream import PoseStream
-from conformance.suite.settings import SuiteSettings
 
 
 def test_pose_stream_against_slow_bundled_box() -> None:

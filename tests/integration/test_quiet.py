@@ -1,4 +1,4 @@
-"""conformance/suite/quiet.py: bounded time for a box that hangs after bad bytes (the hang pattern)."""
+"""conformance/harness/quiet.py: bounded time for a box that hangs after bad bytes (the hang pattern)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ import threading
 import pytest
 
 from conformance.harness.client import Silence
+from conformance.harness.quiet import CUT_S, HANG_CASES, Hangs, bad_kind, pattern_key
 from conformance.harness.target import Target
 from conformance.harness.transcript import Transcript
 from conformance.model.verdicts import Level
@@ -22,12 +23,11 @@ from conformance.protocol import (
     pose_blocks,
     request,
 )
+from conformance.runtime.run_state import SessionState
+from conformance.runtime.settings import SuiteSettings
 from conformance.suite.case_context import CaseContext
 from conformance.suite.case_judge import Inconclusive
-from conformance.suite.quiet import CUT_S, HANG_CASES, Hangs, bad_kind, pattern_key
 from conformance.suite.record import CaseRecord
-from conformance.suite.run_state import SessionState
-from conformance.suite.settings import SuiteSettings
 from tests.boxes import ScriptedBox
 
 pytestmark = pytest.mark.timeout(60)

@@ -1,4 +1,4 @@
-"""conformance.suite.run_state: baseline, S4 preflight and witness, R2/S5 after a case, re-probes, known-late actions.
+"""conformance.runtime.run_state: baseline, S4 preflight and witness, R2/S5 after a case, re-probes, known-late actions.
 
 The boxes are tiny loopback servers written here (threads, every wait bounded, all joined at the end)."""
 
@@ -22,9 +22,7 @@ from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, StreamDecoder, TransferType, answer, encode, request
 from conformance.protocol.errors import ProtocolError
 from conformance.protocol.frames import Frame
-from conformance.suite import run_state as session_mod
-from conformance.suite.case_judge import CaseVerdict, Inconclusive
-from conformance.suite.run_state import (
+from conformance.runtime.run_state import (
     LATE_CASES,
     RECHECK_S,
     S5_TEXT,
@@ -32,7 +30,9 @@ from conformance.suite.run_state import (
     SessionState,
     responsive,
 )
-from conformance.suite.settings import SuiteSettings
+from conformance.runtime.settings import SuiteSettings
+from conformance.suite import run_state as session_mod
+from conformance.suite.case_judge import CaseVerdict, Inconclusive
 
 PROFILE = Profile(time_out_ms=500)  # every silence in these tests costs at most this
 POLL = 0.05

@@ -1,10 +1,10 @@
-"""The backpressure cases' pure parts (suite.backpressure): how a burst is sized to the box's pace, and how a
+"""The backpressure cases' pure parts (conformance/cases/stream_backpressure.py): how a burst is sized to the box's pace, and how a
 read that ran out of budget is judged: answers still coming are not called lost, but a broken one still is."""
 
 from __future__ import annotations
 
+from conformance.cases.stream_backpressure import BURST_S, MIN_BURST, Backlog, burst_size, judge_answers
 from conformance.protocol import Action, answer, encode
-from conformance.suite.backpressure import BURST_S, MIN_BURST, Backlog, burst_size, judge_answers
 
 POSE_OK = encode(answer(Action.POSE))
 

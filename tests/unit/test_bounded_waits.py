@@ -1,11 +1,11 @@
-"""What the engine learns from waits (suite/waits.py, suite/quiet.py's refused pattern), and the T2 excess figures."""
+"""What the engine learns from waits (harness/waits.py, harness/quiet.py's refused pattern), and the T2 excess figures."""
 
 from __future__ import annotations
 
+from conformance.harness.quiet import CUT_S, Hangs, refused_key
 from conformance.harness.starvation import Stall, StarvationGauge, explains, starved_verdict
+from conformance.harness.waits import REPEAT, RanOut
 from conformance.observed.stream_timing import jitter_excess_ms, rate_excess_ms, stream_stats
-from conformance.suite.quiet import CUT_S, Hangs, refused_key
-from conformance.suite.waits import REPEAT, RanOut
 
 
 def test_a_place_counts_only_when_its_case_failed_on_the_silence() -> None:
@@ -106,7 +106,7 @@ def test_a_write_of_several_requests_is_counted_frame_by_frame() -> None:
 
 
 def test_the_answer_to_a_later_frame_of_one_write_is_its_own_place() -> None:
-    from conformance.suite.waits import COALESCED, STREAM_CUT_S
+    from conformance.harness.waits import COALESCED, STREAM_CUT_S
 
     ran_out = RanOut()
     for case_id in ("R4-01", "A1-01")[:REPEAT]:

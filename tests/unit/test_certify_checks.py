@@ -11,13 +11,13 @@ import pytest
 from conformance.certify import checks
 from conformance.certify.checks import judge
 from conformance.certify.records import CertifyConfig, RunRecord
+from conformance.engine.rootcause import find_root_causes
 from conformance.model.signature import Sig, Signature
 from conformance.model.verdicts import SuiteInfo, Verdict
 from conformance.observed.connections import BY_SUITE, InjectionEvent
 from conformance.protocol import DEFAULT_PROFILE, Action, ErrorCode, encode, pose_blocks, request
 from conformance.report import render_html
 from conformance.report.svg import histogram_svg
-from conformance.suite.rootcause import find_root_causes
 from tests.unit.test_certify_session import POSE, Fake, canonical, frame
 
 NS = "{http://www.w3.org/2000/svg}"

@@ -22,8 +22,8 @@ from conformance.protocol.clauses import (
     parse_registry,
     text_of,
 )
-from conformance.suite.profile_options import PROFILE_OPTIONS
-from conformance.suite.settings import SUITE_OPTIONS
+from conformance.runtime.profile_options import PROFILE_OPTIONS
+from conformance.runtime.settings import SUITE_OPTIONS
 
 EXPECTED_IDS = [f"{f}{i}" for f, n in zip("FBASTRE", (7, 5, 5, 6, 2, 7, 5)) for i in range(1, n + 1)]
 RAW = resources.files("conformance.protocol").joinpath("clauses.json").read_text(encoding="utf-8")

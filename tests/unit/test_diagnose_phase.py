@@ -5,10 +5,10 @@ from __future__ import annotations
 from conformance.diagnose import match, titles
 from conformance.diagnose.hypotheses import Expect, Mechanism, Status
 from conformance.diagnose.phase import _assign, _Lab, diagnose, relink
+from conformance.engine.rootcause import SessionFacts
 from conformance.model.signature import Reply, Sig, Signature
 from conformance.model.verdicts import CaseResult, Level, RootCause, Verdict
 from conformance.protocol import Profile
-from conformance.suite.rootcause import SessionFacts
 
 POSE, TOL = 0x23, 0x25
 

@@ -1,7 +1,7 @@
 """Expectations and verdicts (conformance/suite/case_judge.py): the ready-made Expects, ``check`` (the level's
 verdict, or FAIL on format alone for a malformed answer that read leniently would be acceptable),
 ``answer_view``, the signatures, CaseVerdict, and what a verdict becomes downstream: its CaseResult
-(suite/results.py), the clause table (report/summary.by_clause), the overall line of a run cut short and
+(engine/results.py), the clause table (report/summary.by_clause), the overall line of a run cut short and
 the exit codes (conformance/model/exit_codes.py; run end to end by test_runner.py and test_signals.py). Outcomes come from the
 codec, no sockets. ``judge``/``broken`` (the routine over a Requirement) are in test_record.py."""
 
@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import pytest
 
+from conformance.engine.results import result_of
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
 from conformance.model import exit_codes as runner
 from conformance.model.signature import Signature
@@ -48,7 +49,6 @@ from conformance.suite.case_judge import (
     outcome_signature,
 )
 from conformance.suite.record import Requirement, record
-from conformance.suite.results import result_of
 
 BOX = TransferType.BOX_TO_ROBOT
 SENT = encode_raw(Header(start_word=0xFFFE))  # not a request (A5: a wrong start word)

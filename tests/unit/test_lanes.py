@@ -10,9 +10,9 @@ from typing import Any
 import pytest
 
 from conformance.commands.run import parse_lanes
+from conformance.engine.lanes import ALONE, ALONE_MARK, lane_name, plan, stateless_frame
 from conformance.harness.concurrency import LaneProbe
 from conformance.protocol import Action, encode, pose_blocks, request
-from conformance.suite.lanes import ALONE, ALONE_MARK, lane_name, plan, stateless_frame
 from conformance.suite.record import MARKER, CaseRecord, record
 
 pytestmark = pytest.mark.unit

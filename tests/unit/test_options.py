@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from conformance.suite.profile_options import PROFILE_OPTIONS, add_profile_options, profile_from_options
+from conformance.runtime.profile_options import PROFILE_OPTIONS, add_profile_options, profile_from_options
 
 
 def _help_texts() -> dict[str, str]:

@@ -1,4 +1,4 @@
-"""What a finished case becomes (conformance/suite/results.py): its verdict, evidence and result."""
+"""What a finished case becomes (conformance/engine/results.py): its verdict, evidence and result."""
 
 from __future__ import annotations
 
@@ -6,16 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.harness.client import Malformed
-from conformance.harness.target import Unreachable
-from conformance.harness.transcript import Endpoint, Kind, Transcript
-from conformance.model.signature import Sig, Signature
-from conformance.model.verdicts import Level, Verdict, broken_verdict
-from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
-from conformance.suite.case_context import CaseContext
-from conformance.suite.case_judge import CaseVerdict, Inconclusive, Skip, answered, check, fail
-from conformance.suite.record import CaseRecord, record
-from conformance.suite.results import (
+from conformance.engine.results import (
     QUOTED_BYTES,
     attach_evidence,
     bounded_hex,
@@ -23,8 +14,17 @@ from conformance.suite.results import (
     result_of,
     safe_name,
 )
-from conformance.suite.run_state import SessionState
-from conformance.suite.settings import SuiteSettings
+from conformance.harness.client import Malformed
+from conformance.harness.target import Unreachable
+from conformance.harness.transcript import Endpoint, Kind, Transcript
+from conformance.model.signature import Sig, Signature
+from conformance.model.verdicts import Level, Verdict, broken_verdict
+from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
+from conformance.runtime.run_state import SessionState
+from conformance.runtime.settings import SuiteSettings
+from conformance.suite.case_context import CaseContext
+from conformance.suite.case_judge import CaseVerdict, Inconclusive, Skip, answered, check, fail
+from conformance.suite.record import CaseRecord, record
 
 POSE_CASE = record("S3-01", ["S3"], Level.MUST, "Poses before CycleOn are answered 0000", "answered POSE 0000")
 BOX = Endpoint("127.0.0.1", 9000)

@@ -1,4 +1,4 @@
-"""Root causes (conformance/suite/rootcause.py): one defect named once, the one to fix first first.
+"""Root causes (conformance/engine/rootcause.py): one defect named once, the one to fix first first.
 
 Runs are built as the suite builds them, without sockets: the box's outcome goes through the
 judging routine and :func:`result_of` (so signatures are those real cases produce), the facts
@@ -13,17 +13,17 @@ from typing import Any
 
 import pytest
 
+from conformance.engine.results import result_of
+from conformance.engine.rootcause import SessionFacts, find_root_causes
 from conformance.harness.client import Answer, Closed, Malformed, Outcome, Silence
 from conformance.model.signature import Death, DeathKind, Sig, Signature
 from conformance.model.verdicts import CaseResult, Level, RootCause, SuiteInfo, Verdict
 from conformance.protocol import Action, ProtocolError, StreamDecoder, TransferType, answer, encode, request
 from conformance.report.summary import write_summary
+from conformance.runtime.run_state import S5_TEXT
 from conformance.suite.case_judge import CLOSED, NOT_OK, CaseVerdict, Inconclusive, answered, answered_error, judge
 from conformance.suite.case_judge import fail as own_verdict
 from conformance.suite.record import CaseRecord, Requirement, record
-from conformance.suite.results import result_of
-from conformance.suite.rootcause import SessionFacts, find_root_causes
-from conformance.suite.run_state import S5_TEXT
 from tests.impls.expectations import EXPECTATIONS
 from tests.impls.expectations import judge as blame
 

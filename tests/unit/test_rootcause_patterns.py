@@ -1,4 +1,4 @@
-"""Root causes that name the fix (conformance/suite/patterns.py, rootcause.py): a field wrong the same
+"""Root causes that name the fix (conformance/engine/patterns.py, rootcause.py): a field wrong the same
 way in every answer, acceptance that changes at a block position, levels from what a cause explains.
 
 Runs are built as in tests/unit/test_rootcause.py: each outcome goes through the judging routine and
@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 
+from conformance.engine.patterns import Blocks, blocks_of
+from conformance.engine.rootcause import SessionFacts, find_root_causes
 from conformance.harness.client import Closed, Outcome
 from conformance.model.signature import Death, DeathKind, Sig, Signature
 from conformance.model.verdicts import CaseResult, Level, Verdict
@@ -22,9 +24,7 @@ from conformance.protocol import (
     tolerance_blocks,
 )
 from conformance.suite.case_judge import NOT_OK, Inconclusive, answered, fail
-from conformance.suite.patterns import Blocks, blocks_of
 from conformance.suite.record import Requirement
-from conformance.suite.rootcause import SessionFacts, find_root_causes
 from tests.unit.test_rootcause import PARSE_ERROR, judged, malformed, marked, ok, parse_error, passed, raised, reply
 
 NONE, ON, OFF, POSE, REG, TOL = (Action.NONE, Action.CYCLE_ON, Action.CYCLE_OFF, Action.POSE, Action.REGISTER_POSE,

@@ -1,4 +1,4 @@
-"""conformance.suite.wirelog: a case's transcript as report lines, decoded, and bounded (head, tail, hex)."""
+"""conformance.engine.wirelog: a case's transcript as report lines, decoded, and bounded (head, tail, hex)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ from collections.abc import Callable
 
 import pytest
 
+from conformance.engine.wirelog import MAX_DECODED, MAX_EVENTS, MAX_HEX_BYTES, MAX_LINES, TAIL_LINES, wire_lines
 from conformance.harness.transcript import Endpoint, Kind, Transcript
 from conformance.model.verdicts import WireLine
 from conformance.protocol import Action, Profile, Transport, answer, encode, request
-from conformance.suite.wirelog import MAX_DECODED, MAX_EVENTS, MAX_HEX_BYTES, MAX_LINES, TAIL_LINES, wire_lines
 
 PROFILE = Profile()
 NONE_REQUEST = encode(request(Action.NONE))

@@ -17,10 +17,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
-from ..harness.liveness import PROBE_NONE
-from ..harness.target import Unreachable
 from ..protocol import Action, BlockType, Frame, Header, TransferType, request, value_blocks
+from .client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from .liveness import PROBE_NONE
+from .target import Unreachable
 
 #: The program index sent when 27 gave no evidence either way.
 PROG_IDX_VALUE = 7

@@ -18,12 +18,11 @@ import pytest
 from .. import __version__
 from ..model.signature import DeathKind
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
+from ..runtime.run_state import STATE, SessionState
+from ..runtime.settings import SuiteSettings
 from .lanes import LANE_PLAN, lanes_of
 from .rootcause import SessionFacts, find_root_causes
-from .run_state import SessionState
-from .settings import SuiteSettings
 
-STATE = pytest.StashKey[SessionState]()  # the first box's session (the settings every session shares)
 SESSIONS = pytest.StashKey[dict[str, SessionState]]()  # target key ("" for one box) -> session
 RESULTS = pytest.StashKey[dict[str, list[CaseResult]]]()
 FACTS = pytest.StashKey[dict[str, SessionFacts]]()  # the controller's: what the workers' sessions learnt

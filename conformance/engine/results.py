@@ -15,10 +15,10 @@ from ..harness.target import Unreachable
 from ..harness.transcript import Kind, Transcript
 from ..model.signature import Signature
 from ..model.verdicts import CaseResult, Verdict, broken_verdict
-from .case_context import CaseContext
-from .case_judge import CaseVerdict
-from .record import CaseRecord
-from .settings import SuiteSettings
+from ..runtime.settings import SuiteSettings
+from ..suite.case_context import CaseContext
+from ..suite.case_judge import CaseVerdict
+from ..suite.record import CaseRecord
 from .wirelog import wire_lines
 
 

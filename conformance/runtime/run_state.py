@@ -33,17 +33,19 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import pytest
+
 from ..harness.client import Answer, Outcome, TcpConnection
 from ..harness.liveness import PROBE_NONE, check_alive, responsive
+from ..harness.quiet import Hangs
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Kind, Transcript
+from ..harness.waits import RanOut
+from ..model.case_verdicts import CaseVerdict, Inconclusive
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import Verdict
 from ..protocol import Action, Profile
-from .case_judge import CaseVerdict, Inconclusive
-from .quiet import Hangs
 from .settings import SuiteSettings
-from .waits import RanOut
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
 RECHECK_S = 10.0
@@ -328,7 +330,7 @@ class SessionState:
                 self.extension_supported = mode == "on"
                 self.extension_how = "forced on" if mode == "on" else "off (--extension off)"
             else:
-                from .extension import detect_extension
+                from ..harness.extension_probe import detect_extension
 
                 conn = TcpConnection(transcript, self.target(), self.profile, "extension detection")
                 try:
@@ -338,3 +340,7 @@ class SessionState:
                 self.extension_supported, self.extension_how = detect_extension(conn)
                 conn.close()
         return self.extension_supported
+
+
+#: the first box's session (the settings every session shares), in the pytest config's stash
+STATE = pytest.StashKey["SessionState"]()

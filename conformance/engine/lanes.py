@@ -20,15 +20,11 @@ from collections.abc import Iterable
 
 import pytest
 
-from ..protocol import Action, peek_header
-from .record import info_of
+from ..suite.record import ALONE_MARK, STATELESS, info_of, stateless_frame  # noqa: F401 - the lanes' API too
 
 #: the scope of the cases that run alone, after the lanes
 ALONE = "isight-alone"
 #: a parameter's mark: this variant of a shared case runs alone
-ALONE_MARK = "isight_alone"
-#: actions whose requests change no state a box keeps between requests
-STATELESS = frozenset({Action.NONE, Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE})
 #: lanes ``run --lanes auto`` uses for a slow box that serves several connections
 AUTO_LANES = 3
 #: a run in lanes: each case's scope (node id -> a lane or :data:`ALONE`), on the controller's config
@@ -48,11 +44,6 @@ def shares_box(item: pytest.Item) -> bool:
     info = info_of(item)
     return info is not None and info.shares_box and item.get_closest_marker(ALONE_MARK) is None
 
-
-def stateless_frame(data: bytes) -> bool:
-    """One frame (or less: a frame cut short) whose action changes no box state."""
-    head = peek_header(data)
-    return head is not None and head.action in STATELESS and len(data) <= head.frame_length
 
 
 def plan(items: Iterable[pytest.Item], lanes: int) -> dict[str, str]:
