@@ -67,6 +67,13 @@ def hung(explanation: Explanation) -> bool:
     return any(f.key in _HANG_KEYS for f in explanation.findings)
 
 
+def probe_wronged(explanation: Explanation) -> bool:
+    """No legal framing lets the probe go without its 0000: it is left unanswered, or answered with an error,
+    where every framing of the bytes before it reaches it (R6 (b) may swallow a probe that begins inside a
+    rejected header: 64 KiB of FE read 12 bytes at a time)."""
+    return any(f.key in _HANG_KEYS + REFUSED_KEYS for f in explanation.findings)
+
+
 def broken_besides_hang(explanation: Explanation, also: tuple[str, ...] = ()) -> bool:
     """The explanation finds something wrong other than the silence at the end (or the findings ``also``)."""
     return any(f.key not in _HANG_KEYS + also for f in explanation.findings)

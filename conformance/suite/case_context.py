@@ -42,6 +42,7 @@ from ..harness.quiet import (
     broken_besides_hang,
     hung,
     pattern_key,
+    probe_wronged,
     refused_key,
 )
 from ..harness.target import Target, Unreachable
@@ -234,7 +235,8 @@ class CaseContext:
         """The refused pattern (:func:`.quiet.refused_key`): noted when the wait for the probe's 0000 behind an
         error answer with its action ran out and nothing else is wrong; withdrawn when such a 0000 came."""
         code = error_code(got.end)
-        if got.ran_out and code and got.close is None and not broken_besides_hang(explanation, REFUSED_KEYS):
+        if (got.ran_out and code and got.close is None and probe_wronged(explanation)
+                and not broken_besides_hang(explanation, REFUSED_KEYS)):
             self.session.hangs.note(refused_key(kind), self.info.id, hung=True, probe_answered=False)
             if HANG_CLAUSE not in self.info.clauses:  # the R6 cases judge the probe's answer themselves
                 name = action_name(probe)

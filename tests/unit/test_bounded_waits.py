@@ -116,3 +116,20 @@ def test_the_answer_to_a_later_frame_of_one_write_is_its_own_place() -> None:
     assert ran_out.bound(3, 5.0) is None  # the plain places are not touched
     ran_out.answered_at(COALESCED)
     assert ran_out.bound(COALESCED, 5.0) is None
+
+
+def test_a_probe_swallowed_by_a_legal_framing_is_not_wronged() -> None:
+    """64 KiB of FE read 12 bytes at a time (R6 (b), resume at the 12th byte) swallows the NONE behind them:
+    the refusals of the rejected headers (00 FFFF) and no 0000 after them are legal, so the refused pattern's
+    A1 FAIL does not apply (an independent Node.js box, legal-c, was FAILed on R2-01[64k-of-fe] for it)."""
+    from conformance.harness.quiet import probe_wronged
+    from conformance.protocol import DEFAULT_PROFILE, Action, encode, request
+    from conformance.protocol.answers import Seen
+    from conformance.protocol.explain import explain
+    from conformance.protocol.framings import End
+
+    none = encode(request(Action.NONE))
+    swallowed = explain(b"\xfe" * 65536 + none, [Seen(0, 0xFFFF)], End.SILENT, DEFAULT_PROFILE, probe_at=65536)
+    assert not probe_wronged(swallowed)
+    reached = explain(b"hello" + none, [Seen(0, 0xFFFF)], End.SILENT, DEFAULT_PROFILE, probe_at=5)
+    assert probe_wronged(reached)  # every framing reaches the NONE behind 5 bytes of garbage: it must get 0000
