@@ -34,7 +34,7 @@ from ..observed.robot_catalogue import (
     catalogue,
 )
 from ..observed.robot_frames import FrameRecord, byte_order_evidence
-from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
+from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order, runs_extension
 from ..observed.stream_timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
@@ -52,6 +52,8 @@ class Ctx:
         self.run, self.session, self.view, self.suffix = run, session, view, suffix
         self.config = run.config
         self.profile = run.config.profile
+        #: E4 or S1: as forced by --extension on/off, else (auto) the session the robot ran
+        self.extension = session_extension(run, session)
         self.records = sorted((r for rs in view.frames.values() for r in rs), key=lambda r: (r.t, r.conn, r.offset))
         self._wire: list[WireLine] | None = None
 
@@ -78,6 +80,13 @@ class Ctx:
             setattr(case, key, value)
         case.details.setdefault("session", self.session.number)
         return case
+
+
+def session_extension(run: RunRecord, session: SessionRecord) -> bool:
+    """Judge this session as E4? ``--extension on``/``off`` decide; ``auto`` (None) judges the session the robot
+    runs: one that sends ProgIdx or the result request runs the revision's session."""
+    forced = run.config.extension
+    return runs_extension(session.conns) if forced is None else forced
 
 
 # -- frame cases -----------------------------------------------------------------------------------
@@ -164,9 +173,9 @@ def _swapped_example(rec: FrameRecord, ctx: Ctx) -> str:
 
 # -- session cases -----------------------------------------------------------------------------------
 def order_case(ctx: Ctx) -> CaseResult:
-    spec = E4_SPEC if ctx.config.extension else S1_SPEC
+    spec = E4_SPEC if ctx.extension else S1_SPEC
     view = ctx.view
-    order = judge_order(view, ctx.config.extension)
+    order = judge_order(view, ctx.extension)
     steps = "\n".join(f"{name:<22} {view.ms(t)}" for name, t in order.steps.items())
     lines = [*order.violations, *order.missing]
     if order.not_judged:
@@ -308,8 +317,9 @@ def judge(run: RunRecord) -> list[CaseResult]:
     for session in run.sessions:
         suffix = f"[s{session.number}]" if many else ""
         cases += judge_session(run, session, suffix)
+    ran_e4 = any(session_extension(run, s) for s in run.sessions)
     for n in range(len(run.sessions) + 1, run.config.sessions + 1):
-        spec = E4_SPEC if run.config.extension else S1_SPEC
+        spec = E4_SPEC if ran_e4 or run.config.extension else S1_SPEC
         cases.append(CaseResult(spec.id + f"[s{n}]", spec.title, spec.clauses, spec.level, Verdict.INCONCLUSIVE,
                                 message=f"session {n} did not take place ({run.end_note})", requirement=spec.requirement,
                                 expected=spec.expect))
@@ -328,7 +338,7 @@ def judge_session(run: RunRecord, session: SessionRecord, suffix: str) -> list[C
     cases: list[CaseResult] = []
     checks: list[tuple[CaseRecord, Callable[[], list[CaseResult]]]] = [
         (FRAME_SPECS["F1"], lambda: frame_cases(ctx)),
-        (E4_SPEC if run.config.extension else S1_SPEC, lambda: [order_case(ctx)]),
+        (E4_SPEC if ctx.extension else S1_SPEC, lambda: [order_case(ctx)]),
         (AWAIT_SPEC, lambda: [awaited_case(ctx)]),
         (RATE_SPEC, lambda: rate_cases(ctx)),
         (CLOSE_SPEC, lambda: [close_case(ctx)]),
@@ -360,4 +370,16 @@ def pcap_paths(run: RunRecord) -> list[Path]:
     return [p for s in run.sessions for p in [s.pcap, *(c.pcap for c in s.conns)] if p is not None]
 
 
-__all__ = ["FRAME_SPECS", "INJECT_SPECS", "catalogue", "judge", "judge_session", "pcap_paths"]
+def extension_label(run: RunRecord) -> str:
+    """The report's extension line: forced on or off, or (auto) which session each robot session ran."""
+    forced = run.config.extension
+    if forced is not None:
+        return "forced on" if forced else "off"
+    e4 = [s.number for s in run.sessions if session_extension(run, s)]
+    if not e4:
+        return "auto: S1 judged (the robot sent no ProgIdx or result request)"
+    which = "" if len(run.sessions) == 1 else f" in session(s) {', '.join(map(str, e4))}"
+    return f"auto: E4 judged{which} (the robot sent ProgIdx or the result request: the revision's session)"
+
+
+__all__ = ["FRAME_SPECS", "INJECT_SPECS", "catalogue", "extension_label", "judge", "judge_session", "pcap_paths"]

@@ -44,8 +44,9 @@ class CertifyConfig:
     grace_s: float = 1.0
     #: a session is cut off after this many seconds
     max_session_s: float = 600.0
-    #: judge the revision's session (E4) instead of S1
-    extension: bool = False
+    #: judge the revision's session (E4): True forced on, False S1 only, None (auto) each session by what the
+    #: robot sends (ProgIdx or the result request: E4, else S1)
+    extension: bool | None = None
     inject: tuple[str, ...] = ()
     #: T2: mean and windowed rate within this share of the declared rate
     rate_tolerance: float = 0.10

@@ -41,6 +41,8 @@ E4_COMMANDS = (Action.PROG_IDX, Action.CYCLE_ON, Action.CYCLE_OFF, Action.VISION
 #: Requests allowed anywhere on the command connection: the optional ping (NONE), tolerances, and the
 #: poses the source's ISIGHT sends there (23: ISIGHT(3,35) the current TP pose; 24: ISIGHT(3,36) a register pose).
 FREE_ACTIONS = frozenset({Action.NONE, Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE})
+#: The actions only the revision's session (E4) sends: a robot that sends one runs E4 (``--extension auto``).
+E4_ONLY = frozenset({Action.PROG_IDX, Action.VISION_RESULT})
 #: E4: the revision waits this long between Send_Pos_Off and the result request.
 E4_RESULT_WAIT_S = 1.0
 #: A request sent this close to the bound after the previous one counts as "waited time_out".
@@ -101,6 +103,11 @@ def build_view(session: SessionRecord, profile: Profile, interrupted: str = "") 
     if interrupted and session.t_end is not None and (view.cut is None or view.cut.t > session.t_end):
         view.cut = Cut(session.t_end, f"the run was interrupted ({interrupted})")
     return view
+
+
+def runs_extension(conns: list[ConnRecord]) -> bool:
+    """The robot ran the revision's session (E4): it sent ProgIdx or the result request (``--extension auto``)."""
+    return any(a in E4_ONLY for c in conns for a in c.actions)
 
 
 def find_cut(view: SessionView) -> Cut | None:

@@ -139,3 +139,25 @@ def test_parse_listen_rejects(text):
 
 def test_default_is_loopback():
     assert DEFAULT_LISTEN == "127.0.0.1:9004"
+
+
+@pytest.mark.parametrize(("argv", "forced"), [
+    ([], None),  # auto (the default): each session is judged as the session the robot runs
+    (["--extension"], True),  # the flag alone, as before: forced on
+    (["--extension", "auto"], None),
+    (["--extension", "on"], True),
+    (["--extension", "off"], False),
+])
+def test_extension_is_auto_on_or_off_as_run_spells_it(argv, forced, tmp_path):
+    from conformance.commands.certify_robot import config_from_args
+
+    parser = build_parser()
+    args = parser.parse_args(["certify-robot", "--report-dir", str(tmp_path / "r"), "--pcap-dir", str(tmp_path / "p"),
+                              *argv])
+    assert config_from_args(args).extension is forced
+
+
+def test_a_bad_extension_mode_is_an_argparse_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["certify-robot", "--extension", "maybe"])
+    assert exc.value.code == 2 and "invalid choice" in capsys.readouterr().err

@@ -92,7 +92,7 @@ def test_clean_s1_robot_certifies(tmp_path):
     assert outcome.suite is not None and outcome.suite.target.startswith("robot at 127.0.0.1:")
     assert outcome.suite.target.endswith("(client role)")
     summary = json.loads((tmp_path / "reports" / "summary.json").read_text())
-    assert summary["totals"]["FAIL"] == 0 and summary["suite"]["extension"] == "off"
+    assert summary["totals"]["FAIL"] == 0 and summary["suite"]["extension"].startswith("auto: S1 judged")
     assert (tmp_path / "reports" / "junit.xml").exists()
     html = (tmp_path / "reports" / "report.html").read_text()
     assert 'class="histogram"' in html  # the interval histogram of the T2 cases
@@ -111,6 +111,26 @@ def test_clean_e4_robot_certifies(tmp_path):
     assert v["RB-E1-01"] is Verdict.PASS and v["RB-E2-01"] is Verdict.PASS and v["RB-E3-01"] is Verdict.PASS
     assert case(outcome, "RB-A1-01").verdict is Verdict.PASS
     assert outcome.suite is not None and outcome.suite.extension == "forced on"
+
+
+def test_e4_robot_certifies_without_the_flag(tmp_path):
+    """--extension auto (the default): a robot that sends ProgIdx runs the revision's session and is judged on it."""
+    outcome, (robot,) = run(tmp_path, robots=({"extension": True},), **LOOSE)
+    assert robot.ok, robot.reason
+    assert outcome.exit_code == 0, not_passing(outcome)
+    v = verdicts(outcome)
+    assert v["RB-E4-01"] is Verdict.PASS and "RB-S1-01" not in v
+    assert outcome.suite is not None and outcome.suite.extension.startswith("auto: E4 judged")
+    summary = json.loads((tmp_path / "reports" / "summary.json").read_text())
+    assert summary["suite"]["extension"].startswith("auto: E4 judged")
+
+
+def test_e4_robot_judged_as_s1_with_extension_off():
+    outcome, (robot,) = run(robots=({"extension": True},), extension=False, **LOOSE)
+    assert robot.ok, robot.reason
+    got = case(outcome, "RB-S1-01")
+    assert got.verdict is Verdict.FAIL and "PROG_IDX" in got.message and "--extension" in got.message
+    assert outcome.suite is not None and outcome.suite.extension == "off"
 
 
 def test_two_sessions(tmp_path):
