@@ -34,13 +34,21 @@ from ..observed.robot_catalogue import (
     catalogue,
 )
 from ..observed.robot_frames import FrameRecord, byte_order_evidence
-from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order, runs_extension
+from ..observed.session import (
+    LEFT_OPEN,
+    SessionView,
+    awaited,
+    build_view,
+    judge_order,
+    not_awaited,
+    runs_extension,
+)
 from ..observed.stream_timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
 from .records import RunRecord
-from .wire_log import frame_wire, session_wire
+from .wire_log import frame_wire, not_awaited_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
 HISTOGRAM_BINS = 40
@@ -200,14 +208,40 @@ def order_case(ctx: Ctx) -> CaseResult:
 
 
 def awaited_case(ctx: Ctx) -> CaseResult:
-    checked, bad = awaited(ctx.view, ctx.profile)
+    checked, bad = not_awaited(ctx.view, ctx.profile)
     if not ctx.view.commands:
         return ctx.result(AWAIT_SPEC, Verdict.SKIP, "no command connection")
+    held, latencies = held_answers(ctx)
+    how = ctx.config.answer_latency().describe()
+    evidence = {"details": {"answer_latency": how, "answer_latencies": held}, "latencies_ms": latencies}
     if bad:
+        first = bad[0]
+        ex = ctx.view.answer(first.prev)
+        frames = [first.prev, *([first.cur] if first.cur is not None else [])]
         return ctx.result(AWAIT_SPEC, Verdict.FAIL, f"{len(bad)} request(s) sent without awaiting the previous answer: "
-                          + bad[0], "\n".join(bad[:SHOWN]), wire=ctx.wire)
+                          + first.text, "\n".join([*(b.text for b in bad[:SHOWN]), "", how, *held]),
+                          received_hex=b"".join(f.raw for f in frames).hex(" "),
+                          sent_hex=(ex.answer or b"").hex(" ") if ex else "",
+                          wire=not_awaited_wire(ctx.view, bad[:SHOWN]) + ctx.wire, **evidence)
     return ctx.result(AWAIT_SPEC, Verdict.PASS, f"{checked} follow-up request(s) on the command connection, each after "
-                      "the previous answer", wire=ctx.wire)
+                      f"the previous answer; {how}", "\n".join([f"{checked} follow-up request(s), each after the "
+                                                                  "previous answer", how, *held]),
+                      wire=ctx.wire, **evidence)
+
+
+def held_answers(ctx: Ctx) -> tuple[list[str], list[float]]:
+    """(lines, latencies in ms) of the answers the box held back on purpose, in request order."""
+    lines, latencies = [], []
+    for conn in ctx.session.tcp:
+        for ex in conn.exchanges:
+            if not ex.delay_s:
+                continue
+            sent = ctx.view.ms(ex.t_answer) if ex.t_answer is not None else "never (the robot closed first)"
+            lines.append(f"conn {conn.number}: {action_name(ex.action) if ex.action is not None else '?'} at "
+                         f"{ctx.view.ms(ex.t_request)}: answer held {ex.delay_s * 1000:.0f} ms, sent {sent}")
+            if ex.t_answer is not None:
+                latencies.append(round((ex.t_answer - ex.t_request) * 1000, 3))
+    return lines, latencies
 
 
 def rate_cases(ctx: Ctx) -> list[CaseResult]:

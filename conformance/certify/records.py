@@ -15,6 +15,8 @@ from ..endpoints.behaviour import BoxConfig
 from ..observed.connections import SessionRecord
 from ..observed.stream_timing import check_tolerances
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile, ResultCode
+from ..runtime.settings import DEFAULT_SEED
+from .latency import AnswerLatency, check_range, default_range_ms
 
 #: ``--inject`` choices: box behaviours that show how the robot copes (INFORMATIONAL).
 INJECTIONS: dict[str, str] = {
@@ -48,6 +50,12 @@ class CertifyConfig:
     #: robot sends (ProgIdx or the result request: E4, else S1)
     extension: bool | None = None
     inject: tuple[str, ...] = ()
+    #: CycleOn, CycleOff and the result request are answered after a latency drawn from this range (ms), as a
+    #: real box takes time to start and stop a detection; None: the default (:func:`.latency.default_range_ms`);
+    #: (0, 0): at once
+    answer_latency_ms: tuple[float, float] | None = None
+    #: the seed of the latencies' draws (a run repeats with its seed)
+    seed: int = DEFAULT_SEED
     #: T2: mean and windowed rate within this share of the declared rate
     rate_tolerance: float = 0.10
     #: T2: p99 |interval - period| within this share of the period
@@ -68,6 +76,15 @@ class CertifyConfig:
             if not 0 < getattr(self, name) <= 86_400:
                 raise ValueError(f"{name} must be in (0, 86400] seconds, not {getattr(self, name)}")
         check_tolerances(self.rate_tolerance, self.jitter_tolerance)
+        check_range(self.latency_range_ms, self.profile)
+
+    @property
+    def latency_range_ms(self) -> tuple[float, float]:
+        return default_range_ms(self.profile) if self.answer_latency_ms is None else self.answer_latency_ms
+
+    def answer_latency(self) -> AnswerLatency:
+        """The run's latencies (``--inject slow`` holds every answer instead: no latency of its own then)."""
+        return AnswerLatency((0.0, 0.0) if "slow" in self.inject else self.latency_range_ms, self.seed)
 
     @property
     def slow_delay_s(self) -> float:

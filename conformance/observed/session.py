@@ -294,10 +294,27 @@ def _missing(view: SessionView, name: str, later: list[str]) -> str:
 
 
 # -- A1/T1: the command connection waits for each answer ---------------------------------------------
+@dataclass(frozen=True)
+class NotAwaited:
+    """A request (or close) on a command connection before the previous request's answer or time-out."""
+
+    conn: int
+    prev: FrameRecord  # the request whose answer was not awaited
+    cur: FrameRecord | None  # the request sent too early (None: the robot closed the connection)
+    answered: float | None  # when the answer to ``prev`` went out (None: never)
+    text: str
+
+
 def awaited(view: SessionView, profile: Profile) -> tuple[int, list[str]]:
     """(requests checked, violations): on command connections a request follows the previous
     one's answer, or time_out (vision_time_out after a 27) without one; a close too."""
-    checked, bad = 0, []
+    checked, bad = not_awaited(view, profile)
+    return checked, [b.text for b in bad]
+
+
+def not_awaited(view: SessionView, profile: Profile) -> tuple[int, list[NotAwaited]]:
+    """:func:`awaited` with the frames that show each violation."""
+    checked, bad = 0, list[NotAwaited]()
     for conn in view.commands:
         requests = view.requests(conn)
         for prev, cur in zip(requests, [*requests[1:], None]):
@@ -319,7 +336,9 @@ def awaited(view: SessionView, profile: Profile) -> tuple[int, list[str]]:
                 continue  # after the box's refusal (silence, a malformed or non-0000 answer) the robot may move on
             state = (f"its answer went out at {view.ms(answered)}" if answered is not None
                      else "no answer was coming (the box stays silent on it)")
-            bad.append(f"connection {conn.number}: {what} at {view.ms(t_next)}, {(t_next - prev.t) * 1000:.1f} ms after "
-                       f"{action_name(prev.action or 0)} ({view.ms(prev.t)}) and before its answer; {state}; "
-                       f"the robot waits up to {bound * 1000:.0f} ms")
+            bad.append(NotAwaited(conn.number, prev, cur, answered,
+                                  f"connection {conn.number}: {what} at {view.ms(t_next)}, "
+                                  f"{(t_next - prev.t) * 1000:.1f} ms after {action_name(prev.action or 0)} "
+                                  f"({view.ms(prev.t)}) and before its answer; {state}; the robot waits up to "
+                                  f"{bound * 1000:.0f} ms"))
     return checked, bad

@@ -82,6 +82,9 @@ def test_no_robot_within_wait_is_exit_2_quickly(tmp_path):
     ["--wait", "-1"],
     ["--rate-tolerance", "150"],
     ["--pose-rate", "0"],
+    ["--answer-latency", "soon"],
+    ["--answer-latency", "400-100"],
+    ["--answer-latency", "100-5000"],  # not below time_out: the suite itself would break T1
 ])
 def test_usage_errors_are_exit_2(argv, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -116,7 +119,7 @@ def test_help_lists_the_flags():
     sub = next(a for a in parser._actions if a.dest == "command")
     text = sub.choices["certify-robot"].format_help()  # type: ignore[attr-defined]
     for flag in ("--listen", "--report-dir", "--pcap-dir", "--pose-rate", "--sessions", "--wait", "--extension",
-                 "--inject", "--quiet", "--first-index", "--crc", "--time-out", "--linger"):
+                 "--inject", "--quiet", "--first-index", "--crc", "--time-out", "--linger", "--answer-latency", "--seed"):
         assert flag in text
     assert "127.0.0.1:9004" in text and "0.0.0.0:9004" in text
 
