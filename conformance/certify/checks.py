@@ -43,11 +43,20 @@ from ..observed.session import (
     not_awaited,
     runs_extension,
 )
-from ..observed.stream_timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
+from ..observed.stream_timing import (
+    jitter_excess_ms,
+    jitter_starved,
+    judge_jitter,
+    judge_rate,
+    rate_excess_ms,
+    rate_starved,
+    stream_stats,
+)
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
 from .records import RunRecord
+from .robot_starvation import robot_starved_note
 from .wire_log import frame_wire, not_awaited_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
@@ -261,11 +270,12 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
     note = (f"\n{unreadable} chunk(s) of the stream had no readable header and are not counted as poses"
             if unreadable else "")
     out = []
-    for spec, (ok, text), tolerance, starving in (
+    for spec, (ok, text), tolerance, starving, excess in (
         (RATE_SPEC, judge_rate(stats, cfg.rate_tolerance), f"±{cfg.rate_tolerance * 100:g} % of the declared rate",
-         lambda: rate_starved(stats, times, cfg.rate_tolerance)),
+         lambda: rate_starved(stats, times, cfg.rate_tolerance), lambda: rate_excess_ms(stats, cfg.rate_tolerance)),
         (JITTER_SPEC, judge_jitter(stats, cfg.jitter_tolerance), f"{cfg.jitter_tolerance * 100:g} % of the period",
-         lambda: jitter_starved(stats, times, cfg.jitter_tolerance, is_loopback(stream.peer.host))),
+         lambda: jitter_starved(stats, times, cfg.jitter_tolerance, is_loopback(stream.peer.host)),
+         lambda: jitter_excess_ms(stats, cfg.jitter_tolerance)),
     ):
         details = {"interval_histogram": histogram, "stream": stats.describe(), "tolerance": tolerance,
                    "windows_hz": [round(w.rate_hz, 2) for w in stats.windows]}
@@ -274,6 +284,8 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
         starved = None if ok else starving()
         if starved is not None:
             verdict, text = Verdict.INCONCLUSIVE, f"{starved}. {text}"
+        elif not ok:  # the verdict stands; a robot starved on this host is said to be
+            text += robot_starved_note(excess(), times, stream.peer.host)
         out.append(ctx.result(spec, verdict, text, f"{text}\n{stats.describe()}{note}",
                               pcap=ctx.pcap(stream.number), details=details))
     return out
