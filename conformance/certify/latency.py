@@ -8,7 +8,7 @@ and RB-A1-01 (A1/T1) FAILs with the frames. ``--answer-latency 0`` answers at on
 
 The answers of one connection stay in order: an answer goes out ``delay`` after its request
 arrived, or right after the answer before it, whichever is later (so every answer still leaves
-within the range's top after its request).
+within the range's top after its request). Datagrams (UDP) are answered at once.
 """
 
 from __future__ import annotations
