@@ -60,6 +60,7 @@ from .robot_starvation import robot_starved_note
 from .wire_log import frame_wire, not_awaited_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
+HELD_SHOWN = 40  # held answers listed by RB-A1-01
 HISTOGRAM_BINS = 40
 
 class Ctx:
@@ -221,7 +222,7 @@ def awaited_case(ctx: Ctx) -> CaseResult:
     if not ctx.view.commands:
         return ctx.result(AWAIT_SPEC, Verdict.SKIP, "no command connection")
     held, latencies = held_answers(ctx)
-    how = ctx.config.answer_latency().describe()
+    how = ctx.config.latency_text()
     evidence = {"details": {"answer_latency": how, "answer_latencies": held}, "latencies_ms": latencies}
     if bad:
         first = bad[0]
@@ -239,9 +240,10 @@ def awaited_case(ctx: Ctx) -> CaseResult:
 
 
 def held_answers(ctx: Ctx) -> tuple[list[str], list[float]]:
-    """(lines, latencies in ms) of the answers the box held back on purpose, in request order."""
+    """(lines, latencies in ms) of the answers the box held back on purpose on the command connections, in
+    request order (at most HELD_SHOWN lines; the wire log has every answer)."""
     lines, latencies = [], []
-    for conn in ctx.session.tcp:
+    for conn in ctx.view.commands:
         for ex in conn.exchanges:
             if not ex.delay_s:
                 continue
@@ -250,6 +252,8 @@ def held_answers(ctx: Ctx) -> tuple[list[str], list[float]]:
                          f"{ctx.view.ms(ex.t_request)}: answer held {ex.delay_s * 1000:.0f} ms, sent {sent}")
             if ex.t_answer is not None:
                 latencies.append(round((ex.t_answer - ex.t_request) * 1000, 3))
+    if len(lines) > HELD_SHOWN:
+        lines[HELD_SHOWN:] = [f"… and {len(lines) - HELD_SHOWN} more held answers (the wire log has them)"]
     return lines, latencies
 
 

@@ -82,6 +82,12 @@ class CertifyConfig:
     def latency_range_ms(self) -> tuple[float, float]:
         return default_range_ms(self.profile) if self.answer_latency_ms is None else self.answer_latency_ms
 
+    def latency_text(self) -> str:
+        """How this run's answers were timed, for the report."""
+        if self.slow_delay_s:
+            return f"every answer held back {self.slow_delay_s * 1000:.0f} ms (--inject slow)"
+        return self.answer_latency().describe()
+
     def answer_latency(self) -> AnswerLatency:
         """The run's latencies (``--inject slow`` holds every answer instead: no latency of its own then)."""
         return AnswerLatency((0.0, 0.0) if "slow" in self.inject else self.latency_range_ms, self.seed)

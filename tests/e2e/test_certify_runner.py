@@ -388,6 +388,7 @@ def test_inject_busy_and_slow():
     v = verdicts(outcome)
     assert v["RB-INJECT-BUSY"] is Verdict.INFORMATIONAL and v["RB-INJECT-SLOW"] is Verdict.INFORMATIONAL
     assert v["RB-A1-01"] is Verdict.PASS  # the simulator waits for every answer
+    assert "held back 2000 ms (--inject slow)" in case(outcome, "RB-A1-01").details["answer_latency"]
     assert "waited for every answer: yes" in case(outcome, "RB-INJECT-SLOW").message
     assert outcome.exit_code == 0, not_passing(outcome)
 

@@ -99,4 +99,6 @@ def test_latencies_are_seeded_and_only_for_cycle_on_off_and_the_result_request()
     assert CertifyConfig(answer_latency_ms=(0.0, 0.0)).answer_latency().delay_s(Action.CYCLE_ON) == 0.0
     slow = CertifyConfig(inject=("slow",), profile=Profile(time_out_ms=2000)).answer_latency()
     assert slow.delay_s(Action.CYCLE_ON) == 0.0  # --inject slow holds every answer itself
+    assert "--inject slow" in CertifyConfig(inject=("slow",), profile=Profile(time_out_ms=2000)).latency_text()
+    assert "100–400 ms" in CertifyConfig().latency_text()
     assert "--seed 7" in draws[0].describe() and "at once" in CertifyConfig(answer_latency_ms=(0, 0)).answer_latency().describe()
