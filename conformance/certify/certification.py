@@ -25,7 +25,7 @@ from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from ..observed.connections import SessionRecord
 from ..report import write_reports
-from .checks import judge
+from .checks import extension_label, judge
 from .listener import CertifyListener
 from .records import CertifyConfig, RunRecord
 
@@ -87,7 +87,7 @@ def suite_info(run: RunRecord, started: str) -> SuiteInfo:
     return SuiteInfo(
         version=__version__, started=started, duration_s=round(run.t_end - run.t_start, 3), target=robot_label(run),
         profile=cfg.profile.to_dict(), udp_target=f"robot datagrams from {', '.join(udp)}" if udp else None,
-        extension="forced on" if cfg.extension else "off", command=cfg.command, role="robot",
+        extension=extension_label(run), command=cfg.command, role="robot",
     )
 
 

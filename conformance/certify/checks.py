@@ -34,15 +34,33 @@ from ..observed.robot_catalogue import (
     catalogue,
 )
 from ..observed.robot_frames import FrameRecord, byte_order_evidence
-from ..observed.session import LEFT_OPEN, SessionView, awaited, build_view, judge_order
-from ..observed.stream_timing import jitter_starved, judge_jitter, judge_rate, rate_starved, stream_stats
+from ..observed.session import (
+    LEFT_OPEN,
+    SessionView,
+    awaited,
+    build_view,
+    judge_order,
+    not_awaited,
+    runs_extension,
+)
+from ..observed.stream_timing import (
+    jitter_excess_ms,
+    jitter_starved,
+    judge_jitter,
+    judge_rate,
+    rate_excess_ms,
+    rate_starved,
+    stream_stats,
+)
 from ..protocol import HEADER_LEN, Action, action_name, codec_for
 from ..protocol.constants import POSE_BLOCK_LEN
 from ..suite.record import CaseRecord
 from .records import RunRecord
-from .wire_log import frame_wire, session_wire
+from .robot_starvation import robot_starved_note
+from .wire_log import frame_wire, not_awaited_wire, session_wire
 
 SHOWN = 5  # violations quoted per case
+HELD_SHOWN = 40  # held answers listed by RB-A1-01
 HISTOGRAM_BINS = 40
 
 class Ctx:
@@ -52,6 +70,8 @@ class Ctx:
         self.run, self.session, self.view, self.suffix = run, session, view, suffix
         self.config = run.config
         self.profile = run.config.profile
+        #: E4 or S1: as forced by --extension on/off, else (auto) the session the robot ran
+        self.extension = session_extension(run, session)
         self.records = sorted((r for rs in view.frames.values() for r in rs), key=lambda r: (r.t, r.conn, r.offset))
         self._wire: list[WireLine] | None = None
 
@@ -78,6 +98,13 @@ class Ctx:
             setattr(case, key, value)
         case.details.setdefault("session", self.session.number)
         return case
+
+
+def session_extension(run: RunRecord, session: SessionRecord) -> bool:
+    """Judge this session as E4? ``--extension on``/``off`` decide; ``auto`` (None) judges the session the robot
+    runs: one that sends ProgIdx or the result request runs the revision's session."""
+    forced = run.config.extension
+    return runs_extension(session.conns) if forced is None else forced
 
 
 # -- frame cases -----------------------------------------------------------------------------------
@@ -164,9 +191,9 @@ def _swapped_example(rec: FrameRecord, ctx: Ctx) -> str:
 
 # -- session cases -----------------------------------------------------------------------------------
 def order_case(ctx: Ctx) -> CaseResult:
-    spec = E4_SPEC if ctx.config.extension else S1_SPEC
+    spec = E4_SPEC if ctx.extension else S1_SPEC
     view = ctx.view
-    order = judge_order(view, ctx.config.extension)
+    order = judge_order(view, ctx.extension)
     steps = "\n".join(f"{name:<22} {view.ms(t)}" for name, t in order.steps.items())
     lines = [*order.violations, *order.missing]
     if order.not_judged:
@@ -191,14 +218,43 @@ def order_case(ctx: Ctx) -> CaseResult:
 
 
 def awaited_case(ctx: Ctx) -> CaseResult:
-    checked, bad = awaited(ctx.view, ctx.profile)
+    checked, bad = not_awaited(ctx.view, ctx.profile)
     if not ctx.view.commands:
         return ctx.result(AWAIT_SPEC, Verdict.SKIP, "no command connection")
+    held, latencies = held_answers(ctx)
+    how = ctx.config.latency_text()
+    evidence = {"details": {"answer_latency": how, "answer_latencies": held}, "latencies_ms": latencies}
     if bad:
+        first = bad[0]
+        ex = ctx.view.answer(first.prev)
+        frames = [first.prev, *([first.cur] if first.cur is not None else [])]
         return ctx.result(AWAIT_SPEC, Verdict.FAIL, f"{len(bad)} request(s) sent without awaiting the previous answer: "
-                          + bad[0], "\n".join(bad[:SHOWN]), wire=ctx.wire)
+                          + first.text, "\n".join([*(b.text for b in bad[:SHOWN]), "", how, *held]),
+                          received_hex=b"".join(f.raw for f in frames).hex(" "),
+                          sent_hex=(ex.answer or b"").hex(" ") if ex else "",
+                          wire=not_awaited_wire(ctx.view, bad[:SHOWN]) + ctx.wire, **evidence)
     return ctx.result(AWAIT_SPEC, Verdict.PASS, f"{checked} follow-up request(s) on the command connection, each after "
-                      "the previous answer", wire=ctx.wire)
+                      f"the previous answer; {how}", "\n".join([f"{checked} follow-up request(s), each after the "
+                                                                  "previous answer", how, *held]),
+                      wire=ctx.wire, **evidence)
+
+
+def held_answers(ctx: Ctx) -> tuple[list[str], list[float]]:
+    """(lines, latencies in ms) of the answers the box held back on purpose on the command connections, in
+    request order (at most HELD_SHOWN lines; the wire log has every answer)."""
+    lines, latencies = [], []
+    for conn in ctx.view.commands:
+        for ex in conn.exchanges:
+            if not ex.delay_s:
+                continue
+            sent = ctx.view.ms(ex.t_answer) if ex.t_answer is not None else "never (the robot closed first)"
+            lines.append(f"conn {conn.number}: {action_name(ex.action) if ex.action is not None else '?'} at "
+                         f"{ctx.view.ms(ex.t_request)}: answer held {ex.delay_s * 1000:.0f} ms, sent {sent}")
+            if ex.t_answer is not None:
+                latencies.append(round((ex.t_answer - ex.t_request) * 1000, 3))
+    if len(lines) > HELD_SHOWN:
+        lines[HELD_SHOWN:] = [f"… and {len(lines) - HELD_SHOWN} more held answers (the wire log has them)"]
+    return lines, latencies
 
 
 def rate_cases(ctx: Ctx) -> list[CaseResult]:
@@ -218,11 +274,12 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
     note = (f"\n{unreadable} chunk(s) of the stream had no readable header and are not counted as poses"
             if unreadable else "")
     out = []
-    for spec, (ok, text), tolerance, starving in (
+    for spec, (ok, text), tolerance, starving, excess in (
         (RATE_SPEC, judge_rate(stats, cfg.rate_tolerance), f"±{cfg.rate_tolerance * 100:g} % of the declared rate",
-         lambda: rate_starved(stats, times, cfg.rate_tolerance)),
+         lambda: rate_starved(stats, times, cfg.rate_tolerance), lambda: rate_excess_ms(stats, cfg.rate_tolerance)),
         (JITTER_SPEC, judge_jitter(stats, cfg.jitter_tolerance), f"{cfg.jitter_tolerance * 100:g} % of the period",
-         lambda: jitter_starved(stats, times, cfg.jitter_tolerance, is_loopback(stream.peer.host))),
+         lambda: jitter_starved(stats, times, cfg.jitter_tolerance, is_loopback(stream.peer.host)),
+         lambda: jitter_excess_ms(stats, cfg.jitter_tolerance)),
     ):
         details = {"interval_histogram": histogram, "stream": stats.describe(), "tolerance": tolerance,
                    "windows_hz": [round(w.rate_hz, 2) for w in stats.windows]}
@@ -231,6 +288,8 @@ def rate_cases(ctx: Ctx) -> list[CaseResult]:
         starved = None if ok else starving()
         if starved is not None:
             verdict, text = Verdict.INCONCLUSIVE, f"{starved}. {text}"
+        elif not ok:  # the verdict stands; a robot starved on this host is said to be
+            text += robot_starved_note(excess(), times, stream.peer.host)
         out.append(ctx.result(spec, verdict, text, f"{text}\n{stats.describe()}{note}",
                               pcap=ctx.pcap(stream.number), details=details))
     return out
@@ -308,8 +367,9 @@ def judge(run: RunRecord) -> list[CaseResult]:
     for session in run.sessions:
         suffix = f"[s{session.number}]" if many else ""
         cases += judge_session(run, session, suffix)
+    ran_e4 = any(session_extension(run, s) for s in run.sessions)
     for n in range(len(run.sessions) + 1, run.config.sessions + 1):
-        spec = E4_SPEC if run.config.extension else S1_SPEC
+        spec = E4_SPEC if ran_e4 or run.config.extension else S1_SPEC
         cases.append(CaseResult(spec.id + f"[s{n}]", spec.title, spec.clauses, spec.level, Verdict.INCONCLUSIVE,
                                 message=f"session {n} did not take place ({run.end_note})", requirement=spec.requirement,
                                 expected=spec.expect))
@@ -328,7 +388,7 @@ def judge_session(run: RunRecord, session: SessionRecord, suffix: str) -> list[C
     cases: list[CaseResult] = []
     checks: list[tuple[CaseRecord, Callable[[], list[CaseResult]]]] = [
         (FRAME_SPECS["F1"], lambda: frame_cases(ctx)),
-        (E4_SPEC if run.config.extension else S1_SPEC, lambda: [order_case(ctx)]),
+        (E4_SPEC if ctx.extension else S1_SPEC, lambda: [order_case(ctx)]),
         (AWAIT_SPEC, lambda: [awaited_case(ctx)]),
         (RATE_SPEC, lambda: rate_cases(ctx)),
         (CLOSE_SPEC, lambda: [close_case(ctx)]),
@@ -360,4 +420,16 @@ def pcap_paths(run: RunRecord) -> list[Path]:
     return [p for s in run.sessions for p in [s.pcap, *(c.pcap for c in s.conns)] if p is not None]
 
 
-__all__ = ["FRAME_SPECS", "INJECT_SPECS", "catalogue", "judge", "judge_session", "pcap_paths"]
+def extension_label(run: RunRecord) -> str:
+    """The report's extension line: forced on or off, or (auto) which session each robot session ran."""
+    forced = run.config.extension
+    if forced is not None:
+        return "forced on" if forced else "off"
+    e4 = [s.number for s in run.sessions if session_extension(run, s)]
+    if not e4:
+        return "auto: S1 judged (the robot sent no ProgIdx or result request)"
+    which = "" if len(run.sessions) == 1 else f" in session(s) {', '.join(map(str, e4))}"
+    return f"auto: E4 judged{which} (the robot sent ProgIdx or the result request: the revision's session)"
+
+
+__all__ = ["FRAME_SPECS", "INJECT_SPECS", "catalogue", "extension_label", "judge", "judge_session", "pcap_paths"]

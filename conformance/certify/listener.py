@@ -44,6 +44,7 @@ class CertifyListener:
         self.config = config
         self.on_event = on_event
         self.behaviour = BoxBehaviour(config.box_config())
+        self.latency = config.answer_latency()
         self.clock = monotonic_wall()
         self.t_start = self.clock()
         self.sessions: list[SessionRecord] = []

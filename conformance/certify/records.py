@@ -15,6 +15,8 @@ from ..endpoints.behaviour import BoxConfig
 from ..observed.connections import SessionRecord
 from ..observed.stream_timing import check_tolerances
 from ..protocol import DEFAULT_PORT, DEFAULT_PROFILE, Profile, ResultCode
+from ..runtime.settings import DEFAULT_SEED
+from .latency import AnswerLatency, check_range, default_range_ms
 
 #: ``--inject`` choices: box behaviours that show how the robot copes (INFORMATIONAL).
 INJECTIONS: dict[str, str] = {
@@ -44,9 +46,16 @@ class CertifyConfig:
     grace_s: float = 1.0
     #: a session is cut off after this many seconds
     max_session_s: float = 600.0
-    #: judge the revision's session (E4) instead of S1
-    extension: bool = False
+    #: judge the revision's session (E4): True forced on, False S1 only, None (auto) each session by what the
+    #: robot sends (ProgIdx or the result request: E4, else S1)
+    extension: bool | None = None
     inject: tuple[str, ...] = ()
+    #: CycleOn, CycleOff and the result request are answered after a latency drawn from this range (ms), as a
+    #: real box takes time to start and stop a detection; None: the default (:func:`.latency.default_range_ms`);
+    #: (0, 0): at once
+    answer_latency_ms: tuple[float, float] | None = None
+    #: the seed of the latencies' draws (a run repeats with its seed)
+    seed: int = DEFAULT_SEED
     #: T2: mean and windowed rate within this share of the declared rate
     rate_tolerance: float = 0.10
     #: T2: p99 |interval - period| within this share of the period
@@ -67,6 +76,21 @@ class CertifyConfig:
             if not 0 < getattr(self, name) <= 86_400:
                 raise ValueError(f"{name} must be in (0, 86400] seconds, not {getattr(self, name)}")
         check_tolerances(self.rate_tolerance, self.jitter_tolerance)
+        check_range(self.latency_range_ms, self.profile)
+
+    @property
+    def latency_range_ms(self) -> tuple[float, float]:
+        return default_range_ms(self.profile) if self.answer_latency_ms is None else self.answer_latency_ms
+
+    def latency_text(self) -> str:
+        """How this run's answers were timed, for the report."""
+        if self.slow_delay_s:
+            return f"every answer held back {self.slow_delay_s * 1000:.0f} ms (--inject slow)"
+        return self.answer_latency().describe()
+
+    def answer_latency(self) -> AnswerLatency:
+        """The run's latencies (``--inject slow`` holds every answer instead: no latency of its own then)."""
+        return AnswerLatency((0.0, 0.0) if "slow" in self.inject else self.latency_range_ms, self.seed)
 
     @property
     def slow_delay_s(self) -> float:

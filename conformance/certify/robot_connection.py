@@ -29,8 +29,9 @@ from ..observed.connections import (
     InjectionEvent,
     SessionRecord,
 )
-from ..protocol import Action, Frame, ProtocolError
+from ..protocol import Action, Frame, ProtocolError, action_name
 from ..protocol.frames import ValueBlock
+from .latency import AnswerLatency
 from .records import CertifyConfig
 
 
@@ -45,6 +46,11 @@ class Listener(Protocol):
 
     @property
     def clock(self) -> Callable[[], float]: ...
+
+    @property
+    def latency(self) -> AnswerLatency:
+        """The run's answer latencies (CycleOn, CycleOff, 27: a real box takes time)."""
+        ...
 
     def guard(self, what: str) -> AbstractContextManager[Any]:
         """Turns the suite's own failures inside the block into an ERROR of the run."""
@@ -147,6 +153,7 @@ class CertifyTcpProtocol(asyncio.Protocol):
         exchange = exchange_of(offset, self.t_chunk, action, decision)
         rec.exchanges.append(exchange)
         if decision.tcp is not None:
+            exchange.delay_s = listener.config.slow_delay_s or listener.latency.delay_s(action)
             self.pending.append(exchange)
         if (
             "close-mid-cycle" in listener.config.inject
@@ -159,12 +166,20 @@ class CertifyTcpProtocol(asyncio.Protocol):
 
     # -- writing, holding back, closing --------------------------------------------------------
     def _send(self, out: bytes, exchanges: list[Exchange], close: str) -> None:
-        delay = self.listener.config.slow_delay_s
-        if not delay:
+        """Write the answers now, or each ``delay_s`` after its request (in order: never before the one before)."""
+        if not self.queue and not any(e.delay_s for e in exchanges):
             self._write(out, exchanges, close)
             return
         loop = asyncio.get_running_loop()
-        self.queue.append((loop.time() + delay, out, exchanges, close))
+        now = loop.time()
+        last = self.queue[-1][0] if self.queue else now
+        if exchanges and b"".join(e.answer or b"" for e in exchanges) == out:
+            for i, ex in enumerate(exchanges):
+                last = max(now + ex.delay_s, last)
+                self.queue.append((last, ex.answer or b"", [ex], close if i == len(exchanges) - 1 else ""))
+        else:  # a close without an answer (or bytes the exchanges do not account for): after what is held
+            last = max(now + max((e.delay_s for e in exchanges), default=0.0), last)
+            self.queue.append((last, out, exchanges, close))
         if self.timer is None:
             self.timer = loop.call_at(self.queue[0][0], self._release)
 
@@ -172,9 +187,14 @@ class CertifyTcpProtocol(asyncio.Protocol):
         self.timer = None
         with self.listener.guard("sending held-back answers"):
             loop = asyncio.get_running_loop()
+            out, exchanges, close = bytearray(), [], ""
             while self.queue and self.queue[0][0] <= loop.time():
-                _, out, exchanges, close = self.queue.popleft()
-                self._write(out, exchanges, close)
+                _, data, held, closing = self.queue.popleft()
+                out += data
+                exchanges += held
+                close = close or closing
+            if out or close:
+                self._write(bytes(out), exchanges, close)
             if self.queue:
                 self.timer = loop.call_at(self.queue[0][0], self._release)
 
@@ -184,7 +204,7 @@ class CertifyTcpProtocol(asyncio.Protocol):
             return
         if out:
             transport.write(out)
-            t = rec.transcript.add(1, Kind.SEND, out, note="slow: held back" if self.listener.config.slow_delay_s else "").t
+            t = rec.transcript.add(1, Kind.SEND, out, note=held_note(exchanges, self.listener.config.slow_delay_s)).t
             for exchange in exchanges:
                 exchange.t_answer = t
         if close:
@@ -210,6 +230,15 @@ class CertifyTcpProtocol(asyncio.Protocol):
     def force_close(self, note: str) -> None:
         """The suite ends a connection the robot left open (S5 judges it)."""
         self._close(BY_SUITE, note)
+
+
+def held_note(exchanges: list[Exchange], slow_s: float) -> str:
+    """The wire log's note on an answer held back: ``--inject slow``, or the box's latency (ms) per answer."""
+    if slow_s:
+        return "slow: held back"
+    held = [f"{action_name(e.action) if e.action is not None else '?'} after {e.delay_s * 1000:.0f} ms"
+            for e in exchanges if e.delay_s]
+    return f"answer latency: {', '.join(held)}" if held else ""
 
 
 def exchange_of(offset: int, t: float, action: int | None, decision: Decision) -> Exchange:

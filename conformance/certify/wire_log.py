@@ -7,6 +7,7 @@ from ..harness.transcript import Kind
 from ..model.verdicts import WireLine
 from ..observed.connections import ConnRecord
 from ..observed.robot_frames import FrameRecord, judge_profile
+from ..observed.session import NotAwaited, SessionView
 from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, decode_datagram
 from ..protocol.constants import Action
 
@@ -90,3 +91,22 @@ def frame_wire(records: list[FrameRecord], t0: float, answers: dict[tuple[int, i
         if answer:
             lines.append(WireLine(round((rec.t - t0) * 1000, 3), rec.conn, "→", "send", "", f"box answered {answer}"))
     return lines
+
+
+def not_awaited_wire(view: SessionView, bad: list[NotAwaited]) -> list[WireLine]:
+    """The frames that show each violation: the request, the one sent too early, and the answer it did not await."""
+    t0, out = view.t0, []
+    for b in bad:
+        ex = view.answer(b.prev)
+        out.append(WireLine(round((b.prev.t - t0) * 1000, 3), b.conn, "←", "recv", b.prev.raw.hex(" "),
+                            f"{b.prev.describe()} (its answer is not awaited)"))
+        if b.cur is not None:
+            out.append(WireLine(round((b.cur.t - t0) * 1000, 3), b.conn, "←", "recv", b.cur.raw.hex(" "),
+                                f"{b.cur.describe()}: sent {(b.cur.t - b.prev.t) * 1000:.1f} ms after it, "
+                                "before its answer"))
+        if ex is not None and ex.answer is not None and b.answered is not None:
+            out.append(WireLine(round((b.answered - t0) * 1000, 3), b.conn, "→", "send", ex.answer.hex(" "),
+                                f"the answer to {b.prev.describe()}: {ex.answer_text}"
+                                + (f" (held {ex.delay_s * 1000:.0f} ms, as a box takes time)" if ex.delay_s else "")))
+    out.append(WireLine(0.0, 0, "·", "note", "", "the session's whole wire log follows"))
+    return out

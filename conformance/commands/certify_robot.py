@@ -19,15 +19,20 @@ import sys
 from pathlib import Path
 
 from ..certify.certification import CertifyOutcome, ListenError, certify
+from ..certify.latency import parse_latency
 from ..certify.records import INJECTIONS, CertifyConfig
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_USAGE
 from ..report.rundirs import default_run_dirs, drop_if_empty
 from ..runtime.profile_options import profile_from_options
+from ..runtime.settings import DEFAULT_SEED, SUITE_OPTIONS
 from .options import add_profile_group, parse_listen
 from .registry import Command
 
 DEFAULT_LISTEN = "127.0.0.1:9004"
+#: ``--extension auto|on|off``, spelt as ``run`` spells it; auto (None) judges the session the robot runs
+EXTENSION_MODES: tuple[str, ...] = tuple(dict(SUITE_OPTIONS)["--extension"]["choices"])
+EXTENSION_FORCED: dict[str, bool | None] = {"auto": None, "on": True, "off": False}
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -44,8 +49,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      help=_("[S5] seconds a connection may stay open after the command connection closed (default: 5)"))
     run.add_argument("--max-session", type=float, default=600.0, metavar="S",
                      help=_("a session is cut off after S seconds (default: 600)"))
-    run.add_argument("--extension", action="store_true",
-                     help=_("[E4] expect the revision's session (ProgIdx first, result request after Send_Pos_Off)"))
+    run.add_argument("--extension", choices=EXTENSION_MODES, default="auto", nargs="?", const="on",
+                     help=_("[E4] the revision's session (ProgIdx first, result request after Send_Pos_Off): judge "
+                          "each session by what the robot sends (auto, default), expect it (on; --extension alone), "
+                          "or judge S1 only (off)"))
+    run.add_argument("--answer-latency", default=None, metavar="MIN-MAX",
+                     help=_("[A1, T1] answer CycleOn, CycleOff and the result request after a latency drawn from "
+                          "MIN-MAX ms, as a real box takes time to start and stop a detection (default: 100-400, "
+                          "inside time_out); 0 answers at once"))
+    run.add_argument("--seed", type=int, default=DEFAULT_SEED, metavar="N",
+                     help=_("seed of the answer latencies (default %(default)s; a run repeats with its seed)"))
     run.add_argument("--inject", action="append", default=[], choices=list(INJECTIONS), metavar="WHAT",
                      help="box behaviour to see how the robot copes (INFORMATIONAL; repeatable): "
                           + "; ".join(f"{k}: {v}" for k, v in INJECTIONS.items()).replace("%", "%%"))
@@ -67,9 +80,10 @@ def config_from_args(args: argparse.Namespace) -> CertifyConfig:
     host, port = parse_listen(args.listen)
     config = CertifyConfig(
         host=host, port=port, udp=not args.no_udp, profile=profile_from_options(args), sessions=args.sessions,
-        wait_s=args.wait, linger_s=args.linger, max_session_s=args.max_session, extension=args.extension,
+        wait_s=args.wait, linger_s=args.linger, max_session_s=args.max_session, extension=EXTENSION_FORCED[args.extension],
         inject=tuple(dict.fromkeys(args.inject)), rate_tolerance=args.rate_tolerance / 100.0,
         jitter_tolerance=args.jitter_tolerance / 100.0,
+        answer_latency_ms=None if args.answer_latency is None else parse_latency(args.answer_latency), seed=args.seed,
         command=" ".join(shlex.quote(a) for a in sys.argv),
     )
     report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir)

@@ -34,6 +34,7 @@ class Exchange:
     error_code: int | None = None
     value: int | None = None  # the type-03 block value of a 26/27 answer
     t_answer: float | None = None  # when the answer was written (None: never)
+    delay_s: float = 0.0  # how long the box held the answer back on purpose (certify-robot's answer latency)
 
 
 @dataclass

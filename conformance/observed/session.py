@@ -41,6 +41,8 @@ E4_COMMANDS = (Action.PROG_IDX, Action.CYCLE_ON, Action.CYCLE_OFF, Action.VISION
 #: Requests allowed anywhere on the command connection: the optional ping (NONE), tolerances, and the
 #: poses the source's ISIGHT sends there (23: ISIGHT(3,35) the current TP pose; 24: ISIGHT(3,36) a register pose).
 FREE_ACTIONS = frozenset({Action.NONE, Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE})
+#: The actions only the revision's session (E4) sends: a robot that sends one runs E4 (``--extension auto``).
+E4_ONLY = frozenset({Action.PROG_IDX, Action.VISION_RESULT})
 #: E4: the revision waits this long between Send_Pos_Off and the result request.
 E4_RESULT_WAIT_S = 1.0
 #: A request sent this close to the bound after the previous one counts as "waited time_out".
@@ -101,6 +103,11 @@ def build_view(session: SessionRecord, profile: Profile, interrupted: str = "") 
     if interrupted and session.t_end is not None and (view.cut is None or view.cut.t > session.t_end):
         view.cut = Cut(session.t_end, f"the run was interrupted ({interrupted})")
     return view
+
+
+def runs_extension(conns: list[ConnRecord]) -> bool:
+    """The robot ran the revision's session (E4): it sent ProgIdx or the result request (``--extension auto``)."""
+    return any(a in E4_ONLY for c in conns for a in c.actions)
 
 
 def find_cut(view: SessionView) -> Cut | None:
@@ -287,10 +294,27 @@ def _missing(view: SessionView, name: str, later: list[str]) -> str:
 
 
 # -- A1/T1: the command connection waits for each answer ---------------------------------------------
+@dataclass(frozen=True)
+class NotAwaited:
+    """A request (or close) on a command connection before the previous request's answer or time-out."""
+
+    conn: int
+    prev: FrameRecord  # the request whose answer was not awaited
+    cur: FrameRecord | None  # the request sent too early (None: the robot closed the connection)
+    answered: float | None  # when the answer to ``prev`` went out (None: never)
+    text: str
+
+
 def awaited(view: SessionView, profile: Profile) -> tuple[int, list[str]]:
     """(requests checked, violations): on command connections a request follows the previous
     one's answer, or time_out (vision_time_out after a 27) without one; a close too."""
-    checked, bad = 0, []
+    checked, bad = not_awaited(view, profile)
+    return checked, [b.text for b in bad]
+
+
+def not_awaited(view: SessionView, profile: Profile) -> tuple[int, list[NotAwaited]]:
+    """:func:`awaited` with the frames that show each violation."""
+    checked, bad = 0, list[NotAwaited]()
     for conn in view.commands:
         requests = view.requests(conn)
         for prev, cur in zip(requests, [*requests[1:], None]):
@@ -312,7 +336,9 @@ def awaited(view: SessionView, profile: Profile) -> tuple[int, list[str]]:
                 continue  # after the box's refusal (silence, a malformed or non-0000 answer) the robot may move on
             state = (f"its answer went out at {view.ms(answered)}" if answered is not None
                      else "no answer was coming (the box stays silent on it)")
-            bad.append(f"connection {conn.number}: {what} at {view.ms(t_next)}, {(t_next - prev.t) * 1000:.1f} ms after "
-                       f"{action_name(prev.action or 0)} ({view.ms(prev.t)}) and before its answer; {state}; "
-                       f"the robot waits up to {bound * 1000:.0f} ms")
+            bad.append(NotAwaited(conn.number, prev, cur, answered,
+                                  f"connection {conn.number}: {what} at {view.ms(t_next)}, "
+                                  f"{(t_next - prev.t) * 1000:.1f} ms after {action_name(prev.action or 0)} "
+                                  f"({view.ms(prev.t)}) and before its answer; {state}; the robot waits up to "
+                                  f"{bound * 1000:.0f} ms"))
     return checked, bad

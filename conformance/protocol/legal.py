@@ -152,7 +152,7 @@ CHOICES: tuple[Choice, ...] = (
     _c("robot-reads", "robot", "S6", "decision", "when the stream's answers are read", "as-they-come | late",
        "read_late", "late: in bursts every 0.5 s (pipelined)"),
     _c("robot-extension", "robot", "E4", "either-or", "the session: S1, or the revision's E4", "S1 | E4",
-       "session", flags={"E4": "--extension"}),
+       "session", "detected by certify-robot's --extension auto: a session with ProgIdx (or 27) is judged E4"),
     _c("robot-rate", "robot", "T2", "decision", "the declared stream rate", "50 | 20 | 100", "rate",
        flags={"20": "--pose-rate 20", "100": "--pose-rate 100"}),
     _c("robot-time-out", "robot", "T1 E5", "decision", "time_out and vision_time_out (the robot's settings)",

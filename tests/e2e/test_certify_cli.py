@@ -82,6 +82,9 @@ def test_no_robot_within_wait_is_exit_2_quickly(tmp_path):
     ["--wait", "-1"],
     ["--rate-tolerance", "150"],
     ["--pose-rate", "0"],
+    ["--answer-latency", "soon"],
+    ["--answer-latency", "400-100"],
+    ["--answer-latency", "100-5000"],  # not below time_out: the suite itself would break T1
 ])
 def test_usage_errors_are_exit_2(argv, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -116,7 +119,7 @@ def test_help_lists_the_flags():
     sub = next(a for a in parser._actions if a.dest == "command")
     text = sub.choices["certify-robot"].format_help()  # type: ignore[attr-defined]
     for flag in ("--listen", "--report-dir", "--pcap-dir", "--pose-rate", "--sessions", "--wait", "--extension",
-                 "--inject", "--quiet", "--first-index", "--crc", "--time-out", "--linger"):
+                 "--inject", "--quiet", "--first-index", "--crc", "--time-out", "--linger", "--answer-latency", "--seed"):
         assert flag in text
     assert "127.0.0.1:9004" in text and "0.0.0.0:9004" in text
 
@@ -139,3 +142,25 @@ def test_parse_listen_rejects(text):
 
 def test_default_is_loopback():
     assert DEFAULT_LISTEN == "127.0.0.1:9004"
+
+
+@pytest.mark.parametrize(("argv", "forced"), [
+    ([], None),  # auto (the default): each session is judged as the session the robot runs
+    (["--extension"], True),  # the flag alone, as before: forced on
+    (["--extension", "auto"], None),
+    (["--extension", "on"], True),
+    (["--extension", "off"], False),
+])
+def test_extension_is_auto_on_or_off_as_run_spells_it(argv, forced, tmp_path):
+    from conformance.commands.certify_robot import config_from_args
+
+    parser = build_parser()
+    args = parser.parse_args(["certify-robot", "--report-dir", str(tmp_path / "r"), "--pcap-dir", str(tmp_path / "p"),
+                              *argv])
+    assert config_from_args(args).extension is forced
+
+
+def test_a_bad_extension_mode_is_an_argparse_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["certify-robot", "--extension", "maybe"])
+    assert exc.value.code == 2 and "invalid choice" in capsys.readouterr().err

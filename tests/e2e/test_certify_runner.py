@@ -92,7 +92,7 @@ def test_clean_s1_robot_certifies(tmp_path):
     assert outcome.suite is not None and outcome.suite.target.startswith("robot at 127.0.0.1:")
     assert outcome.suite.target.endswith("(client role)")
     summary = json.loads((tmp_path / "reports" / "summary.json").read_text())
-    assert summary["totals"]["FAIL"] == 0 and summary["suite"]["extension"] == "off"
+    assert summary["totals"]["FAIL"] == 0 and summary["suite"]["extension"].startswith("auto: S1 judged")
     assert (tmp_path / "reports" / "junit.xml").exists()
     html = (tmp_path / "reports" / "report.html").read_text()
     assert 'class="histogram"' in html  # the interval histogram of the T2 cases
@@ -111,6 +111,26 @@ def test_clean_e4_robot_certifies(tmp_path):
     assert v["RB-E1-01"] is Verdict.PASS and v["RB-E2-01"] is Verdict.PASS and v["RB-E3-01"] is Verdict.PASS
     assert case(outcome, "RB-A1-01").verdict is Verdict.PASS
     assert outcome.suite is not None and outcome.suite.extension == "forced on"
+
+
+def test_e4_robot_certifies_without_the_flag(tmp_path):
+    """--extension auto (the default): a robot that sends ProgIdx runs the revision's session and is judged on it."""
+    outcome, (robot,) = run(tmp_path, robots=({"extension": True},), **LOOSE)
+    assert robot.ok, robot.reason
+    assert outcome.exit_code == 0, not_passing(outcome)
+    v = verdicts(outcome)
+    assert v["RB-E4-01"] is Verdict.PASS and "RB-S1-01" not in v
+    assert outcome.suite is not None and outcome.suite.extension.startswith("auto: E4 judged")
+    summary = json.loads((tmp_path / "reports" / "summary.json").read_text())
+    assert summary["suite"]["extension"].startswith("auto: E4 judged")
+
+
+def test_e4_robot_judged_as_s1_with_extension_off():
+    outcome, (robot,) = run(robots=({"extension": True},), extension=False, **LOOSE)
+    assert robot.ok, robot.reason
+    got = case(outcome, "RB-S1-01")
+    assert got.verdict is Verdict.FAIL and "PROG_IDX" in got.message and "--extension" in got.message
+    assert outcome.suite is not None and outcome.suite.extension == "off"
 
 
 def test_two_sessions(tmp_path):
@@ -182,6 +202,53 @@ def test_pipelined_commands_fail_a1():
     got = case(outcome, "RB-A1-01")
     assert got.verdict is Verdict.FAIL
     assert "CYCLE_OFF" in got.message and "before its answer" in got.message
+
+
+# -- the independent robots (tests/impls): a box that takes time to answer ---------------------------
+def impls_robot(name: str, outcomes: list, **overrides):
+    """A client that plays one session of the independent robot ``name`` (its own threads and sockets)."""
+    from dataclasses import replace
+
+    from tests.impls.robot import ROBOTS
+    from tests.impls.robots import Robot
+
+    async def client(port, _udp):
+        choices = replace(ROBOTS[name].choices, duration=0.5, **overrides)
+        outcomes.append(await asyncio.to_thread(Robot(choices, ("127.0.0.1", port)).run))
+
+    return client
+
+
+def test_an_independent_e4_robot_certifies_clean_with_no_flag_and_waits_for_the_held_answers(tmp_path):
+    outcomes: list = []
+    outcome, _ = run(tmp_path, robots=(), client=impls_robot("extension", outcomes), **LOOSE)
+    assert outcomes[0].exit_code == 0, outcomes[0].reason
+    assert outcome.exit_code == 0, not_passing(outcome)
+    a1 = case(outcome, "RB-A1-01")
+    assert verdicts(outcome)["RB-E4-01"] is Verdict.PASS and a1.verdict is Verdict.PASS
+    # CycleOn, CycleOff and the result request were answered after 100-400 ms (the report says which latency each had)
+    held = a1.details["answer_latencies"]
+    assert [line.split()[2] for line in held] == ["CYCLE_ON", "CYCLE_OFF", "VISION_RESULT"], held
+    assert len(a1.latencies_ms) == 3 and all(ms >= 100 for ms in a1.latencies_ms)
+    summary = json.loads((tmp_path / "reports" / "summary.json").read_text())
+    observed = next(c for c in summary["cases"] if c["id"] == "RB-A1-01")["observed"]
+    assert "--seed 20240601" in observed and observed.count("answer held") == 3
+    assert "answer_latencies" in (tmp_path / "reports" / "report.html").read_text()
+
+
+def test_a_robot_that_does_not_wait_for_cycle_on_s_answer_fails_a1_with_the_frames():
+    outcomes: list = []
+    outcome, _ = run(robots=(), client=impls_robot("no-wait", outcomes), **LOOSE)
+    assert outcomes[0].exit_code == 0, outcomes[0].reason  # the robot itself sees nothing wrong
+    got = case(outcome, "RB-A1-01")
+    assert got.verdict is Verdict.FAIL and outcome.exit_code == 1
+    assert "sent CYCLE_OFF" in got.message and "after CYCLE_ON" in got.message and "before its answer" in got.message
+    cycle_on, cycle_off = encode(request(Action.CYCLE_ON)), encode(request(Action.CYCLE_OFF))
+    assert got.received_hex == (cycle_on + cycle_off).hex(" ")  # the request and the one sent before its answer
+    focused = [w for w in got.wire[:3]]
+    assert [w.direction for w in focused] == ["←", "←", "→"]
+    assert focused[0].t_ms < focused[1].t_ms < focused[2].t_ms and "held" in focused[2].summary
+    assert verdicts(outcome)["RB-S1-01"] is Verdict.PASS  # the order is right; the waiting is not
 
 
 # -- clients that are not robots at all ---------------------------------------------------------------
@@ -321,6 +388,7 @@ def test_inject_busy_and_slow():
     v = verdicts(outcome)
     assert v["RB-INJECT-BUSY"] is Verdict.INFORMATIONAL and v["RB-INJECT-SLOW"] is Verdict.INFORMATIONAL
     assert v["RB-A1-01"] is Verdict.PASS  # the simulator waits for every answer
+    assert "held back 2000 ms (--inject slow)" in case(outcome, "RB-A1-01").details["answer_latency"]
     assert "waited for every answer: yes" in case(outcome, "RB-INJECT-SLOW").message
     assert outcome.exit_code == 0, not_passing(outcome)
 

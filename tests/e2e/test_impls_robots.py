@@ -226,7 +226,7 @@ def test_every_robot_has_an_expectation() -> None:
         exp = EXPECTATIONS[name]
         assert exp.role == "robot" and exp.conforming == variant.conforming
         assert variant.conforming or (exp.clauses[0] == variant.clause and exp.level == variant.level)
-        assert ("--extension" in exp.suite_args) == variant.extension
+        assert "--extension" not in exp.suite_args  # certify-robot judges the session the robot runs (E4 or S1)
 
 
 def test_robot_command_line(recorder: Recorder) -> None:
@@ -271,4 +271,4 @@ def test_random_robots_are_reproducible_and_ask_for_their_flags() -> None:
     seen = {k: {variant("random", s).choices.knobs()[k] for s in range(200)} for k in KNOBS}
     assert seen == {k: set(v) for k, v in KNOBS.items()}
     e4 = next(variant("random", s).choices for s in range(200) if variant("random", s).choices.session == "E4")
-    assert "--extension" in e4.suite_args()
+    assert "--extension" not in e4.suite_args()  # certify-robot's --extension auto judges E4 by its ProgIdx

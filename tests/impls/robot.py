@@ -65,6 +65,8 @@ _LIST = [
                  "streams 10 % below the declared rate (45 Hz for 50 Hz): judged at --rate-tolerance 5", "T2"),
     RobotVariant("stream-open", replace(_CANONICAL, leave_stream_open=True),
                  "never closes the stream connection (holds it until the box closes it, at most 30 s)", "S5"),
+    RobotVariant("no-wait", replace(_CANONICAL, no_wait=True),
+                 "sends CycleOff 1 ms after CycleOn without waiting for CycleOn's answer (then reads both)", "A1"),
     RobotVariant("little-floats", replace(_CANONICAL, float_order="<"),
                  "pose and tolerance floats little-endian", "F4"),
 ]

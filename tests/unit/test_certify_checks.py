@@ -214,3 +214,20 @@ def test_the_html_report_draws_the_histogram_instead_of_a_details_row(tmp_path):
     broken[0].details["interval_histogram"] = {"values_ms": "not a list"}
     html = render_html(suite, broken, tmp_path)
     assert 'class="histogram"' not in html and "<th>interval_histogram</th>" in html
+
+
+# -- a T2 FAIL the robot's own starvation could explain (a loaded runner) ------------------------------
+def test_a_t2_fail_says_when_the_robot_s_own_starvation_could_explain_it():
+    from conformance.certify.robot_starvation import ROBOT_STARVED, robot_starved_note
+    from conformance.harness.starvation import StarvationGauge
+
+    contended = StarvationGauge()
+    for k in range(12):  # PSI samples every 0.25 s from t=99.5: some task waited 100 ms for a CPU in each
+        contended.note_pressure(99.5 + k * 0.25, 99.5 + k * 0.25, k * 100_000)
+    times = [100.0 + i * 0.02 for i in range(100)]  # a 2 s stream
+    note = robot_starved_note(80.0, times, "127.0.0.1", contended)
+    assert ROBOT_STARVED in note and "waited 1000 ms" in note and "verdict stands" in note
+    assert robot_starved_note(80.0, times, "192.0.2.7", contended) == ""  # a robot elsewhere has its own CPU
+    assert robot_starved_note(5000.0, times, "::1", contended) == ""  # a breach longer than every stall stands
+    assert robot_starved_note(0.0, times, "127.0.0.1", contended) == ""  # no breach, no note
+    assert robot_starved_note(80.0, times, "127.0.0.1", StarvationGauge()) == ""  # no PSI samples: no evidence
