@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from conformance.suite import signals
+from conformance.engine import signals
 
 
 def test_deferred_holds_a_signal_until_the_evidence_is_written() -> None:

@@ -31,7 +31,7 @@ from conformance.runtime.run_state import (
     responsive,
 )
 from conformance.runtime.settings import SuiteSettings
-from conformance.suite import run_state as session_mod
+from conformance.runtime import run_state as session_mod
 from conformance.suite.case_judge import CaseVerdict, Inconclusive
 
 PROFILE = Profile(time_out_ms=500)  # every silence in these tests costs at most this
