@@ -118,6 +118,26 @@ def observe(item: Item, cases: Sequence[CaseResult], suite: dict[str, Any]) -> S
     return Seen(None)  # float_byte_order: no answer tells the values' byte order
 
 
+#: wire lines a contradicted row quotes when its case names no bytes of its own
+EVIDENCE_LINES = 6
+
+
+def evidence(case: CaseResult, key: str) -> tuple[str, str, str]:
+    """(what the case saw of ``key`` with its bytes, sent hex, received hex) for a contradicted row: the case's
+    own sent/received bytes, else the first lines of its wire log that carry bytes."""
+    seen = case.details.get(key)
+    text = "; ".join(f"{k}: {v}" for k, v in seen.items()) if isinstance(seen, dict) else str(seen or "")
+    sent, received = case.sent_hex, case.received_hex
+    if not sent and not received:
+        lines = [w for w in case.wire if w.hex][:EVIDENCE_LINES]
+        sent = " | ".join(w.hex for w in lines if w.direction == "→")
+        received = " | ".join(w.hex for w in lines if w.direction == "←")
+        quoted = "; ".join(f"{w.direction} {w.hex}" for w in lines)
+    else:
+        quoted = "; ".join(f"{arrow} {h}" for arrow, h in (("→", sent), ("←", received)) if h)
+    return " · ".join(p for p in (text, quoted) if p)[:900], sent, received
+
+
 def _shown(value: Any) -> str:
     return ("true" if value else "false") if isinstance(value, bool) else str(value)
 
@@ -149,8 +169,7 @@ def table(declaration: Declaration | None, cases: Sequence[CaseResult], suite: d
             else:
                 row["status"] = CONTRADICTED
                 if case is not None:
-                    row["bytes"] = " / ".join(h for h in (case.sent_hex, case.received_hex) if h)[:600]
-                    row["sent_hex"], row["received_hex"] = case.sent_hex, case.received_hex
+                    row["bytes"], row["sent_hex"], row["received_hex"] = evidence(case, item.key)
         rows.append(row)
     return rows
 
