@@ -13,6 +13,7 @@ import argparse
 import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 from ..i18n import _
@@ -20,6 +21,7 @@ from ..model.verdicts import CaseResult
 from . import declared_table
 from .declaration import Declaration, read
 from .dut import resolve_dut
+from .manifest import seal
 from .tester import identity
 
 
@@ -49,22 +51,30 @@ def new(dut: dict[str, str] | None = None, declaration: Declaration | None = Non
     return Acceptance(str(uuid.uuid4()), identity(), dict(dut or {}), declaration)
 
 
-def add_acceptance_options(add: Callable[..., Any]) -> None:
-    """``--dut``, ``--dut-file`` and ``--declared`` (argparse's add_argument)."""
+def add_acceptance_options(add: Callable[..., Any], declared: bool = True) -> None:
+    """``--dut``, ``--dut-file`` and (for a run that tests a box) ``--declared`` (argparse's add_argument)."""
     add("--dut", metavar="KEY=VALUE,...", default=None,
         help=_("the device under test: vendor=…,model=…,firmware=…,serial=… (also hardware, site, operator, "
                "witness); shown on the report's first page and in summary.json"))
     add("--dut-file", metavar="FILE", default=None,
         help=_("the device under test from a TOML file (the same keys; --dut wins over it)"))
+    if not declared:
+        return
     add("--declared", metavar="FILE", default=None,
         help=_("the vendor's declaration (TOML, docs/DECLARED.md): the run is judged under the declared profile "
                "and the report shows declared / observed"))
 
 
+def seal_package(report_dir: Path, acceptance: Acceptance | None) -> str:
+    """Write the package's ``manifest.json`` (after every other file of it) and put its hash on report.html;
+    the hash ("" when the run wrote no summary.json, so no package)."""
+    if acceptance is None or not (report_dir / "summary.json").is_file():
+        return ""
+    return seal(report_dir, acceptance.run_id)
+
+
 def from_args(args: argparse.Namespace) -> Acceptance:
     """The acceptance the command line asks for (ValueError: a bad --dut, --dut-file or --declared)."""
-    from pathlib import Path
-
     dut = resolve_dut(getattr(args, "dut", None), getattr(args, "dut_file", None))
     declared = getattr(args, "declared", None)
     return new(dut, read(Path(declared)) if declared else None)

@@ -18,6 +18,8 @@ import signal
 import sys
 from pathlib import Path
 
+from ..acceptance.manifest import seal
+from ..acceptance.record import add_acceptance_options, from_args
 from ..certify.certification import CertifyOutcome, ListenError, certify
 from ..certify.records import INJECTIONS, CertifyConfig
 from ..i18n import N_, _
@@ -60,6 +62,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      help=_("one pcapng per connection and per session (default: pcaps/<timestamp>)"))
     out.add_argument("--quiet", action="store_true", help=_("no line per connection event (for CI logs)"))
     add_profile_group(p, "profile (--pose-rate is the rate the robot declares)")
+    add_acceptance_options(p.add_argument_group("acceptance (one package per run: see docs/REPORTS.md)").add_argument,
+                           declared=False)
 
 
 def config_from_args(args: argparse.Namespace) -> CertifyConfig:
@@ -72,8 +76,9 @@ def config_from_args(args: argparse.Namespace) -> CertifyConfig:
         jitter_tolerance=args.jitter_tolerance / 100.0,
         command=" ".join(shlex.quote(a) for a in sys.argv),
     )
+    acceptance = from_args(args)
     report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir)
-    return dataclasses.replace(config, report_dir=report_dir, pcap_dir=pcap_dir)
+    return dataclasses.replace(config, report_dir=report_dir, pcap_dir=pcap_dir, acceptance=acceptance.to_dict())
 
 
 def _made_dirs(args: argparse.Namespace, config: CertifyConfig) -> list[Path | None]:
@@ -129,8 +134,14 @@ def main_certify(args: argparse.Namespace) -> int:
         drop_if_empty(*_made_dirs(args, config))
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
         return outcome.exit_code
+    sealed = ""
+    if config.report_dir is not None and config.acceptance is not None and (config.report_dir / "summary.json").is_file():
+        sealed = seal(config.report_dir, str(config.acceptance["run_id"]))  # the package's manifest, written last
+        outcome.reports["manifest"] = config.report_dir / "manifest.json"
     print_final_table(outcome.suite, outcome.cases, Console(), reports=outcome.reports,
                       root_causes=outcome.root_causes)
+    if sealed:
+        print(f"manifest sha256: {sealed}")
     if outcome.exit_code:
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
     return outcome.exit_code

@@ -23,8 +23,7 @@ from typing import Any
 import pytest
 
 from .. import i18n
-from ..acceptance.manifest import seal
-from ..acceptance.record import Acceptance
+from ..acceptance.record import Acceptance, seal_package
 from ..engine.collected import ACCEPTANCE, BASELINE, BASELINE_DIFF, CAUSES, RESULTS, results, suite_info
 from ..engine.lanes import ALONE, LANE_PLAN
 from ..engine.lanes import plan as lane_plan
@@ -231,9 +230,10 @@ def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, b
     }
     if settings.pcap_dir is not None:
         reports["pcaps"] = settings.pcap_dir
-    if acceptance is not None and (report_dir / "summary.json").is_file():  # the package, sealed last
+    sealed = seal_package(report_dir, plugin.acceptance)  # the package's manifest, written last
+    if sealed:
         reports["manifest"] = report_dir / "manifest.json"
-        reports["manifest sha256"] = seal(report_dir, plugin.acceptance.run_id if plugin.acceptance else "")
+        reports["manifest sha256"] = sealed
     print_final_table(info, cases, console, reports=reports, root_causes=causes)
     print_comparison(baseline, plugin.config.stash.get(BASELINE_DIFF, None), console)
     if interrupted or not info.complete:

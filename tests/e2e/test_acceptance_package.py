@@ -141,3 +141,25 @@ def test_bad_acceptance_options_are_one_line_and_exit_2(tmp_path: Path) -> None:
         assert not (tmp_path / "r").exists()
     done = cli(tmp_path, "verify", tmp_path / "nothing", timeout=60)
     assert done.returncode == 2 and "no such directory" in done.stderr
+
+
+def test_certify_robot_writes_one_verifiable_package(tmp_path: Path) -> None:
+    """certify-robot --report-dir: the pcaps inside, the robot named, the manifest sealed."""
+    proc = subprocess.Popen([sys.executable, "-m", "conformance", "certify-robot", "--listen", "127.0.0.1:0",
+                             "--wait", "20", "--quiet", "--report-dir", "pkg", "--rate-tolerance", "50",
+                             "--jitter-tolerance", "300", "--dut", "vendor=FANUC,model=R-30iB Plus,serial=R42"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    assert proc.stdout is not None
+    port = re.match(r"^listening tcp 127\.0\.0\.1:(\d+)", proc.stdout.readline().strip())
+    assert port, proc.stderr.read() if proc.stderr else ""
+    robot = subprocess.run([sys.executable, "-m", "conformance", "robot", "--target", f"127.0.0.1:{port[1]}",
+                            "--duration", "0.4", "-q"], capture_output=True, text=True, timeout=30)
+    out, err = proc.communicate(timeout=30)
+    assert robot.returncode == 0 and proc.returncode == 0, out + err
+    pkg = tmp_path / "pkg"
+    assert (pkg / "pcaps" / "session-1.pcapng").is_file() and not (tmp_path / "pcaps").exists()
+    doc = json.loads((pkg / "summary.json").read_text())
+    assert doc["acceptance"]["dut"]["serial"] == "R42" and "manifest sha256: " in out
+    assert all(c["pcap"] is None or not c["pcap"].startswith("/") for c in doc["cases"])
+    done = cli(tmp_path, "verify", pkg, timeout=60)
+    assert done.returncode == 0 and done.stdout.startswith("OK: "), done.stdout + done.stderr
