@@ -163,3 +163,34 @@ def test_certify_robot_writes_one_verifiable_package(tmp_path: Path) -> None:
     assert all(c["pcap"] is None or not c["pcap"].startswith("/") for c in doc["cases"])
     done = cli(tmp_path, "verify", pkg, timeout=60)
     assert done.returncode == 0 and done.stdout.startswith("OK: "), done.stdout + done.stderr
+
+
+def test_monitor_writes_one_verifiable_package_with_its_ring(tmp_path: Path) -> None:
+    """monitor --report-dir: the pcapng ring inside the package, sealed after monitor.json."""
+    from conformance.endpoints.bundled import start_bundled
+    from conformance.endpoints.robot import RobotSession, run_robot
+    from conformance.protocol import DEFAULT_PROFILE
+
+    box = start_bundled(DEFAULT_PROFILE)
+    proc = subprocess.Popen([sys.executable, "-m", "conformance", "monitor", "--listen", "127.0.0.1:0", "--upstream",
+                             str(box.target), "--report-dir", "pkg", "--duration", "4", "--quiet",
+                             "--dut", "vendor=Acme,model=VB-200,serial=SN7,operator=A. Tester"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    try:
+        assert proc.stdout is not None
+        first = proc.stdout.readline()
+        assert first.startswith("listening tcp 127.0.0.1:"), first
+        port = int(first.split()[2].rsplit(":", 1)[1])
+        run_robot(RobotSession(("127.0.0.1", port), DEFAULT_PROFILE, duration=0.5))
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        box.stop()
+    assert proc.returncode in (0, 1), err
+    pkg = tmp_path / "pkg"
+    assert list((pkg / "pcaps").glob("*.pcapng")) and not (tmp_path / "pcaps").exists()
+    assert json.loads((pkg / "summary.json").read_text())["acceptance"]["dut"]["operator"] == "A. Tester"
+    done = cli(tmp_path, "verify", pkg, timeout=60)
+    assert done.returncode == 0 and "manifest sha256: " in out, done.stdout + out + err
