@@ -131,3 +131,25 @@ def test_summary_and_report_carry_the_acceptance(tmp_path: Path) -> None:
     write_reports(plain, sample_suite(), sample_cases())
     assert "manifest-sha256" not in (plain / "report.html").read_text()
     assert "acceptance" not in json.loads((plain / "summary.json").read_text())
+
+
+def test_analyze_copies_its_capture_into_the_package_and_verify_agrees(tmp_path: Path, capsys) -> None:
+    from conformance.commands import main
+    from tests.analyze_util import Capture, canonical
+
+    cap = Capture()
+    canonical(cap)
+    capture = cap.write(tmp_path / "line.pcapng")
+    pkg = tmp_path / "pkg"
+    assert main(["analyze", str(capture), "--report-dir", str(pkg), "--jitter-tolerance", "300",
+                 "--dut", "vendor=Acme,serial=SN9"]) == 0
+    assert (pkg / "capture" / "line.pcapng").read_bytes() == capture.read_bytes()
+    doc = json.loads((pkg / "summary.json").read_text())
+    assert {c["pcap"] for c in doc["cases"] if c["pcap"]} == {"capture/line.pcapng"}
+    assert doc["acceptance"]["dut"] == {"vendor": "Acme", "serial": "SN9"}
+    capsys.readouterr()
+    assert main(["verify", str(pkg)]) == 0
+    assert capsys.readouterr().out.startswith("OK: ")
+    (pkg / "capture" / "line.pcapng").write_bytes(capture.read_bytes() + b"\0")
+    assert main(["verify", str(pkg)]) == 1
+    assert "CHANGED: capture/line.pcapng" in capsys.readouterr().out
