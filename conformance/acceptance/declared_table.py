@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ..i18n import N_
 from ..model.verdicts import CaseResult, Level, Verdict
 from .declaration import ITEMS, Declaration, Item
 
@@ -24,8 +25,9 @@ GOOD = (Verdict.PASS, Verdict.INFORMATIONAL)
 
 @dataclass(frozen=True)
 class Seen:
-    """What the run observed of one choice: a value (None: nothing told), the case that showed it, and the
-    value every declaration is checked against (``accepts``: the declared values that agree)."""
+    """What the run observed of one choice: a value (None: nothing told), the case that showed it, and which
+    declared values agree with it (``accepts``). Words (values and notes) are N_()-marked English: summary.json
+    keeps them so, report.html shows them translated."""
 
     value: str | None
     case: CaseResult | None = None
@@ -78,14 +80,14 @@ def observe(item: Item, cases: Sequence[CaseResult], suite: dict[str, Any]) -> S
             if isinstance(accepted, (list, tuple)) and accepted:
                 return Seen(" or ".join(map(str, accepted)), b301, lambda d: d in accepted)
         if key == "byte_order":
-            return _by_verdict(cases, "F4-01", "as the profile reads it", "the other byte order",
+            return _by_verdict(cases, "F4-01", N_("as the profile reads it"), N_("the other byte order"),
                                lambda d: True, lambda d: False)
         if key in ("crc", "crc_byte_order"):
-            return _by_verdict(cases, "F7-01", "as the profile reads it", "not as the profile reads it",
+            return _by_verdict(cases, "F7-01", N_("as the profile reads it"), N_("not as the profile reads it"),
                                lambda d: True, lambda d: False)
         return Seen(None)
     if key == "tcp_check":
-        return _by_verdict(cases, "F6-02", "00 00 or a correct CRC", "only 00 00",
+        return _by_verdict(cases, "F6-02", N_("00 00 or a correct CRC"), N_("only 00 00"),
                            lambda d: d != "zero", lambda d: d == "zero")
     if key == "extension_e":
         how = str(suite.get("extension", ""))
@@ -96,25 +98,25 @@ def observe(item: Item, cases: Sequence[CaseResult], suite: dict[str, Any]) -> S
             return Seen("true", e_case, lambda d: d is True)
         return Seen(None, note=how)
     if key == "progidx_conflict":
-        return _by_verdict(cases, "E2-01", "as the profile reads it", "not as the profile reads it", lambda d: True, lambda d: False)
+        return _by_verdict(cases, "E2-01", N_("as the profile reads it"), N_("not as the profile reads it"), lambda d: True, lambda d: False)
     if key == "cycle_state":
-        return Seen(None, note="S3: a tester must not depend on either; the suite never tells them apart")
+        return Seen(None, note=N_("S3: a tester must not depend on either; the suite never tells them apart"))
     if key == "r6_framing":
-        seen = _by_verdict(cases, "R6-01", "resynchronises or closes (a legal framing)",
-                           "hangs silently after garbage", lambda d: True, lambda d: False)
+        seen = _by_verdict(cases, "R6-01", N_("resynchronises or closes (a legal framing)"),
+                           N_("hangs silently after garbage"), lambda d: True, lambda d: False)
         if seen.value is not None and seen.accepts is not None and seen.accepts(None):
             # every legal framing passes R6-01 alike: which one the box uses is not told apart
-            return Seen(None, seen.case, note="every legal framing passes R6-01 alike")
+            return Seen(None, seen.case, note=N_("every legal framing passes R6-01 alike"))
         return seen
     if key == "connections":
-        return _by_verdict(cases, "S4-01", "2 or more at once", "1 at a time",
+        return _by_verdict(cases, "S4-01", N_("2 or more at once"), N_("1 at a time"),
                            lambda d: d >= 2, lambda d: d == 1)
     if key == "answer_latency_ms":
         timed = [(max(c.latencies_ms), c) for c in cases if c.latencies_ms and "T1" in c.clauses]
         if not timed:
             return Seen(None)
         worst, case = max(timed, key=lambda t: t[0])
-        return Seen(f"{worst:.1f} ms at most", case, lambda d: worst <= d)
+        return Seen(f"≤ {worst:.1f} ms", case, lambda d: worst <= d)
     return Seen(None)  # float_byte_order: no answer tells the values' byte order
 
 

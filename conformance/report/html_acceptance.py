@@ -35,7 +35,7 @@ STATUS_CLASS = {"confirmed": "v-PASS", "contradicted": "v-FAIL", "not exercised"
 def _tester_rows(tester: dict[str, Any]) -> list[tuple[str, str]]:
     libraries = tester.get("libraries") or {}
     return [
-        (_("Test system"), f"{tester.get('suite', 'isight-conformance')} {tester.get('version', '')}"),
+        (_("Suite version"), f"{tester.get('suite', 'isight-conformance')} {tester.get('version', '')}"),
         (_("Git commit"), str(tester.get("git_commit", ""))),
         (_("Python"), str(tester.get("python", ""))),
         (_("Operating system"), str(tester.get("os", ""))),
@@ -49,7 +49,10 @@ def _tester_rows(tester: dict[str, Any]) -> list[tuple[str, str]]:
 def _row_view(row: dict[str, Any], report_dir: Path, pcap_base: Path | None) -> dict[str, Any]:
     status = str(row.get("status", ""))
     pcap = row.get("pcap")
+    observed, note = row.get("observed"), str(row.get("note") or "")
     return {**row, "label": _(str(row.get("label", ""))), "status_word": _(STATUS_WORDS.get(status, status)),
+            "observed": _(observed) if isinstance(observed, str) and observed else observed,
+            "note": _(note) if note else "",
             "cls": STATUS_CLASS.get(status, "v-none"),
             "pcap_href": pcap_href(pcap, report_dir, pcap_base) if pcap else None}
 

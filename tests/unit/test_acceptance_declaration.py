@@ -71,7 +71,7 @@ def test_confirmed_contradicted_and_not_exercised_with_their_evidence() -> None:
     assert rows["byte_order"]["status"] == CONFIRMED and rows["byte_order"]["case"] == "PROFILE-01"
     assert rows["connections"]["status"] == CONFIRMED and rows["connections"]["case"] == "S4-01"
     assert rows["cycle_state"]["status"] == NOT_EXERCISED
-    assert rows["answer_latency_ms"]["status"] == CONTRADICTED and rows["answer_latency_ms"]["observed"] == "80.5 ms at most"
+    assert rows["answer_latency_ms"]["status"] == CONTRADICTED and rows["answer_latency_ms"]["observed"] == "≤ 80.5 ms"
     assert rows["extension_e"]["status"] == CONTRADICTED
     found = {c.id: c for c in findings(list(rows.values()))}
     assert set(found) == {"DECL-first_index", "DECL-answer_latency_ms", "DECL-extension_e"}
