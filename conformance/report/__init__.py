@@ -73,7 +73,7 @@ def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult],
     acceptance = _packaged_acceptance(acceptance, report_dir)
     summary = write_summary(report_dir / "summary.json", suite, cases, root_causes, acceptance=acceptance)
     diff = baseline.compare(summary, report_dir / "summary.json") if baseline is not None else None
-    write_junit(report_dir / "junit.xml", suite, cases, root_causes)
+    write_junit(report_dir / "junit.xml", suite, cases, root_causes, acceptance)
     write_html(report_dir / "report.html", suite, cases, pcap_base=report_dir, root_causes=root_causes, diff=diff,
                acceptance=acceptance)
     return diff

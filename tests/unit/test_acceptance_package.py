@@ -127,6 +127,9 @@ def test_summary_and_report_carry_the_acceptance(tmp_path: Path) -> None:
     assert "apply only to the item tested" in html and "VB-200" in html
     assert "Serial number" in html and "Firmware" in html  # named as not declared
     assert '<code class="manifest-sha256">' + "0" * 64 in html
+    junit = (tmp_path / "pkg" / "junit.xml").read_text()
+    assert f'<property name="run_id" value="{acc.run_id}" />' in junit
+    assert '<property name="dut.model" value="VB-200" />' in junit
     plain = tmp_path / "plain"
     write_reports(plain, sample_suite(), sample_cases())
     assert "manifest-sha256" not in (plain / "report.html").read_text()
