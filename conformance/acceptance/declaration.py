@@ -9,6 +9,7 @@ usage error. The other keys are only compared with what the run observed (:mod:`
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,17 +57,23 @@ PROFILE_KEYS = ("first_index", "byte_order", "crc", "crc_byte_order", "float_byt
 R6_LETTERS = {"a": "skip-announced", "b": "resync-next-header", "c": "close"}
 
 
+#: the declaration's copy inside the package (the text as the vendor wrote it)
+PACKAGE_COPY = "declared.toml"
+
+
 @dataclass(frozen=True)
 class Declaration:
-    path: str
+    path: str  # where it was read from ("--declared FILE" in messages)
     values: dict[str, Any] = field(default_factory=dict)  # key -> declared value, in ITEMS order
     declared_by: str = ""
+    text: str = ""  # the file as written, copied into the package
 
     def profile_changes(self) -> dict[str, Any]:
         return {k: v for k, v in self.values.items() if k in PROFILE_KEYS}
 
     def to_dict(self) -> dict[str, Any]:
-        return {"file": self.path, "declared_by": self.declared_by, "values": dict(self.values)}
+        return {"file": PACKAGE_COPY, "source": self.path, "declared_by": self.declared_by,
+                "values": dict(self.values)}
 
 
 def _checked(item: Item, value: Any, where: str) -> Any:
@@ -116,7 +123,7 @@ def read(path: Path) -> Declaration:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"--declared {path}: {getattr(exc, 'strerror', None) or exc}") from None
-    return parse(text, f"--declared {path}")
+    return dataclasses.replace(parse(text, f"--declared {path}"), path=str(path), text=text)
 
 
 def declared_profile(profile: Profile, declaration: Declaration) -> Profile:
@@ -126,6 +133,6 @@ def declared_profile(profile: Profile, declaration: Declaration) -> Profile:
         given, default = getattr(profile, key), getattr(DEFAULT_PROFILE, key)
         given, default = getattr(given, "value", given), getattr(default, "value", default)
         if given != default and given != value:
-            raise ValueError(f"{declaration.path} declares {key} = {value!r} but the command line asks for "
+            raise ValueError(f"--declared {declaration.path} declares {key} = {value!r} but the command line asks for "
                              f"{given!r}; drop one of them")
     return profile.replace(**changes)

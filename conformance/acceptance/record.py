@@ -18,8 +18,9 @@ from typing import Any
 
 from ..i18n import _
 from ..model.verdicts import CaseResult
+from ..report.summary import atomic_write_bytes
 from . import declared_table
-from .declaration import Declaration, read
+from .declaration import PACKAGE_COPY, Declaration, read
 from .dut import resolve_dut
 from .manifest import seal
 from .tester import identity
@@ -70,6 +71,8 @@ def seal_package(report_dir: Path, acceptance: Acceptance | None) -> str:
     the hash ("" when the run wrote no summary.json, so no package)."""
     if acceptance is None or not (report_dir / "summary.json").is_file():
         return ""
+    if acceptance.declaration is not None and acceptance.declaration.text:  # the declaration as the vendor wrote it
+        atomic_write_bytes(report_dir / PACKAGE_COPY, acceptance.declaration.text.encode("utf-8"))
     return seal(report_dir, acceptance.run_id)
 
 

@@ -71,6 +71,7 @@ def acceptance_view(acceptance: dict[str, Any] | None, report_dir: Path, pcap_ba
         "manifest_placeholder": MANIFEST_PLACEHOLDER,
         "declared": declaration is not None,
         "declared_file": (declaration or {}).get("file", ""),
+        "declared_source": (declaration or {}).get("source", ""),
         "declared_by": (declaration or {}).get("declared_by", ""),
         "rows": [_row_view(r, report_dir, pcap_base) for r in acceptance.get("declared_observed") or []],
     }

@@ -127,6 +127,8 @@ def test_a_declaration_the_box_contradicts_is_a_finding_with_its_clause_bytes_an
     assert set(decl) == {"DECL-first_index", "DECL-extension_e"}
     assert decl["DECL-first_index"]["verdict"] == "FAIL" and decl["DECL-first_index"]["judged"] == ["B3"]
     assert doc["suite"]["profile"]["first_index"] == 1  # judged under the declared profile
+    assert (pkg / "declared.toml").read_text() == (tmp_path / "declared.toml").read_text()  # the vendor's own words
+    assert doc["acceptance"]["declaration"]["file"] == "declared.toml"
     html = (pkg / "report.html").read_text()
     assert "DOES NOT CONFORM" in html and "contradicted" in html and 'href="pcaps/PROFILE-01.pcapng"' in html
     assert cli(tmp_path, "verify", pkg).returncode == 0

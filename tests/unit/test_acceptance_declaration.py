@@ -55,7 +55,7 @@ def test_the_run_is_judged_under_the_declared_profile_and_a_contrary_flag_is_ref
     profile = declared_profile(DEFAULT_PROFILE, declaration)
     assert (profile.first_index, profile.byte_order) == (1, "little")
     assert declared_profile(DEFAULT_PROFILE.replace(first_index=1), declaration).first_index == 1  # the same: fine
-    with pytest.raises(ValueError, match="d declares crc = 'modbus' but the command line asks for 'xmodem'"):
+    with pytest.raises(ValueError, match="--declared d declares crc = 'modbus' but the command line asks for 'xmodem'"):
         declared_profile(DEFAULT_PROFILE.replace(crc="xmodem"), parse('crc = "modbus"', "d"))
 
 
