@@ -91,7 +91,8 @@ def observe(item: Item, cases: Sequence[CaseResult], suite: dict[str, Any]) -> S
                            lambda d: d != "zero", lambda d: d == "zero")
     if key == "extension_e":
         how = str(suite.get("extension", ""))
-        e_case = next((c for c in cases if any(cl.startswith("E") for cl in c.clauses)), None)
+        e_case = next((c for c in cases if c.id.startswith("E")), None) or next(
+            (c for c in cases if any(cl.startswith("E") for cl in c.clauses)), None)
         if how.startswith("not implemented"):
             return Seen("false", e_case, lambda d: d is False)
         if how == "detected" or how.startswith("implemented"):

@@ -6,8 +6,10 @@ string also passes :func:`~.summary.clean_text` (through the environment's
 ``finalize``), so whatever a box sent shows as visible escapes, never as markup.
 
 Content, in order, so the printed document reads as an acceptance document: what was
-tested and the overall result (run facts, profile with non-default settings
-highlighted), the sign-off block, the root causes, the findings (FAIL, ERROR,
+tested and the overall result (run facts; for an acceptance package the device under
+test, the test system, the run ID, the manifest's hash and the declared / observed table,
+:mod:`.html_acceptance`; the profile with non-default settings highlighted), the sign-off
+block with the statement that the results apply only to the item tested, the root causes, the findings (FAIL, ERROR,
 NON-STRICT and INCONCLUSIVE cases grouped by root cause, one line each), the changes
 since a baseline run (``run --baseline``), the clause table, totals by verdict, then
 every case in a ``<details>``. On paper a case prints as one line unless it is a print

@@ -196,3 +196,24 @@ def test_monitor_writes_one_verifiable_package_with_its_ring(tmp_path: Path) -> 
     assert json.loads((pkg / "summary.json").read_text())["acceptance"]["dut"]["operator"] == "A. Tester"
     done = cli(tmp_path, "verify", pkg, timeout=60)
     assert done.returncode == 0 and "manifest sha256: " in out, done.stdout + out + err
+
+
+@pytest.mark.skipif(shutil.which("pdftotext") is None, reason="pdftotext (poppler-utils) is not installed")
+def test_every_printed_page_carries_the_run_id_and_page_x_of_y(tmp_path: Path) -> None:
+    from tests.reportruns import chromium, print_to_pdf
+
+    if chromium() is None:
+        pytest.skip("headless Chromium is not installed (apt-get install chromium)")
+    proc, pkg = run_package(tmp_path, "trust-header", "first_index = 0\n", "PROFILE-01", "F*", "A4-*")
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    run_id = json.loads((pkg / "summary.json").read_text())["acceptance"]["run_id"]
+    pages = print_to_pdf(pkg / "report.html", tmp_path / "report.pdf")
+    text = subprocess.run(["pdftotext", "-layout", str(tmp_path / "report.pdf"), "-"], capture_output=True,
+                          text=True, timeout=60, check=True).stdout
+    printed = text.split("\f")[:pages]
+    assert pages >= 2 and len(printed) == pages
+    for n, page in enumerate(printed, 1):
+        assert run_id in page and f"Page {n} of {pages}" in page, f"page {n}"
+    first = printed[0]
+    assert "Device under test" in first and "SN0042" in first and "Test system" in first
+    assert "apply only to the item tested" in text
