@@ -57,68 +57,90 @@ def _discovered(cases: Sequence[CaseResult], key: str) -> Seen | None:
 
 
 def _by_verdict(cases: Sequence[CaseResult], prefix: str, good: str, bad: str,
-                good_accepts: Callable[[Any], bool], bad_accepts: Callable[[Any], bool]) -> Seen:
-    """The first judged case of ``prefix``: a pass says ``good``, a FAIL or NON-STRICT ``bad``."""
+                good_accepts: Callable[[Any], bool], bad_accepts: Callable[[Any], bool], clause: str = "") -> Seen:
+    """The first judged case of ``prefix``: a pass says ``good``; a FAIL or NON-STRICT says ``bad`` when it
+    judged ``clause`` (a verdict on another clause of the case, say T1's time-out, tells nothing of it)."""
     for case in _case(cases, prefix):
         if case.verdict in GOOD:
             return Seen(good, case, good_accepts)
         if case.verdict in (Verdict.FAIL, Verdict.NON_STRICT):
+            if clause and case.judged and clause not in case.judged:
+                continue
             return Seen(bad, case, bad_accepts)
     return Seen(None)
 
 
+def _profile_choice(key: str, cases: Sequence[CaseResult]) -> Seen:
+    """first_index, byte_order, crc, crc_byte_order: PROFILE-01's discovery, else the case judging it."""
+    found = _discovered(cases, key)
+    if found is not None:
+        return found
+    if key == "first_index":
+        b301 = _first(cases, "B3-01")
+        accepted = (b301.details.get("first_index") or {}).get("accepted") if b301 is not None else None
+        if isinstance(accepted, (list, tuple)) and accepted:
+            return Seen(" or ".join(map(str, accepted)), b301, lambda d: d in accepted)
+        return Seen(None)
+    if key == "byte_order":
+        return _by_verdict(cases, "F4-01", N_("as the profile reads it"), N_("the other byte order"),
+                           lambda d: True, lambda d: False, "F4")
+    return _by_verdict(cases, "F7-01", N_("as the profile reads it"), N_("not as the profile reads it"),
+                       lambda d: True, lambda d: False, "F7")
+
+
+def _extension(cases: Sequence[CaseResult], suite: dict[str, Any]) -> Seen:
+    """extension_e: what the session's detection found (an E case named as the one that showed it)."""
+    how = str(suite.get("extension", ""))
+    e_case = next((c for c in cases if c.id.startswith("E")), None) or next(
+        (c for c in cases if any(cl.startswith("E") for cl in c.clauses)), None)
+    if how.startswith("not implemented"):
+        return Seen("false", e_case, lambda d: d is False)
+    if how == "detected" or how.startswith("implemented"):
+        return Seen("true", e_case, lambda d: d is True)
+    return Seen(None, note=how)
+
+
+def _r6_framing(cases: Sequence[CaseResult]) -> Seen:
+    """r6_framing: every legal framing passes R6-01 alike; only a box that hangs silently contradicts one."""
+    seen = _by_verdict(cases, "R6-01", N_("resynchronises or closes (a legal framing)"),
+                       N_("hangs silently after garbage"), lambda d: True, lambda d: False, "R6")
+    if seen.value is not None and seen.accepts is not None and seen.accepts(None):
+        return Seen(None, seen.case, note=N_("every legal framing passes R6-01 alike"))
+    return seen
+
+
+def _latency(cases: Sequence[CaseResult]) -> Seen:
+    """answer_latency_ms: the longest answer latency of the cases that time answers (T1)."""
+    timed = [(max(c.latencies_ms), c) for c in cases if c.latencies_ms and "T1" in c.clauses]
+    if not timed:
+        return Seen(None)
+    worst, case = max(timed, key=lambda t: t[0])
+    return Seen(f"≤ {worst:.1f} ms", case, lambda d: worst <= d)
+
+
 def observe(item: Item, cases: Sequence[CaseResult], suite: dict[str, Any]) -> Seen:
-    """What the run saw of ``item``'s choice."""
+    """What the run saw of ``item``'s choice (float_byte_order: nothing, no answer tells it)."""
     key = item.key
     if key in ("first_index", "byte_order", "crc", "crc_byte_order"):
-        found = _discovered(cases, key)
-        if found is not None:
-            return found
-        if key == "first_index":
-            b301 = _first(cases, "B3-01")
-            accepted = ((b301.details.get("first_index") or {}).get("accepted") if b301 is not None else None)
-            if isinstance(accepted, (list, tuple)) and accepted:
-                return Seen(" or ".join(map(str, accepted)), b301, lambda d: d in accepted)
-        if key == "byte_order":
-            return _by_verdict(cases, "F4-01", N_("as the profile reads it"), N_("the other byte order"),
-                               lambda d: True, lambda d: False)
-        if key in ("crc", "crc_byte_order"):
-            return _by_verdict(cases, "F7-01", N_("as the profile reads it"), N_("not as the profile reads it"),
-                               lambda d: True, lambda d: False)
-        return Seen(None)
+        return _profile_choice(key, cases)
     if key == "tcp_check":
         return _by_verdict(cases, "F6-02", N_("00 00 or a correct CRC"), N_("only 00 00"),
-                           lambda d: d != "zero", lambda d: d == "zero")
+                           lambda d: d != "zero", lambda d: d == "zero", "F6")
     if key == "extension_e":
-        how = str(suite.get("extension", ""))
-        e_case = next((c for c in cases if c.id.startswith("E")), None) or next(
-            (c for c in cases if any(cl.startswith("E") for cl in c.clauses)), None)
-        if how.startswith("not implemented"):
-            return Seen("false", e_case, lambda d: d is False)
-        if how == "detected" or how.startswith("implemented"):
-            return Seen("true", e_case, lambda d: d is True)
-        return Seen(None, note=how)
+        return _extension(cases, suite)
     if key == "progidx_conflict":
-        return _by_verdict(cases, "E2-01", N_("as the profile reads it"), N_("not as the profile reads it"), lambda d: True, lambda d: False)
+        return _by_verdict(cases, "E2-01", N_("as the profile reads it"), N_("not as the profile reads it"),
+                           lambda d: True, lambda d: False, "E2")
     if key == "cycle_state":
         return Seen(None, note=N_("S3: a tester must not depend on either; the suite never tells them apart"))
     if key == "r6_framing":
-        seen = _by_verdict(cases, "R6-01", N_("resynchronises or closes (a legal framing)"),
-                           N_("hangs silently after garbage"), lambda d: True, lambda d: False)
-        if seen.value is not None and seen.accepts is not None and seen.accepts(None):
-            # every legal framing passes R6-01 alike: which one the box uses is not told apart
-            return Seen(None, seen.case, note=N_("every legal framing passes R6-01 alike"))
-        return seen
+        return _r6_framing(cases)
     if key == "connections":
         return _by_verdict(cases, "S4-01", N_("2 or more at once"), N_("1 at a time"),
-                           lambda d: d >= 2, lambda d: d == 1)
+                           lambda d: d >= 2, lambda d: d == 1, "S4")
     if key == "answer_latency_ms":
-        timed = [(max(c.latencies_ms), c) for c in cases if c.latencies_ms and "T1" in c.clauses]
-        if not timed:
-            return Seen(None)
-        worst, case = max(timed, key=lambda t: t[0])
-        return Seen(f"≤ {worst:.1f} ms", case, lambda d: worst <= d)
-    return Seen(None)  # float_byte_order: no answer tells the values' byte order
+        return _latency(cases)
+    return Seen(None)
 
 
 #: wire lines a contradicted row quotes when its case names no bytes of its own

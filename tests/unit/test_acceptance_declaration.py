@@ -96,3 +96,12 @@ def test_without_a_declaration_the_table_is_inferred() -> None:
         "first_index": ("1", INFERRED), "crc": ("xmodem", INFERRED), "crc_byte_order": ("little", INFERRED),
         "extension_e": ("true", INFERRED)}
     assert all(r["declared"] is None for r in rows) and findings(rows) == []
+
+
+def test_a_verdict_on_another_clause_of_the_case_tells_nothing_of_the_choice() -> None:
+    """S4-01 failing on T1 (slow answers) says nothing of how many connections the box serves."""
+    declaration = parse("connections = 2", "d")
+    slow = _case("S4-01", Verdict.FAIL, ("S4", "T1"), judged=("T1",))
+    assert [(r["key"], r["status"]) for r in table(declaration, [slow], {})] == [("connections", NOT_EXERCISED)]
+    one = _case("S4-01", Verdict.FAIL, ("S4", "T1"), judged=("S4",))
+    assert [(r["key"], r["status"]) for r in table(declaration, [one], {})] == [("connections", CONTRADICTED)]
