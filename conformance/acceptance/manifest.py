@@ -88,8 +88,9 @@ def seal(root: Path, run_id: str = "") -> str:
         data = report.read_bytes()
         if _zeroed(data) != data:
             atomic_write_bytes(report, _zeroed(data))
-    doc = build(root, run_id)
-    text = (json.dumps(doc, indent=1, ensure_ascii=False) + "\n").encode("utf-8")
+    text = _manifest_text(root, run_id)
+    if _supersede_signatures(root, text):
+        text = _manifest_text(root, run_id)
     atomic_write_bytes(root / MANIFEST, text)
     digest = hashlib.sha256(text).hexdigest()
     if report.is_file():
@@ -98,6 +99,21 @@ def seal(root: Path, run_id: str = "") -> str:
         if filled != data:
             atomic_write_bytes(report, filled)
     return digest
+
+
+def _manifest_text(root: Path, run_id: str) -> bytes:
+    return (json.dumps(build(root, run_id), indent=1, ensure_ascii=False) + "\n").encode("utf-8")
+
+
+def _supersede_signatures(root: Path, text: bytes) -> bool:
+    """A package sealed again (a run into a directory that held one): the signatures of the old manifest no longer
+    sign anything; they are kept, as evidence, in ``signatures-superseded-<old manifest hash>/``, which the new
+    manifest lists like any other file."""
+    old, folder = root / MANIFEST, root / SIGNATURES
+    if not folder.is_dir() or not old.is_file() or old.read_bytes() == text:
+        return False
+    folder.rename(root / f"{SIGNATURES}-superseded-{sha256_of(old)[:16]}")
+    return True
 
 
 @dataclass(frozen=True)

@@ -156,3 +156,18 @@ def test_analyze_copies_its_capture_into_the_package_and_verify_agrees(tmp_path:
     (pkg / "capture" / "line.pcapng").write_bytes(capture.read_bytes() + b"\0")
     assert main(["verify", str(pkg)]) == 1
     assert "CHANGED: capture/line.pcapng" in capsys.readouterr().out
+
+
+def test_sealing_again_keeps_the_old_signatures_as_superseded_evidence(tmp_path: Path) -> None:
+    root = _package(tmp_path / "acc")
+    first = manifest.seal(root)
+    (root / "signatures").mkdir()
+    (root / "signatures" / "alice.sig").write_text("old signature")
+    assert manifest.seal(root) == first  # nothing changed: the signatures still sign this manifest
+    assert (root / "signatures" / "alice.sig").is_file()
+    (root / "summary.json").write_text('{"cases": [1]}\n')  # a second run into the same directory
+    second = manifest.seal(root)
+    kept = root / f"signatures-superseded-{first[:16]}" / "alice.sig"
+    assert second != first and kept.read_text() == "old signature" and not (root / "signatures").exists()
+    assert f"signatures-superseded-{first[:16]}/alice.sig" in (root / "manifest.json").read_text()
+    assert manifest.check(root).ok
