@@ -52,12 +52,17 @@ def package_path(path: str, report_dir: Path) -> str:
     return Path(os.path.relpath(where, root)).as_posix() if inside else where
 
 
-def _packaged_acceptance(acceptance: dict[str, Any] | None, report_dir: Path) -> dict[str, Any] | None:
+def _packaged_acceptance(acceptance: dict[str, Any] | None, report_dir: Path,
+                         cases: Sequence[CaseResult]) -> dict[str, Any] | None:
+    """The acceptance with its rows' pcaps named as the package holds them, and the folders of the pcaps that
+    lie outside the package (``--pcap-dir`` elsewhere, or a run without ``--report-dir``): its manifest does not
+    cover them, and the report says so."""
     if acceptance is None:
         return None
     rows = [{**row, "pcap": package_path(row["pcap"], report_dir) if row.get("pcap") else row.get("pcap")}
             for row in acceptance.get("declared_observed") or []]
-    return {**acceptance, "declared_observed": rows}
+    outside = sorted({os.path.dirname(c.pcap) for c in cases if c.pcap and os.path.isabs(c.pcap)})
+    return {**acceptance, "declared_observed": rows, "outside_package": outside}
 
 
 def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult],
@@ -70,7 +75,7 @@ def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult],
     relative to ``report_dir`` when the pcaps are inside it (:func:`packaged`)."""
     report_dir.mkdir(parents=True, exist_ok=True)
     cases = packaged(cases, report_dir)
-    acceptance = _packaged_acceptance(acceptance, report_dir)
+    acceptance = _packaged_acceptance(acceptance, report_dir, cases)
     summary = write_summary(report_dir / "summary.json", suite, cases, root_causes, acceptance=acceptance)
     diff = baseline.compare(summary, report_dir / "summary.json") if baseline is not None else None
     write_junit(report_dir / "junit.xml", suite, cases, root_causes, acceptance)

@@ -69,6 +69,7 @@ def acceptance_view(acceptance: dict[str, Any] | None, report_dir: Path, pcap_ba
         "dut_missing": [_(DUT_LABELS[k]) for k in IDENTITY if k not in dut],
         "tester": _tester_rows(acceptance.get("tester") or {}),
         "manifest_placeholder": MANIFEST_PLACEHOLDER,
+        "outside": list(acceptance.get("outside_package") or []),
         "declared": declaration is not None,
         "declared_file": (declaration or {}).get("file", ""),
         "declared_source": (declaration or {}).get("source", ""),

@@ -171,3 +171,17 @@ def test_sealing_again_keeps_the_old_signatures_as_superseded_evidence(tmp_path:
     assert second != first and kept.read_text() == "old signature" and not (root / "signatures").exists()
     assert f"signatures-superseded-{first[:16]}/alice.sig" in (root / "manifest.json").read_text()
     assert manifest.check(root).ok
+
+
+def test_pcaps_outside_the_package_are_named_on_the_page(tmp_path: Path) -> None:
+    acc = new().to_dict()
+    cases = sample_cases()
+    cases[0].pcap = str(tmp_path / "pcaps" / "20240601-101500" / "F1-01.pcapng")
+    write_reports(tmp_path / "pkg", sample_suite(), cases, acceptance=acc)
+    doc = json.loads((tmp_path / "pkg" / "summary.json").read_text())
+    assert doc["acceptance"]["outside_package"] == [str(tmp_path / "pcaps" / "20240601-101500")]
+    assert "lie outside the package" in (tmp_path / "pkg" / "report.html").read_text()
+    inside = sample_cases()
+    inside[0].pcap = str(tmp_path / "inside" / "pcaps" / "F1-01.pcapng")
+    write_reports(tmp_path / "inside", sample_suite(), inside, acceptance=acc)
+    assert "lie outside the package" not in (tmp_path / "inside" / "report.html").read_text()
