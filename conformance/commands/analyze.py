@@ -135,7 +135,7 @@ def main_analyze(args: argparse.Namespace) -> int:
                                                        "JUnit": report_dir / "junit.xml",
                                                        **({"capture": copy} if copy else {}),
                                                        "manifest": report_dir / "manifest.json"})
-    print(f"manifest sha256: {sealed}")
+    print(f"{_('manifest sha256')}: {sealed}")
     failing = [c for c in cases if c.verdict.failing]
     if failing:
         print(f"{name}: {len(failing)} case(s) FAIL/ERROR: " + ", ".join(c.id for c in failing[:8]), file=sys.stderr)

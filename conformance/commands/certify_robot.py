@@ -141,7 +141,7 @@ def main_certify(args: argparse.Namespace) -> int:
     print_final_table(outcome.suite, outcome.cases, Console(), reports=outcome.reports,
                       root_causes=outcome.root_causes)
     if sealed:
-        print(f"manifest sha256: {sealed}")
+        print(f"{_('manifest sha256')}: {sealed}")
     if outcome.exit_code:
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
     return outcome.exit_code

@@ -141,7 +141,7 @@ def main_monitor(args: argparse.Namespace) -> int:
         "JUnit": report_dir / "junit.xml", "monitor.json": report_dir / "monitor.json",
         **({"manifest": report_dir / "manifest.json"} if sealed else {})})
     if sealed:
-        print(f"manifest sha256: {sealed}")
+        print(f"{_('manifest sha256')}: {sealed}")
     failing = [c for c in outcome.cases if c.verdict.failing]
     if failing:
         print(f"{NAME}: {len(failing)} case(s) FAIL/ERROR: " + ", ".join(c.id for c in failing[:8]), file=sys.stderr)
