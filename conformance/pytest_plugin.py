@@ -37,6 +37,7 @@ import pytest
 from . import __version__, i18n
 from .engine import signals
 from .engine.collected import (  # noqa: F401 - CAUSES, results, suite_info, root_causes: the plugin's API too
+    ACCEPTANCE,
     BASELINE,
     BASELINE_DIFF,
     CAUSES,
@@ -323,7 +324,9 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
         report_dir = Path(state.settings.report_dir) / (safe_name(key) if key else "")
         with signals.deferred():  # a second signal does not cut the reports short
             info = suite_info(config, interrupted=exitstatus == pytest.ExitCode.INTERRUPTED, key=key)
-            diff = write_reports(report_dir, info, cases, causes[key], baseline=config.stash.get(BASELINE, None))
+            accepted = config.stash.get(ACCEPTANCE, None)
+            diff = write_reports(report_dir, info, cases, causes[key], baseline=config.stash.get(BASELINE, None),
+                                 acceptance=accepted.to_dict() if accepted is not None else None)
             write_repros(report_dir, causes[key], state.profile)
         config.stash.setdefault(BASELINE_DIFF, diff)
     config.stash[CAUSES] = next(iter(causes.values()), [])

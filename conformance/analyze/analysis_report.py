@@ -11,9 +11,11 @@ OBS-T2-box (every pose); the pose send-interval histogram on OBS-T2-robot.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as _dt
 import math
 from pathlib import Path
+from typing import Any
 
 from .. import __version__
 from ..model.verdicts import VERDICT_ORDER, CaseResult, SuiteInfo, Verdict
@@ -164,9 +166,14 @@ def suite_info(analysis: Analysis, cases: list[CaseResult], command: str = "") -
     )
 
 
-def write_analysis(analysis: Analysis, report_dir: Path, command: str = "") -> tuple[SuiteInfo, list[CaseResult]]:
+def write_analysis(analysis: Analysis, report_dir: Path, command: str = "", acceptance: dict[str, Any] | None = None,
+                   capture_copy: Path | None = None) -> tuple[SuiteInfo, list[CaseResult]]:
+    """The reports of an analysis; with ``capture_copy`` (the capture copied into the package), the cases cite
+    the copy, so the package holds the evidence its links name."""
     cases = build_cases(analysis)
+    if capture_copy is not None:
+        cases = [dataclasses.replace(c, pcap=str(capture_copy)) if c.pcap == str(analysis.path) else c for c in cases]
     suite = suite_info(analysis, cases, command)
-    write_reports(report_dir, suite, cases)
+    write_reports(report_dir, suite, cases, acceptance=acceptance)
     return suite, cases
 

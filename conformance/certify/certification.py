@@ -123,7 +123,7 @@ async def certify(
     suite = suite_info(run, started)
     outcome = CertifyOutcome(EXIT_OK, run.end_note, run, cases, suite, root_causes=causes)
     if config.report_dir is not None:
-        await asyncio.to_thread(write_reports, config.report_dir, suite, cases, causes)
+        await asyncio.to_thread(write_reports, config.report_dir, suite, cases, causes, None, config.acceptance)
         outcome.reports = {"HTML report": config.report_dir / "report.html",
                            "JSON summary": config.report_dir / "summary.json",
                            "JUnit": config.report_dir / "junit.xml"}

@@ -10,6 +10,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from ..endpoints.behaviour import BoxConfig
 from ..observed.connections import SessionRecord
@@ -63,6 +64,8 @@ class CertifyConfig:
     report_dir: Path | None = None
     pcap_dir: Path | None = None
     command: str = ""
+    #: the acceptance package's run ID, device under test and tester (Acceptance.to_dict()), for the reports
+    acceptance: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         unknown = [i for i in self.inject if i not in INJECTIONS]

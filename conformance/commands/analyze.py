@@ -9,10 +9,13 @@ from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import os
 import shlex
+import shutil
 import sys
 from pathlib import Path
 
+from ..acceptance.record import add_acceptance_options, from_args, seal_package
 from ..analyze.analysis_context import AnalyzeConfig
 from ..analyze.analysis_report import write_analysis
 from ..analyze.engine import CaptureError, analyze
@@ -53,6 +56,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     out.add_argument("--report-dir", type=Path, default=None, metavar="DIR",
                      help=_("summary.json, junit.xml, report.html (default: reports/analyze-<timestamp>)"))
     out.add_argument("--quiet", action="store_true", help=_("no progress bar"))
+    add_acceptance_options(p.add_argument_group(_("acceptance (one package per run: see docs/REPORTS.md)")).add_argument,
+                           declared=False)
     add_profile_group(p, "profile (--pose-rate is the rate the robot declares; --crc is the UDP CRC)")
 
 
@@ -67,6 +72,18 @@ def config_from_args(args: argparse.Namespace) -> AnalyzeConfig:
     )
 
 
+def package_capture(capture: Path, report_dir: Path) -> Path:
+    """``--report-dir DIR``: the capture judged, copied to ``DIR/capture/`` (the package holds its evidence)."""
+    folder = report_dir / "capture"
+    folder.mkdir(parents=True, exist_ok=True)
+    target = folder / capture.name
+    if not target.exists() or not os.path.samefile(capture, target):
+        tmp = folder / f".{capture.name}.tmp"
+        shutil.copyfile(capture, tmp)
+        os.replace(tmp, target)
+    return target
+
+
 def main_analyze(args: argparse.Namespace) -> int:
     from rich.console import Console
 
@@ -75,6 +92,7 @@ def main_analyze(args: argparse.Namespace) -> int:
     name = "isight-conformance analyze"
     try:
         config = config_from_args(args)
+        acceptance = from_args(args)
     except ValueError as exc:
         print(f"{name}: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -105,14 +123,19 @@ def main_analyze(args: argparse.Namespace) -> int:
     report_dir = args.report_dir or Path("reports") / f"analyze-{_dt.datetime.now().strftime('%Y%m%d-%H%M%S')}"
     command = " ".join(shlex.quote(a) for a in sys.argv)
     try:
-        suite, cases = write_analysis(analysis, report_dir, command)
+        copy = package_capture(args.capture, report_dir) if args.report_dir else None
+        suite, cases = write_analysis(analysis, report_dir, command, acceptance.to_dict(), copy)
+        sealed = seal_package(report_dir, acceptance)  # the package's manifest, written last
     except OSError as exc:
         print(f"{name}: cannot write the reports: {exc.filename or report_dir}: {exc.strerror or exc}",
               file=sys.stderr)
         return EXIT_USAGE
     print_final_table(suite, cases, Console(), reports={"HTML report": report_dir / "report.html",
                                                        "JSON summary": report_dir / "summary.json",
-                                                       "JUnit": report_dir / "junit.xml"})
+                                                       "JUnit": report_dir / "junit.xml",
+                                                       **({"capture": copy} if copy else {}),
+                                                       "manifest": report_dir / "manifest.json"})
+    print(f"{_('manifest sha256')}: {sealed}")
     failing = [c for c in cases if c.verdict.failing]
     if failing:
         print(f"{name}: {len(failing)} case(s) FAIL/ERROR: " + ", ".join(c.id for c in failing[:8]), file=sys.stderr)

@@ -18,6 +18,8 @@ import signal
 import sys
 from pathlib import Path
 
+from ..acceptance.manifest import seal
+from ..acceptance.record import add_acceptance_options, from_args
 from ..certify.certification import CertifyOutcome, ListenError, certify
 from ..certify.latency import parse_latency
 from ..certify.records import INJECTIONS, CertifyConfig
@@ -73,6 +75,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      help=_("one pcapng per connection and per session (default: pcaps/<timestamp>)"))
     out.add_argument("--quiet", action="store_true", help=_("no line per connection event (for CI logs)"))
     add_profile_group(p, "profile (--pose-rate is the rate the robot declares)")
+    add_acceptance_options(p.add_argument_group("acceptance (one package per run: see docs/REPORTS.md)").add_argument,
+                           declared=False)
 
 
 def config_from_args(args: argparse.Namespace) -> CertifyConfig:
@@ -86,8 +90,9 @@ def config_from_args(args: argparse.Namespace) -> CertifyConfig:
         answer_latency_ms=None if args.answer_latency is None else parse_latency(args.answer_latency), seed=args.seed,
         command=" ".join(shlex.quote(a) for a in sys.argv),
     )
+    acceptance = from_args(args)
     report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir)
-    return dataclasses.replace(config, report_dir=report_dir, pcap_dir=pcap_dir)
+    return dataclasses.replace(config, report_dir=report_dir, pcap_dir=pcap_dir, acceptance=acceptance.to_dict())
 
 
 def _made_dirs(args: argparse.Namespace, config: CertifyConfig) -> list[Path | None]:
@@ -143,8 +148,14 @@ def main_certify(args: argparse.Namespace) -> int:
         drop_if_empty(*_made_dirs(args, config))
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
         return outcome.exit_code
+    sealed = ""
+    if config.report_dir is not None and config.acceptance is not None and (config.report_dir / "summary.json").is_file():
+        sealed = seal(config.report_dir, str(config.acceptance["run_id"]))  # the package's manifest, written last
+        outcome.reports["manifest"] = config.report_dir / "manifest.json"
     print_final_table(outcome.suite, outcome.cases, Console(), reports=outcome.reports,
                       root_causes=outcome.root_causes)
+    if sealed:
+        print(f"{_('manifest sha256')}: {sealed}")
     if outcome.exit_code:
         print(f"isight-conformance certify-robot: {outcome.reason}", file=sys.stderr)
     return outcome.exit_code

@@ -3,7 +3,8 @@
 Reads and checks the fleet file (exit 2 and one line naming the line for a bad one),
 then :func:`~conformance.fleet.fleet_run.run_fleet` runs one ``run`` child per box, ``--jobs``
 at a time, shows boxes done / total, and writes ``fleet.json`` and ``fleet.html`` once, at the end, into the fleet directory
-(``--report-dir DIR``, default ``reports/fleet-<stamp>``). Exit status: 0 when every
+(``--report-dir DIR``, default ``reports/fleet-<stamp>``), then seals that directory with a ``manifest.json``
+(each box's own package inside it is sealed by its run). Exit status: 0 when every
 box passed (no FAIL/ERROR, or exactly its expected failures), 1 otherwise or when the
 run was stopped (Ctrl-C, SIGTERM: fleet.json still covers the boxes that finished),
 2 for a bad fleet file or bad options.
@@ -12,8 +13,10 @@ run was stopped (Ctrl-C, SIGTERM: fleet.json still covers the boxes that finishe
 from __future__ import annotations
 
 import argparse
+import uuid
 from pathlib import Path
 
+from ..acceptance.manifest import load, seal
 from ..fleet.children import BoxRun
 from ..fleet.fleet_run import run_fleet, usage_error
 from ..fleet.spec import FleetFileError, command_line_overrides, load_fleet
@@ -50,4 +53,10 @@ def main_fleet(args: argparse.Namespace) -> int:
     runs = [BoxRun(box, fleet_dir / box.name,
                    Path(pcap_base) / box.name if pcap_base else fleet_dir / box.name / "pcaps")
             for box in spec.boxes]
-    return run_fleet(spec, runs, fleet_dir, jobs, quiet=bool(getattr(args, "quiet", False)))
+    code = run_fleet(spec, runs, fleet_dir, jobs, quiet=bool(getattr(args, "quiet", False)))
+    if (fleet_dir / "fleet.json").is_file():  # one package: every box's and the fleet's
+        for box in runs:  # sealed again: the run's own log (run.log) was still being written when it sealed
+            if (box.report_dir / "manifest.json").is_file():
+                seal(box.report_dir, str(load(box.report_dir)[0].get("run_id", "")))
+        print(f"manifest: {fleet_dir / 'manifest.json'} (sha256 {seal(fleet_dir, str(uuid.uuid4()))})")
+    return code

@@ -7,10 +7,12 @@ listen. See docs/MONITOR.md.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import shlex
 import sys
 from pathlib import Path
 
+from ..acceptance.record import add_acceptance_options, from_args, seal_package
 from ..harness.target import Target
 from ..i18n import N_, _
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
@@ -68,6 +70,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     judge.add_argument("--jitter-tolerance", type=float, default=50.0, metavar="PCT", help=_("[T2] robot (default: 50)"))
     judge.add_argument("--linger", type=float, default=5.0, metavar="S", help=_("[S5] robot (default: 5)"))
     add_profile_group(p, _("profile"))
+    add_acceptance_options(p.add_argument_group(_("acceptance (one package per run: see docs/REPORTS.md)")).add_argument,
+                           declared=False)
 
 
 def settings_from_args(args: argparse.Namespace, pcap_dir: Path | None) -> MonitorSettings:
@@ -115,7 +119,8 @@ def main_monitor(args: argparse.Namespace) -> int:
     try:
         settings_from_args(args, None)
         report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir, not args.no_pcap, prefix="monitor-")
-        settings = settings_from_args(args, pcap_dir)
+        acceptance = from_args(args)
+        settings = dataclasses.replace(settings_from_args(args, pcap_dir), acceptance=acceptance.to_dict())
     except (ValueError, OSError) as exc:
         print(f"{NAME}: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -130,9 +135,13 @@ def main_monitor(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"{NAME}: {exc.filename or ''}: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
+    sealed = seal_package(report_dir, acceptance)  # the package's manifest, after monitor.json
     print_final_table(outcome.suite, outcome.cases, Console(), reports={
         "HTML report": report_dir / "report.html", "JSON summary": report_dir / "summary.json",
-        "JUnit": report_dir / "junit.xml", "monitor.json": report_dir / "monitor.json"})
+        "JUnit": report_dir / "junit.xml", "monitor.json": report_dir / "monitor.json",
+        **({"manifest": report_dir / "manifest.json"} if sealed else {})})
+    if sealed:
+        print(f"{_('manifest sha256')}: {sealed}")
     failing = [c for c in outcome.cases if c.verdict.failing]
     if failing:
         print(f"{NAME}: {len(failing)} case(s) FAIL/ERROR: " + ", ".join(c.id for c in failing[:8]), file=sys.stderr)

@@ -14,6 +14,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from ..acceptance.declaration import declared_profile
+from ..acceptance.record import add_acceptance_options, from_args
 from ..endpoints.bundled import bundled_or_target
 from ..engine.lanes import AUTO_LANES
 from ..harness.concurrency import probe_lanes
@@ -51,6 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "connections) side by side on N workers, the rest one at a time after them; auto "
                             "(default): 3 when the box is slow to answer (20 ms or more) and serves two connections "
                             "at once, else 1"))
+    acceptance = parser.add_argument_group("acceptance (one package per run: see docs/REPORTS.md)")
+    add_acceptance_options(acceptance.add_argument)
     fleet = parser.add_argument_group("fleet (several boxes, one run process each; see docs/SCALE.md)")
     fleet.add_argument("--targets", metavar="FILE", default=None,
                        help=_("test every box of this TOML fleet file ([[box]] tables); writes fleet.json and fleet.html "
@@ -66,6 +70,9 @@ def main_run(args: argparse.Namespace) -> int:
         expected = read_expected_failures(Path(args.expected_failures)) if args.expected_failures else None
         parse_lanes(getattr(args, "lanes", "1"))  # a bad --lanes is a usage error before anything starts
         baseline = load_baseline(getattr(args, "baseline", None))  # a bad baseline stops the run before it starts
+        acceptance = from_args(args)  # a bad --dut or --declared too
+        if acceptance.declaration is not None:  # judged under the declared profile
+            settings = replace(settings, profile=declared_profile(settings.profile, acceptance.declaration))
     except (ValueError, OSError) as exc:
         print(f"isight-conformance run: {exc}", file=sys.stderr)
         return EXIT_USAGE
@@ -87,7 +94,8 @@ def main_run(args: argparse.Namespace) -> int:
         if box is not None:
             settings = replace(settings, target=target, udp_target=udp, target_label=settings.target_label or box.label)
         lanes = choose_lanes(getattr(args, "lanes", "1"), settings)
-        return run_suite(settings, expected, quiet=args.quiet, baseline=baseline, verbose=args.verbose, lanes=lanes)
+        return run_suite(settings, expected, quiet=args.quiet, baseline=baseline, verbose=args.verbose, lanes=lanes,
+                         acceptance=acceptance)
 
 
 def parse_lanes(text: str) -> int:

@@ -23,7 +23,8 @@ from typing import Any
 import pytest
 
 from .. import i18n
-from ..engine.collected import BASELINE, BASELINE_DIFF, CAUSES, results, suite_info
+from ..acceptance.record import Acceptance, seal_package
+from ..engine.collected import ACCEPTANCE, BASELINE, BASELINE_DIFF, CAUSES, RESULTS, results, suite_info
 from ..engine.lanes import ALONE, LANE_PLAN
 from ..engine.lanes import plan as lane_plan
 from ..model.exit_codes import EXIT_FAILED, EXIT_INCOMPLETE, EXIT_OK, EXIT_USAGE
@@ -48,9 +49,10 @@ class _RunPlugin:
     """Watches the run: the catalogue collected, progress, collection errors."""
 
     def __init__(self, progress: Any = None, baseline: Baseline | None = None, lanes: int = 1,
-                 plan: dict[str, str] | None = None) -> None:
+                 plan: dict[str, str] | None = None, acceptance: Acceptance | None = None) -> None:
         self.progress = progress
         self.baseline = baseline
+        self.acceptance = acceptance  # the run's package: run ID, DUT, tester, declaration
         self.lanes = lanes  # collecting: plan this many lanes
         self.plan = plan  # running: each case's lane (run under pytest-xdist)
         self.config: pytest.Config | None = None
@@ -60,10 +62,28 @@ class _RunPlugin:
     def pytest_configure(self, config: pytest.Config) -> None:
         self.config = config
         config.stash[BASELINE] = self.baseline  # the report writers compare with it (report.html once)
+        if self.acceptance is not None:
+            config.stash[ACCEPTANCE] = self.acceptance
         if self.plan:
             config.stash[LANE_PLAN] = self.plan
             if self.progress is not None:  # under xdist the controller collects nothing: the plan has the count
                 self.progress.start(len(self.plan))
+
+    @pytest.hookimpl(tryfirst=True)
+    def pytest_sessionfinish(self, session: pytest.Session, exitstatus: int) -> None:
+        """Before the reports are written: the declared / observed table, and a FAIL case per contradicted
+        declaration among the results (so the overall line, the exit status and every report count it)."""
+        config = session.config
+        if self.acceptance is None or hasattr(config, "workerinput"):
+            return
+        found = config.stash.get(RESULTS, {})
+        key = next(iter(found), "")
+        if key not in found or not found[key]:
+            return
+        extension = suite_info(config, key=key).extension
+        accepted, contradicted = self.acceptance.judged(found[key], {"extension": extension})
+        found[key].extend(contradicted)
+        config.stash[ACCEPTANCE] = self.acceptance = accepted
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         self.collected = [info for item in session.items if (info := info_of(item)) is not None]
@@ -170,7 +190,7 @@ def list_cases(settings: SuiteSettings, fmt: str = "text") -> int:
 
 
 def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, baseline: Baseline | None = None,
-              verbose: bool = False, lanes: int = 1) -> int:
+              verbose: bool = False, lanes: int = 1, acceptance: Acceptance | None = None) -> int:
     """Run the selected cases against ``settings.target`` (known to answer), show progress and the final
     table, and return the exit status. ``lanes`` > 1: the cases that share the box run side by side on
     that many pytest-xdist workers (:mod:`conformance.engine.lanes`), the rest one at a time after them."""
@@ -181,7 +201,7 @@ def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, b
     console = Console(stderr=False)
     progress = Progress(console=console, quiet=quiet, verbose=verbose)
     plan = plan_lanes(settings, lanes) if lanes > 1 else None
-    plugin = _RunPlugin(progress, baseline, plan=plan)
+    plugin = _RunPlugin(progress, baseline, plan=plan, acceptance=acceptance)
     try:
         code = pytest.main(_pytest_args(settings) + (["-n", str(lanes)] if plan else []), plugins=[plugin])
     except KeyboardInterrupt:  # a signal between pytest's own handlers: the plugin wrote what it could
@@ -210,6 +230,10 @@ def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, b
     }
     if settings.pcap_dir is not None:
         reports["pcaps"] = settings.pcap_dir
+    sealed = seal_package(report_dir, plugin.acceptance)  # the package's manifest, written last
+    if sealed:
+        reports["manifest"] = report_dir / "manifest.json"
+        reports["manifest sha256"] = sealed
     print_final_table(info, cases, console, reports=reports, root_causes=causes)
     print_comparison(baseline, plugin.config.stash.get(BASELINE_DIFF, None), console)
     if interrupted or not info.complete:

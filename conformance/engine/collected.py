@@ -32,6 +32,8 @@ CAUSES = pytest.StashKey[list[RootCause]]()
 #: ``run --baseline``: the report.Baseline the run driver hands the plugin's report writers, and their comparison
 BASELINE = pytest.StashKey[Any]()
 BASELINE_DIFF = pytest.StashKey[Any]()
+#: ``run``'s acceptance (conformance.acceptance.record.Acceptance: run ID, DUT, tester, declaration), for the reports
+ACCEPTANCE = pytest.StashKey[Any]()
 
 
 def target_keys(settings: SuiteSettings) -> dict[str, Any]:

@@ -47,6 +47,8 @@ class MonitorSettings:
     connect_timeout_s: float = 5.0
     metrics: tuple[str, int] | None = None  # --metrics HOST:PORT (the address got, once listening)
     http: tuple[str, int] | None = None  # --http HOST:PORT
+    #: the package's run ID, device under test and tester (Acceptance.to_dict()), for the reports
+    acceptance: dict[str, Any] | None = None
 
 
 @dataclass

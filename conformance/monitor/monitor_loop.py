@@ -102,7 +102,7 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
             if next_checkpoint is not None and now >= next_checkpoint:
                 next_checkpoint = now + checkpoint_s
                 try:
-                    write_monitor_reports(hub, report_dir, command)
+                    write_monitor_reports(hub, report_dir, command, settings.acceptance)
                     checkpoints += 1
                 except OSError as exc:  # a full disk at a checkpoint: the line goes on, the next one retries
                     hub.note(f"checkpoint: cannot write the reports: {exc.strerror or exc}")
@@ -117,7 +117,7 @@ async def run_monitor(settings: MonitorSettings, report_dir: Path, view: View, s
         hub.finish()
         stop_watch()
         gauge().stop()
-    suite, cases = write_monitor_reports(hub, report_dir, command)
+    suite, cases = write_monitor_reports(hub, report_dir, command, settings.acceptance)
     return MonitorOutcome(hub, suite, cases, checkpoints)
 
 

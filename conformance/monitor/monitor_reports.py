@@ -158,10 +158,11 @@ def _num(v: float) -> float | None:
     return None if v != v else round(v, 3)
 
 
-def write_monitor_reports(hub: Hub, report_dir: Path, command: str = "") -> tuple[SuiteInfo, list[CaseResult]]:
+def write_monitor_reports(hub: Hub, report_dir: Path, command: str = "",
+                          acceptance: dict[str, Any] | None = None) -> tuple[SuiteInfo, list[CaseResult]]:
     """Every report, each file written atomically (a checkpoint or the final one)."""
     suite, cases, roots = snapshot(hub, command)
-    write_reports(report_dir, suite, cases, roots)
+    write_reports(report_dir, suite, cases, roots, acceptance=acceptance)
     text = json.dumps(monitor_doc(hub), indent=2, ensure_ascii=False) + "\n"
     atomic_write_bytes(report_dir / "monitor.json", text.encode("utf-8", "backslashreplace"))
     return suite, cases

@@ -6,8 +6,11 @@ Every writer derives its totals, clause verdicts and overall line from
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from ..model.verdicts import CaseResult, RootCause, SuiteInfo
 from .diff import RunDiff
@@ -34,13 +37,48 @@ __all__ = [
 ]
 
 
+def packaged(cases: Sequence[CaseResult], report_dir: Path) -> list[CaseResult]:
+    """The cases with their pcap paths as the package holds them: relative to ``report_dir`` (``pcaps/X.pcapng``)
+    when the pcap is inside it, so moving or zipping the directory keeps every link; absolute when it is not
+    (``--pcap-dir`` elsewhere, or the top-level ``pcaps/`` of a run without ``--report-dir``)."""
+    return [replace(case, pcap=package_path(case.pcap, report_dir)) if case.pcap else case for case in cases]
+
+
+def package_path(path: str, report_dir: Path) -> str:
+    """``path`` (relative to the current directory, or absolute) as the package names it: relative to
+    ``report_dir`` when inside it, else absolute."""
+    root, where = os.path.abspath(report_dir), os.path.abspath(path)
+    inside = os.path.commonpath([root, where]) == root
+    return Path(os.path.relpath(where, root)).as_posix() if inside else where
+
+
+def _packaged_acceptance(acceptance: dict[str, Any] | None, report_dir: Path,
+                         cases: Sequence[CaseResult]) -> dict[str, Any] | None:
+    """The acceptance with its rows' pcaps named as the package holds them, and the folders of the pcaps that
+    lie outside the package (``--pcap-dir`` elsewhere, or a run without ``--report-dir``): its manifest does not
+    cover them, and the report says so."""
+    if acceptance is None:
+        return None
+    rows = [{**row, "pcap": package_path(row["pcap"], report_dir) if row.get("pcap") else row.get("pcap")}
+            for row in acceptance.get("declared_observed") or []]
+    outside = sorted({os.path.dirname(c.pcap) for c in cases if c.pcap and os.path.isabs(c.pcap)})
+    return {**acceptance, "declared_observed": rows, "outside_package": outside}
+
+
 def write_reports(report_dir: Path, suite: SuiteInfo, cases: list[CaseResult],
-                  root_causes: Sequence[RootCause] = (), baseline: Baseline | None = None) -> RunDiff | None:
+                  root_causes: Sequence[RootCause] = (), baseline: Baseline | None = None,
+                  acceptance: dict[str, Any] | None = None) -> RunDiff | None:
     """summary.json, junit.xml and report.html into ``report_dir``, each written atomically; with a
-    ``baseline`` (``run --baseline``), report.html holds the comparison, which is returned."""
+    ``baseline`` (``run --baseline``), report.html holds the comparison, which is returned. ``acceptance``
+    (:meth:`conformance.acceptance.record.Acceptance.to_dict`): the run ID, the device under test, the tester
+    and the declared / observed table, in summary.json and on report.html's first page. Pcap paths are written
+    relative to ``report_dir`` when the pcaps are inside it (:func:`packaged`)."""
     report_dir.mkdir(parents=True, exist_ok=True)
-    summary = write_summary(report_dir / "summary.json", suite, cases, root_causes)
+    cases = packaged(cases, report_dir)
+    acceptance = _packaged_acceptance(acceptance, report_dir, cases)
+    summary = write_summary(report_dir / "summary.json", suite, cases, root_causes, acceptance=acceptance)
     diff = baseline.compare(summary, report_dir / "summary.json") if baseline is not None else None
-    write_junit(report_dir / "junit.xml", suite, cases, root_causes)
-    write_html(report_dir / "report.html", suite, cases, root_causes=root_causes, diff=diff)
+    write_junit(report_dir / "junit.xml", suite, cases, root_causes, acceptance)
+    write_html(report_dir / "report.html", suite, cases, pcap_base=report_dir, root_causes=root_causes, diff=diff,
+               acceptance=acceptance)
     return diff

@@ -6,8 +6,10 @@ string also passes :func:`~.summary.clean_text` (through the environment's
 ``finalize``), so whatever a box sent shows as visible escapes, never as markup.
 
 Content, in order, so the printed document reads as an acceptance document: what was
-tested and the overall result (run facts, profile with non-default settings
-highlighted), the sign-off block, the root causes, the findings (FAIL, ERROR,
+tested and the overall result (run facts; for an acceptance package the device under
+test, the test system, the run ID, the manifest's hash and the declared / observed table,
+:mod:`.html_acceptance`; the profile with non-default settings highlighted), the sign-off
+block with the statement that the results apply only to the item tested, the root causes, the findings (FAIL, ERROR,
 NON-STRICT and INCONCLUSIVE cases grouped by root cause, one line each), the changes
 since a baseline run (``run --baseline``), the clause table, totals by verdict, then
 every case in a ``<details>``. On paper a case prints as one line unless it is a print
@@ -38,6 +40,7 @@ from ..protocol.clauses import families as registry_families
 from ..runtime.profile_options import PROFILE_OPTIONS
 from .clausetext import clause_text
 from .diff import SECTIONS, RunDiff, summary_line
+from .html_acceptance import acceptance_view, page_footer
 from .html_cases import (
     CARD_VERDICTS,
     WIRE_HEAD,
@@ -235,7 +238,7 @@ def diff_view(diff: RunDiff | None) -> dict[str, Any] | None:
 
 def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.PathLike[str] = ".",
                 pcap_base: Path | None = None, root_causes: Sequence[RootCause] = (),
-                diff: RunDiff | None = None) -> str:
+                diff: RunDiff | None = None, acceptance: dict[str, Any] | None = None) -> str:
     """The report as a string; pcap links are made relative to ``report_dir``."""
     report_dir = Path(report_dir)
     taken: set[str] = set()
@@ -277,14 +280,16 @@ def render_html(suite: SuiteInfo, cases: list[CaseResult], report_dir: str | os.
         cases_total=max(suite.cases_total, len(cases)), baseline=diff_view(diff),
         registry_version=suite.registry_version or registry_version(),
         generated=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M:%S UTC"),
+        acceptance=acceptance_view(acceptance, report_dir, pcap_base),
+        footer=page_footer(acceptance),
     )
 
 
 def write_html(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult],
                pcap_base: Path | None = None, root_causes: Sequence[RootCause] = (),
-               diff: RunDiff | None = None) -> None:
+               diff: RunDiff | None = None, acceptance: dict[str, Any] | None = None) -> None:
     """Write report.html atomically. Relative ``case.pcap`` paths are taken relative to
     ``pcap_base`` (default: the current directory); links are relative to the report."""
     path = Path(path)
-    html = render_html(suite, cases, path.parent, pcap_base, root_causes, diff)
+    html = render_html(suite, cases, path.parent, pcap_base, root_causes, diff, acceptance)
     atomic_write_bytes(path, html.encode("utf-8", "replace"))

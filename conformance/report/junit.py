@@ -143,8 +143,10 @@ def suite_text(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence[
     return "\n".join(lines)
 
 
-def build_junit(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence[RootCause] = ()) -> ET.Element:
-    """The JUnit document as an ElementTree element (``<testsuites>``)."""
+def build_junit(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence[RootCause] = (),
+                acceptance: dict[str, Any] | None = None) -> ET.Element:
+    """The JUnit document as an ElementTree element (``<testsuites>``); an acceptance package's run ID and device
+    under test are properties too (``run_id``, ``dut.<key>``)."""
     t = totals(cases)
     counts = {
         "tests": str(len(cases)),
@@ -176,6 +178,9 @@ def build_junit(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence
     suite_props.append(("nonstrict", _id_list([c.id for c in cases if c.verdict is Verdict.NON_STRICT])))
     suite_props += [(f"root_cause.{rc.id}", f"{', '.join(rc.clauses)}: {one_line(rc.title, 300)} ({len(rc.cases)} cases)")
                     for rc in root_causes]
+    if acceptance:
+        suite_props += [("run_id", acceptance.get("run_id", ""))]
+        suite_props += [(f"dut.{k}", v) for k, v in (acceptance.get("dut") or {}).items()]
     for name, value in suite_props:
         _sub(props, "property", name=name, value=value)
 
@@ -201,13 +206,14 @@ def build_junit(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence
     return root
 
 
-def junit_bytes(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence[RootCause] = ()) -> bytes:
-    root = build_junit(suite, cases, root_causes)
+def junit_bytes(suite: SuiteInfo, cases: list[CaseResult], root_causes: Sequence[RootCause] = (),
+                acceptance: dict[str, Any] | None = None) -> bytes:
+    root = build_junit(suite, cases, root_causes, acceptance)
     ET.indent(root, space="  ")
     return ET.tostring(root, encoding="utf-8", xml_declaration=True) + b"\n"
 
 
 def write_junit(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult],
-                root_causes: Sequence[RootCause] = ()) -> None:
+                root_causes: Sequence[RootCause] = (), acceptance: dict[str, Any] | None = None) -> None:
     """Write junit.xml atomically."""
-    atomic_write_bytes(path, junit_bytes(suite, cases, root_causes))
+    atomic_write_bytes(path, junit_bytes(suite, cases, root_causes, acceptance))

@@ -14,6 +14,8 @@ import contextlib
 import datetime as _dt
 from pathlib import Path
 
+#: where a package's pcaps go (``--report-dir DIR`` without ``--pcap-dir``): ``DIR/pcaps``
+PACKAGE_PCAPS = "pcaps"
 #: tries before giving up (a directory full of runs from one second is a bug elsewhere)
 MAX_SUFFIX = 1000
 
@@ -65,10 +67,13 @@ def default_run_dirs(report_dir: Path | str | None, pcap_dir: Path | str | None,
                      prefix: str = "") -> tuple[Path, Path | None]:
     """(report dir, pcap dir or None when ``pcaps`` is False): the given ones as they are,
     the missing ones created as ``reports/<prefix><stamp>[-N]`` and ``pcaps/<prefix><stamp>[-N]``
-    (relative to the current directory)."""
+    (relative to the current directory). A given report directory is one package: its pcaps go to
+    ``<report dir>/pcaps`` unless ``pcap_dir`` says otherwise, so the directory travels whole."""
     wanted: dict[str, Path] = {}
     if report_dir is None:
         wanted["report"] = Path("reports")
+    elif pcap_dir is None:
+        pcap_dir = Path(report_dir) / PACKAGE_PCAPS
     if pcaps and pcap_dir is None:
         wanted["pcap"] = Path("pcaps")
     made = dict(zip(wanted, unique_run_dirs(prefix + stamp(), *wanted.values()))) if wanted else {}

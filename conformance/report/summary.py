@@ -266,11 +266,15 @@ def suite_dict(suite: SuiteInfo) -> dict[str, Any]:
 
 
 def write_summary(path: str | os.PathLike[str], suite: SuiteInfo, cases: list[CaseResult],
-                  root_causes: Sequence[RootCause] = ()) -> dict[str, Any]:
+                  root_causes: Sequence[RootCause] = (), acceptance: dict[str, Any] | None = None) -> dict[str, Any]:
     """Write summary.json atomically and return what was written:
-    ``{"suite": {...SuiteInfo}, "root_causes": [...], "cases": [CaseResult.to_summary()...], "totals": {verdict: n}}``."""
-    doc = {"suite": suite_dict(suite), "root_causes": [r.to_dict() for r in root_causes],
-           "cases": [c.to_summary() for c in cases], "totals": totals(cases)}
+    ``{"suite": {...SuiteInfo}, "root_causes": [...], "cases": [CaseResult.to_summary()...], "totals": {verdict: n}}``
+    and, for a run that made an acceptance package, ``"acceptance"``: run ID, device under test, tester,
+    declaration and the declared / observed table."""
+    doc: dict[str, Any] = {"suite": suite_dict(suite), "root_causes": [r.to_dict() for r in root_causes],
+                           "cases": [c.to_summary() for c in cases], "totals": totals(cases)}
+    if acceptance is not None:
+        doc["acceptance"] = acceptance
     text = json.dumps(doc, indent=2, ensure_ascii=False, default=_json_default) + "\n"
     # a lone surrogate from hostile input becomes a JSON \udcxx escape, still valid JSON
     atomic_write_bytes(path, text.encode("utf-8", "backslashreplace"))

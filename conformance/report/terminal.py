@@ -47,7 +47,7 @@ STYLES: dict[Verdict, str] = {
     Verdict.ERROR: "bold magenta",
 }
 #: the labels of the reports a run lists at its end (translated where shown)
-REPORT_LABELS = (N_("HTML report"), N_("JSON summary"), N_("JUnit"), N_("pcaps"))
+REPORT_LABELS = (N_("HTML report"), N_("JSON summary"), N_("JUnit"), N_("pcaps"), N_("manifest"), N_("manifest sha256"))
 OVERALL_STYLES = {"conforms": "bold green", "fails": "bold red", "unjudged": "bold yellow", "incomplete": "bold yellow"}
 
 

@@ -52,6 +52,9 @@ def test_a_fleet_of_bundled_boxes_each_with_its_own_reports(tmp_path: Path) -> N
     html = (out / "fleet.html").read_text()
     assert html.count('class="box"') == 3 and 'href="index-one/report.html"' in html
     assert "FLEET PASSES" in proc.stdout and "[3/3]" in proc.stdout
+    # one package: the fleet directory and each box's directory verify on their own (issue 37)
+    for package in (out, *(out / b["name"] for b in doc["boxes"])):
+        assert main(["verify", str(package)]) == 0, package
 
 
 def test_expected_failures_make_a_failing_box_pass_and_only_the_exact_set(tmp_path: Path) -> None:

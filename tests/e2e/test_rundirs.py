@@ -82,7 +82,8 @@ def test_default_run_dirs_fills_in_only_what_is_missing(tmp_path: Path, monkeypa
     assert b == (Path("reports/20240601-101500-2"), Path("pcaps/20240601-101500-2"))
     assert default_run_dirs(None, None, pcaps=False) == (Path("reports/20240601-101500-3"), None)
     mine = tmp_path / "mine"
-    assert default_run_dirs(mine, None, prefix="fuzz-") == (mine, Path("pcaps/fuzz-20240601-101500"))
+    # a report directory named on the line is one package: its pcaps go inside it
+    assert default_run_dirs(mine, None, prefix="fuzz-") == (mine, mine / "pcaps")
 
 
 def test_two_runs_in_the_same_second_write_separate_reports(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -37,7 +37,7 @@ def test_bundled_box_conforms_with_every_report_and_a_pcap_per_case(tmp_path: Pa
     proc, _ = run(tmp_path, "--cases", "F*")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     doc = summary(tmp_path)
-    assert set(doc) == {"suite", "root_causes", "cases", "totals"}
+    assert set(doc) == {"suite", "root_causes", "cases", "totals", "acceptance"}
     assert doc["root_causes"] == [] and doc["suite"]["complete"] is True
     assert {"version", "started", "duration_s", "target", "profile"} <= set(doc["suite"])
     assert doc["suite"]["target"].startswith("bundled reference box at 127.0.0.1:")
