@@ -45,7 +45,7 @@ ACTION_IDS = {POSE: "pose", REG: "register-pose", TOL: "tolerance"}
 
 
 def f32(bits: int, profile: Profile) -> bytes:
-    return bits.to_bytes(4, profile.float_byte_order)  # type: ignore[arg-type]
+    return bits.to_bytes(4, profile.float_byte_order)
 
 
 def value_bits(value: float) -> int:

@@ -11,7 +11,7 @@ import enum
 import functools
 import struct
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Literal
 
 import crcmod.predefined
 
@@ -41,7 +41,10 @@ def crc_function(name: str) -> Callable[[bytes], int]:
     return crcmod.predefined.mkPredefinedCrcFun(name)
 
 
-_BYTE_ORDERS = ("big", "little")
+#: a byte order as ``int.to_bytes`` takes it (F4, F7, B4/E1)
+ByteOrder = Literal["big", "little"]
+
+_BYTE_ORDERS: tuple[ByteOrder, ...] = ("big", "little")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,15 +54,15 @@ class Profile:
     #: F7: crcmod predefined CRC-16 name for UDP frames.
     crc: str = "modbus"
     #: F7: byte order of the CRC in the check field.
-    crc_byte_order: str = "big"
+    crc_byte_order: ByteOrder = "big"
     #: B3: index of the first block (the normative text says 0, a diagram shows 1).
     first_index: int = 0
     #: F6: what a TCP receiver accepts in the check field.
     tcp_check: TcpCheckPolicy = TcpCheckPolicy.ZERO_OR_CRC
     #: F4: byte order of multi-byte header fields.
-    byte_order: str = "big"
+    byte_order: ByteOrder = "big"
     #: B4/E1: byte order of float32 and int32 block values.
-    float_byte_order: str = "big"
+    float_byte_order: ByteOrder = "big"
     #: T1: bound on connect and every answer, in milliseconds.
     time_out_ms: int = 5000
     #: E3: bound on the vision result answer (action 0x27), in milliseconds.
@@ -102,7 +105,7 @@ class Profile:
 
     def swapped(self, header: bool = False, floats: bool = False) -> Profile:
         """This profile with the header's and/or the values' byte order the other way round."""
-        flip = {"big": "little", "little": "big"}
+        flip: dict[ByteOrder, ByteOrder] = {"big": "little", "little": "big"}
         return self.replace(byte_order=flip[self.byte_order] if header else self.byte_order,
                             float_byte_order=flip[self.float_byte_order] if floats else self.float_byte_order)
 
