@@ -126,7 +126,7 @@ def stream_poses(isight: CaseContext, stream: TcpConnection, poses: Sequence[Seq
 def request_result(isight: CaseContext, conn: TcpConnection) -> int:
     """27 within vision_time_out; 202 (busy) is retried until vision_time_out has passed. Each try waits its
     own vision_time_out (E5 bounds every 27), not what is left of the first one's."""
-    vision_s = isight.profile.vision_time_out_ms / 1000
+    vision_s = isight.profile.vision_time_out_s
     deadline = time.monotonic() + vision_s
     retry_gap = min(0.2, vision_s / 10)
     tries = 0
@@ -185,7 +185,7 @@ def test_prog_idx_answer(isight: CaseContext) -> None:
                               "never 0 or 404)", accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
 def test_vision_result(isight: CaseContext) -> None:
     isight.require_extension()
-    vision_s = isight.profile.vision_time_out_ms / 1000
+    vision_s = isight.profile.vision_time_out_s
     conn = isight.connect()
     frame = request(Action.VISION_RESULT)
     outcome = conn.request(frame, "result request (27)", timeout_s=vision_s)

@@ -134,7 +134,7 @@ class Executor:
         self.extension = extension
         self.liveness_every = max(1, liveness_every)
         self.settle_s = settle_s
-        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_ms / 1000
+        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_s
         self.isolate = False
         self.settle = False
         self.stats = Stats()

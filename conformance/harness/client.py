@@ -56,7 +56,7 @@ class TcpConnection:
         self, transcript: Transcript, target: Target, profile: Profile, label: str = "", time_out_s: float | None = None
     ) -> None:
         self.transcript, self.target, self.profile, self.label = transcript, target, profile, label
-        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_ms / 1000
+        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_s
         self.codec = codec_for(profile)
         self.decoder = StreamDecoder(profile, expect=TransferType.BOX_TO_ROBOT)
         self.sock: socket.socket | None = None
@@ -359,7 +359,7 @@ class UdpChannel:
         self.target = target
         self.profile = profile
         self.codec = codec_for(profile)
-        self.time_out_s = profile.time_out_ms / 1000
+        self.time_out_s = profile.time_out_s
         family = socket.AF_INET6 if ":" in target.host else socket.AF_INET
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
         self.sock.setblocking(False)

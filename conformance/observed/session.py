@@ -294,7 +294,7 @@ def awaited(view: SessionView, profile: Profile) -> tuple[int, list[str]]:
     for conn in view.commands:
         requests = view.requests(conn)
         for prev, cur in zip(requests, [*requests[1:], None]):
-            bound = (profile.vision_time_out_ms if prev.action == Action.VISION_RESULT else profile.time_out_ms) / 1000
+            bound = profile.answer_bound_s(prev.action)
             ex = view.answer(prev)
             answered = ex.t_answer if ex is not None else None
             if cur is None:  # the last request: the robot may close only after the answer or the bound

@@ -15,6 +15,8 @@ from typing import Any, Literal
 
 import crcmod.predefined
 
+from .constants import Action
+
 
 class TcpCheckPolicy(str, enum.Enum):
     """F6: what a TCP *receiver* accepts in the check field (a sender always sends 00 00)."""
@@ -89,6 +91,21 @@ class Profile:
             raise ValueError(f"pose_rate_hz must be in (0, 10000], not {self.pose_rate_hz!r}")
         if self.progidx_conflict not in ("block", "error-code"):
             raise ValueError("progidx_conflict must be 'block' or 'error-code'")
+
+    # -- time bounds, in the unit each caller needs ---------------------------------------
+    @property
+    def time_out_s(self) -> float:
+        """T1: the bound on connect and every answer, in seconds."""
+        return self.time_out_ms / 1000
+
+    @property
+    def vision_time_out_s(self) -> float:
+        """E3: the bound on the vision result answer (action 0x27), in seconds."""
+        return self.vision_time_out_ms / 1000
+
+    def answer_bound_s(self, action: int | None) -> float:
+        """The bound on the answer to a request of ``action``: E3's for the vision result, T1's otherwise."""
+        return self.vision_time_out_s if action == Action.VISION_RESULT else self.time_out_s
 
     # -- CRC ---------------------------------------------------------------------
     def crc_of(self, data: bytes) -> int:
