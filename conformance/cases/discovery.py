@@ -42,7 +42,6 @@ from conformance.protocol import (
     peek_header,
     pose_blocks,
     request,
-    value_blocks,
 )
 from conformance.suite import (
     CaseContext,
@@ -372,14 +371,14 @@ def test_answer_byte_order(isight: CaseContext) -> None:
     if len(raw) < 12:
         answers_other_order_only(isight, sent)
     expect(raw, "version", 1, "version 00 01", sent)
-    first = isight.profile.first_index
-    gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(first, POSE), PoseBlock(first + 2, POSE)))
+    index = isight.codec.block_index
+    gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(index(0), POSE), PoseBlock(index(2), POSE)))
     bad = encode(gap, isight.profile)
     raw = isight.send_malformed(bad, "two poses with indexes first, first+2 (B3 gap): answered 1001?").raw
     if header_field_bytes(raw, "error_code") in (b"\x10\x01", b"\x01\x10"):
         expect(raw, "error_code", 0x1001, "error code 1001", bad)
     if isight.session.detect_extension(isight.transcript):
-        sent = encode(request(Action.PROG_IDX, value_blocks([5], first)), isight.profile)
+        sent = encode(request(Action.PROG_IDX, isight.codec.value_blocks([5])), isight.profile)
         conn = isight.connect()
         conn.request(sent, "ProgIdx 5: block length reads 5?")
         raw = isight.transcript.received(conn.conn_id)  # the wire bytes: a swapped L would derail the decoder

@@ -22,6 +22,7 @@ from conformance.model.verdicts import Verdict
 from conformance.protocol import Action, Profile, StreamDecoder, TransferType, answer, encode, request
 from conformance.protocol.errors import ProtocolError
 from conformance.protocol.frames import Frame
+from conformance.runtime import run_state as session_mod
 from conformance.runtime.run_state import (
     LATE_CASES,
     RECHECK_S,
@@ -31,7 +32,6 @@ from conformance.runtime.run_state import (
     responsive,
 )
 from conformance.runtime.settings import SuiteSettings
-from conformance.suite import run_state as session_mod
 from conformance.suite.case_judge import CaseVerdict, Inconclusive
 
 PROFILE = Profile(time_out_ms=500)  # every silence in these tests costs at most this
