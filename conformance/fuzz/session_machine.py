@@ -4,7 +4,8 @@ Rules: NONE, CycleOn, CycleOff, poses on the stream connection (one at a time or
 pipelined, S6), register poses and tolerances on the command connection, ProgIdx and
 the result request (only when the box implements extension E), malformed frames from
 the frame strategies on either connection (each followed by a probe), and reconnects
-of either connection. The machine keeps the box's cycle state (S2, S3) and the last
+of either connection. The machine keeps the box's cycle state (S2, S3: each answer's effect is
+:func:`~conformance.protocol.session_table.cycle_after`'s) and the last
 answer on each connection; what a request may be answered comes from
 :func:`~conformance.protocol.answers.allowed_codes` for that state, and every answer is
 judged by the frame oracle (:mod:`.oracle`). Teardown checks liveness on a fresh
@@ -36,7 +37,8 @@ from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..model.verdicts import Verdict
 from ..protocol import BLOCK_LEN, REQUEST_SHAPE, Action, BlockType, Header, codec_for
-from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes
+from ..protocol.answers import SENDABLE_RESULTS, allowed_codes
+from ..protocol.session_table import Cycle, cycle_after
 from .config import CampaignConfig
 from .death_first import died, known_death
 from .executor import Executor, FuzzConnection, alive
@@ -100,15 +102,6 @@ class KnownFailure(BaseException):
 
 def _codes(codes: frozenset[int] | None) -> Any:
     return "answered" if codes is None else {"errors": [f"{c:04X}" for c in sorted(codes)]}
-
-
-def _next_cycle(action: Action, code: int, cycle: Cycle) -> Cycle:
-    """S2/S3: the cycle state after ``action`` answered ``code`` (a refusal leaves it as it was)."""
-    if action is Action.CYCLE_ON:
-        return Cycle.ON if code == 0 else cycle if code == 1 else Cycle.UNKNOWN
-    if action is Action.CYCLE_OFF:
-        return Cycle.IDLE if code == 0 else cycle if code == 2 else Cycle.UNKNOWN
-    return cycle
 
 
 class IsightSession(RuleBasedStateMachine):
@@ -197,7 +190,7 @@ class IsightSession(RuleBasedStateMachine):
         if isinstance(outcome, Answer):
             code = outcome.frame.error_code
             ctx.coverage.record(before, name, last, action, code)
-            self.cycle = _next_cycle(action, code, self.cycle)
+            self.cycle = cycle_after(self.cycle, action, code)
             self.last[name] = action.name if ok is None or code in ok else None
         return outcome
 
