@@ -32,7 +32,7 @@ from typing import Any, ClassVar
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, precondition, rule
 
-from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
+from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..model.verdicts import Verdict
@@ -41,7 +41,7 @@ from ..protocol.answers import SENDABLE_RESULTS, allowed_codes
 from ..protocol.session_table import Cycle, cycle_after
 from .config import CampaignConfig
 from .death_first import died, known_death
-from .executor import Executor, FuzzConnection, alive
+from .executor import Executor, alive
 from .oracle import Expectation, Finding, Rule, judge
 from .state_coverage import OPEN, StateCoverage, Transition
 from .strategies import FuzzCase, Strategies, _finite
@@ -116,7 +116,7 @@ class IsightSession(RuleBasedStateMachine):
         self.tr = cfg.transcript if cfg.transcript is not None else Transcript(case_id="FUZZ-stateful")
         self.log: list[str] = []
         self.sequence: list[dict[str, Any]] = []
-        self.conns: dict[str, FuzzConnection] = {}
+        self.conns: dict[str, TcpConnection] = {}
         self.last: dict[str, str | None] = {}
         self.executor = Executor(cfg.target, cfg.profile, self.tr, extension=cfg.extension, settle_s=cfg.settle_s)
         self.cycle = Cycle.UNKNOWN
@@ -129,9 +129,8 @@ class IsightSession(RuleBasedStateMachine):
     # -- plumbing ------------------------------------------------------------------------------
     def _open(self, name: str) -> None:
         ctx = self.ctx
-        conn = FuzzConnection(self.tr, ctx.stream_target if name == "stream" else ctx.cfg.target, ctx.cfg.profile, name)
         try:
-            conn.connect()
+            conn = self.executor.dialer.dial(name, ctx.stream_target if name == "stream" else ctx.cfg.target)
         except Unreachable as exc:
             self._fail(Finding(Verdict.FAIL, "R2", "R2/S4: the box accepts the robot's connections", str(exc),
                                "R2/connect"), FuzzCase("connect", "R2", b"", f"open {name}"))
@@ -342,11 +341,10 @@ class IsightSession(RuleBasedStateMachine):
 
     def _burst(self, count: int) -> None:
         ctx = self.ctx
-        extras: list[FuzzConnection] = []
+        extras: list[TcpConnection] = []
         for i in range(count):
-            conn = FuzzConnection(self.tr, ctx.cfg.target, ctx.cfg.profile, f"extra-{i + 1}")
             try:
-                conn.connect()
+                conn = self.executor.dialer.dial(f"extra-{i + 1}", ctx.cfg.target)
             except Unreachable:
                 break  # the box bounds its connections: allowed
             extras.append(conn)

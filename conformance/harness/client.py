@@ -207,6 +207,11 @@ class TcpConnection:
             return self._coalesced_outcome(since)
         return self._next_outcome(timeout_s, since)
 
+    def receive(self, deadline: float, since: float | None = None) -> Outcome:
+        """What the box does next by ``deadline`` (``time.monotonic()``): an answer, malformed bytes, a close,
+        or silence (:class:`~.connection.Connection`'s receive with a deadline)."""
+        return self.next_outcome(max(0.0, deadline - time.monotonic()), since)
+
     def _coalesced_wait(self) -> bool:  # for a frame that shared its write with frames already answered (R4)
         return self.write_frames > 1 and 0 < self.answers - self.answers_at_write < self.write_frames
 
@@ -404,6 +409,10 @@ class UdpChannel:
                 return Answer(decode_datagram(data, self.profile, TransferType.BOX_TO_ROBOT), latency, data)
             except ProtocolError as exc:
                 return Malformed(exc, latency)
+
+    def receive(self, deadline: float, since: float | None = None) -> Outcome:
+        """The next datagram's outcome by ``deadline`` (``time.monotonic()``), or silence."""
+        return self.next_outcome(max(0.0, deadline - time.monotonic()), since)
 
     def request(self, data: bytes | Frame, note: str = "", timeout_s: float | None = None) -> Outcome:
         start = time.monotonic()
