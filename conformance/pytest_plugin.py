@@ -101,7 +101,14 @@ def pytest_configure(config: pytest.Config) -> None:
     if lang or wants_suite(config):  # the project's own tests keep English whatever the locale says
         config.stash[LANG_BEFORE] = i18n.current()  # the reports' language for this session; restored at its end
         i18n.activate(lang)
-    settings = _settings(config)
+    # the run's settings: an xdist worker's from its controller, else those handed over as an object
+    # (isight-conformance run), else resolved from the flags (pytest --pyargs conformance.cases ...)
+    settings = handed_settings(config.pluginmanager.get_plugins(), getattr(config, "workerinput", None))
+    if settings is None:
+        try:
+            settings = SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
+        except ValueError as exc:
+            raise pytest.UsageError(str(exc)) from None
     config.stash[SETTINGS] = settings
     if config.pluginmanager.hasplugin("xdist"):
         from .xdist_hooks import XdistHooks
@@ -118,20 +125,6 @@ def pytest_configure(config: pytest.Config) -> None:
     config.stash[STARTED] = time.time()
     if wants_suite(config):
         signals.install()  # SIGTERM and SIGHUP end the run like Ctrl-C: the reports are still written
-
-
-def _settings(config: pytest.Config) -> SuiteSettings:
-    """The run's settings: an xdist worker's from its controller, else those handed over as an object
-    (``isight-conformance run``), else resolved from the flags (``pytest --pyargs conformance.cases ...``)."""
-    from .xdist_hooks import worker_settings
-
-    settings = worker_settings(config) or handed_settings(config.pluginmanager.get_plugins())
-    if settings is not None:
-        return settings
-    try:
-        return SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
-    except ValueError as exc:
-        raise pytest.UsageError(str(exc)) from None
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

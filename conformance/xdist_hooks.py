@@ -26,17 +26,9 @@ import pytest
 from .engine.lanes import ALONE, LANE_PLAN
 from .engine.rootcause import SessionFacts
 from .model.verdicts import CaseResult
-from .runtime.settings import SuiteSettings
+from .runtime.settings import WORKER_INPUT, SuiteSettings
 
 OUTPUT = "isight"
-#: the controller's settings in a worker's ``workerinput`` (JSON)
-SETTINGS_INPUT = "isight_settings"
-
-
-def worker_settings(config: pytest.Config) -> SuiteSettings | None:
-    """On an xdist worker: the settings its controller resolved (None: not a worker, or no settings sent)."""
-    sent = getattr(config, "workerinput", {}).get(SETTINGS_INPUT)
-    return SuiteSettings.from_dict(json.loads(sent)) if sent else None
 
 
 class XdistHooks:
@@ -67,7 +59,7 @@ class XdistHooks:
             target, udp = state.target(), state.udp_target()
             settings = replace(settings, target=target, targets=(), udp_target=settings.udp_target or udp,
                                target_label=state.target_label())
-        node.workerinput[SETTINGS_INPUT] = json.dumps(settings.to_dict())
+        node.workerinput[WORKER_INPUT] = json.dumps(settings.to_dict())
 
     def pytest_testnodedown(self, node: Any, error: object) -> None:
         from .engine.collected import FACTS, SELECTED, SESSIONS

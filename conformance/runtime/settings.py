@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import dataclasses
 import fnmatch
-from collections.abc import Callable, Iterable
+import json
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -158,7 +159,7 @@ class SuiteSettings:
         }
 
     @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> SuiteSettings:
+    def from_dict(cls, data: Mapping[str, Any]) -> SuiteSettings:
         def target(pair: list[Any] | None) -> Target | None:
             return None if pair is None else Target(str(pair[0]), int(pair[1]))
 
@@ -186,8 +187,16 @@ class SettingsPlugin:
         self.settings = settings
 
 
-def handed_settings(plugins: Iterable[object]) -> SuiteSettings | None:
-    """The settings a :class:`SettingsPlugin` among ``plugins`` carries (None: none was handed over)."""
+#: the controller's settings in an xdist worker's ``workerinput``: JSON, serialised once (:meth:`SuiteSettings.to_dict`)
+WORKER_INPUT = "isight_settings"
+
+
+def handed_settings(plugins: Iterable[object], workerinput: Mapping[str, Any] | None = None) -> SuiteSettings | None:
+    """The settings handed over as an object: on an xdist worker its controller's (``workerinput``), else
+    those a :class:`SettingsPlugin` among ``plugins`` carries (None: none were handed over)."""
+    sent = (workerinput or {}).get(WORKER_INPUT)
+    if sent:
+        return SuiteSettings.from_dict(json.loads(sent))
     return next((p.settings for p in plugins if isinstance(p, SettingsPlugin)), None)
 
 
