@@ -1,8 +1,9 @@
 """The pytest plugin (entry point ``pytest11: isight``): thin, like pytest-timeout.
 
 Options live in one group (``isight``) and are resolved once, in ``pytest_configure``,
-into :class:`~conformance.runtime.settings.SuiteSettings` (``isight-conformance run``
-passes its settings as the same flags). Every hook forwards:
+into :class:`~conformance.runtime.settings.SuiteSettings`; ``isight-conformance run`` hands
+its resolved settings over as an object instead (:class:`~conformance.runtime.settings.SettingsPlugin`),
+and an xdist worker takes the controller's, serialised once. Every hook forwards:
 
 * the ``isight`` fixture makes the case's :class:`~conformance.suite.case_context.CaseContext`
   (its transcript recorded to a pcap) and asks the session whether the case may run
@@ -45,6 +46,7 @@ from .engine.collected import (  # noqa: F401 - CAUSES, results, suite_info, roo
     RESULTS,
     SELECTED,
     SESSIONS,
+    SETTINGS,
     STARTED,
     STATE,
     facts_of,
@@ -59,7 +61,7 @@ from .engine.results import attach_evidence, result_of, safe_name
 from .harness.transcript import Transcript
 from .model.verdicts import CaseResult, RootCause, Verdict
 from .runtime.run_state import SessionState
-from .runtime.settings import SuiteSettings, add_suite_options
+from .runtime.settings import SuiteSettings, add_suite_options, handed_settings
 from .suite.case_context import CaseContext
 from .suite.record import info_of
 
@@ -100,14 +102,18 @@ def pytest_configure(config: pytest.Config) -> None:
     if lang or wants_suite(config):  # the project's own tests keep English whatever the locale says
         config.stash[LANG_BEFORE] = i18n.current()  # the reports' language for this session; restored at its end
         i18n.activate(lang)
-    try:
-        settings = SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
-    except ValueError as exc:
-        raise pytest.UsageError(str(exc)) from None
+    # the run's settings: an xdist worker's from its controller, else those handed over as an object
+    # (isight-conformance run), else resolved from the flags (pytest --pyargs conformance.cases ...)
+    settings = handed_settings(config.pluginmanager.get_plugins(), getattr(config, "workerinput", None))
+    if settings is None:
+        try:
+            settings = SuiteSettings.resolve(lambda dest: config.getoption(dest, None))
+        except ValueError as exc:
+            raise pytest.UsageError(str(exc)) from None
+    config.stash[SETTINGS] = settings
     if config.pluginmanager.hasplugin("xdist"):
         from .xdist_hooks import XdistHooks
 
-        settings = XdistHooks.worker_settings(config, settings)
         config.pluginmanager.register(XdistHooks(config), "isight-xdist")
     sessions = {key: SessionState(replace(settings, target=t, targets=(t,)) if t is not None else settings)
                 for key, t in target_keys(settings).items()}

@@ -3,8 +3,9 @@
 * One box's cases stay on one worker, in catalogue order: each case carries an
   ``xdist_group`` named for its box, and the run is scheduled by groups (the box has one
   shared cycle state; its cases must not run side by side).
-* The bundled box (no ``--target``) is started once, by the controller, and every worker
-  is told where it listens.
+* Every worker receives the controller's resolved settings, serialised once (``workerinput``),
+  instead of parsing the flags again. The bundled box (no ``--target``) is started once, by
+  the controller, and those settings name where it listens.
 * ``run --lanes N`` against one slow box: the cases that share the box
   (:mod:`conformance.engine.lanes`) are dealt over N workers, and the rest run alone on one
   worker once every lane is done (:class:`LaneScheduling`).
@@ -24,9 +25,8 @@ import pytest
 
 from .engine.lanes import ALONE, LANE_PLAN
 from .engine.rootcause import SessionFacts
-from .harness.target import Target
 from .model.verdicts import CaseResult
-from .runtime.settings import SuiteSettings
+from .runtime.settings import WORKER_INPUT, SuiteSettings
 
 OUTPUT = "isight"
 
@@ -34,16 +34,6 @@ OUTPUT = "isight"
 class XdistHooks:
     def __init__(self, config: pytest.Config) -> None:
         self.config = config
-
-    @staticmethod
-    def worker_settings(config: pytest.Config, settings: SuiteSettings) -> SuiteSettings:
-        """On a worker of a run against the bundled box: the box the controller started."""
-        given = getattr(config, "workerinput", {}).get("isight_bundled")
-        if not given:
-            return settings
-        tcp, _, udp = given.partition("|")
-        return replace(settings, target=Target.parse(tcp), targets=(), udp_target=settings.udp_target or (
-            Target.parse(udp) if udp else None), target_label=getattr(config, "workerinput", {}).get("isight_label", ""))
 
     # -- the controller ---------------------------------------------------------------------------
     @pytest.hookimpl(tryfirst=True)
@@ -60,13 +50,16 @@ class XdistHooks:
         return box_scheduling(config, log, [k for k in config.stash[SESSIONS] if k])
 
     def pytest_configure_node(self, node: Any) -> None:
-        from .engine.collected import STATE
+        """A worker's settings: the controller's, with the bundled box the controller started (started once)."""
+        from .engine.collected import SETTINGS, STATE
 
         state = node.config.stash[STATE]
-        if state.settings.target is None and len(state.settings.targets) < 2:  # the bundled box: start it once
+        settings: SuiteSettings = node.config.stash[SETTINGS]
+        if settings.target is None and len(settings.targets) < 2:  # the bundled box: start it once
             target, udp = state.target(), state.udp_target()
-            node.workerinput["isight_bundled"] = f"{target}|{udp or ''}"
-            node.workerinput["isight_label"] = state.target_label()
+            settings = replace(settings, target=target, targets=(), udp_target=settings.udp_target or udp,
+                               target_label=state.target_label())
+        node.workerinput[WORKER_INPUT] = json.dumps(settings.to_dict())
 
     def pytest_testnodedown(self, node: Any, error: object) -> None:
         from .engine.collected import FACTS, SELECTED, SESSIONS

@@ -75,8 +75,8 @@ class Context:
         self.profile = config.profile
         #: frames are judged with tcp_check=zero: a TCP sender MUST send 00 00 (F6)
         self.judged = judge_profile(config.profile)
-        self.time_out_s = config.profile.time_out_ms / 1000.0
-        self.vision_time_out_s = config.profile.vision_time_out_ms / 1000.0
+        self.time_out_s = config.profile.time_out_s
+        self.vision_time_out_s = config.profile.vision_time_out_s
         self.findings = Findings()
         self.stats = Stats()
         self.latency = Series()  # every answered request but poses, ms

@@ -316,12 +316,13 @@ class ConnJudge:
         else:
             ctx.latency.add(latency)
         frames = (r_last, last)
-        limit = (ctx.vision_time_out_s if r_action == VISION_RESULT else ctx.time_out_s) * 1000.0
+        bound_s = ctx.vision_time_out_s if r_action == VISION_RESULT else ctx.time_out_s
+        limit = bound_s * 1000.0
         if latency > limit:
             self.findings.add("T1", BOX, FAIL, f"{self.label}: {action_name(r_action)} answered after "
                               f"{latency:.1f} ms; the bound is {limit:.0f} ms", frames, robot=r_raw, box=raw)
             # the robot stops waiting at its time_out: from then on it may give the session up
-            self.refused(t_req + limit / 1000.0, f"the box did not answer {action_name(r_action)} within "
+            self.refused(t_req + bound_s, f"the box did not answer {action_name(r_action)} within "
                                                  f"{limit:.0f} ms")
         if exchange is not None:
             exchange.answer, exchange.t_answer, exchange.error_code = raw, t, code

@@ -23,7 +23,6 @@ from ..model.verdicts import Level, Verdict, broken_verdict
 from ..observed.robot_frames import FrameRecord, byte_order_evidence
 from ..protocol import Action, Frame, Transport, action_name
 from ..protocol.answers import (
-    Cycle,
     Expectation,
     Rule,
     Seen,
@@ -32,6 +31,7 @@ from ..protocol.answers import (
     rule_for_error,
     rule_for_frame,
 )
+from ..protocol.session_table import CYCLE_ACTIONS, Cycle, cycle_after
 from .capture_timing import backlog
 from .findings import BOX, ROBOT
 
@@ -72,14 +72,12 @@ class Cycles:
         return at_box if at_box == conn else Cycle.UNKNOWN
 
     def answered(self, box: Any, judge: ConnJudge, action: int | None, code: int) -> None:
-        new = None
-        if action == CYCLE_ON and code == 0:
-            new = Cycle.ON
-        elif action == CYCLE_OFF:
-            new = Cycle.IDLE if code == 0 else Cycle.UNKNOWN
-        if new is not None:
-            self.boxes[box] = new
-            judge.cycle = new
+        """The cycle after this answer: the session table's (:func:`~conformance.protocol.session_table.cycle_after`)."""
+        if action not in CYCLE_ACTIONS:
+            return
+        new = cycle_after(self.state(box, judge.cycle), action, code)
+        self.boxes[box] = new
+        judge.cycle = new
 
 
 def _case(finding: Any, exp: Expectation, action: int | None) -> str | None:

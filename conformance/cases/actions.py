@@ -16,18 +16,17 @@ from conformance.protocol import (
     ACTION_ERROR,
     Action,
     Block,
+    Codec,
     ErrorCode,
     Frame,
     Header,
     Profile,
+    codec_for,
     encode,
     encode_raw,
     header_field_bytes,
     peek_header,
-    pose_blocks,
     request,
-    tolerance_blocks,
-    value_blocks,
 )
 from conformance.protocol.answers import Cycle
 from conformance.suite import (
@@ -63,11 +62,11 @@ SEQUENCE = {
 }
 
 
-def mixed_requests(first: int) -> list[Frame]:
+def mixed_requests(codec: Codec) -> list[Frame]:
     """20 mixed requests, no two neighbours with the same action (a duplicate shows)."""
-    p = lambda n: request(POSE, pose_blocks([(1.0 + i, 2.0, 3.0, 4.0, 5.0, 6.0) for i in range(n)], first))  # noqa: E731
-    r = request(REG, pose_blocks([(10.0, 20.0, 30.0, 0.0, 90.0, 180.0)], first))
-    t = lambda n: request(TOL, tolerance_blocks([0.5 * (i + 1) for i in range(n)], first))  # noqa: E731
+    p = lambda n: request(POSE, codec.pose_blocks([(1.0 + i, 2.0, 3.0, 4.0, 5.0, 6.0) for i in range(n)]))  # noqa: E731
+    r = request(REG, codec.pose_blocks([(10.0, 20.0, 30.0, 0.0, 90.0, 180.0)]))
+    t = lambda n: request(TOL, codec.tolerance_blocks([0.5 * (i + 1) for i in range(n)]))  # noqa: E731
     n = request(NONE)
     return [n, p(1), t(1), r, n, request(ON), p(1), t(1), p(3), n,
             r, p(1), t(2), n, p(1), request(OFF), p(2), n, t(1), n]
@@ -128,14 +127,15 @@ A2_ACTIONS = [
 ]
 
 
-def malformed_set(action: Action, first: int, profile: Profile) -> list[tuple[str, bytes]]:
+def malformed_set(action: Action, profile: Profile) -> list[tuple[str, bytes]]:
     """Three parse errors (B3, B5 length, B5 count) for a 23/24/25 request."""
+    first, third = codec_for(profile).block_index(0), codec_for(profile).block_index(2)
     pose = action in (POSE, REG)
     btype, blen = (1, 25) if pose else (2, 5)
     block = lambda i: bytes([i]) + bytes(blen - 1)  # noqa: E731
     return [
         ("indexes with a gap", encode_raw(Header(action=action, block_type=btype, block_count=2, block_length=blen),
-                                          block(first) + block(first + 2), profile=profile)),
+                                          block(first) + block(third), profile=profile)),
         (f"block length {blen - 1}", encode_raw(Header(action=action, block_type=btype, block_count=1, block_length=blen - 1),
                                                 block(first)[:-1], profile=profile)),
         ("no blocks (N=0)", encode_raw(Header(action=action, block_type=btype, block_count=0, block_length=blen),
@@ -169,7 +169,7 @@ NOT_REQUESTS: list[tuple[str, dict[str, int], str]] = [
 def not_request(fields: dict[str, int], body: str, isight: CaseContext) -> bytes:
     base: dict[str, int] = {"action": ON}
     if body == "pose":
-        block = encode(request(POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)], isight.profile.first_index)),
+        block = encode(request(POSE, isight.codec.pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)])),
                        isight.profile)[12:-2]
         base = {"action": POSE, "block_type": 1, "block_count": 1, "block_length": 25}
         return encode_raw(Header(**{**base, **fields}), block, profile=isight.profile)
@@ -192,7 +192,7 @@ def type03_answer(action: Action, **_: object) -> Expect:
 @case("A1-01", ["A1", "S6", "R4"], Level.MUST, "20 pipelined mixed requests are answered once each, in order",
       "20 answers whose actions follow the requests' order, and nothing after them", checks=SEQUENCE)
 def test_pipelined_order(isight: CaseContext) -> None:
-    frames = mixed_requests(isight.profile.first_index)
+    frames = mixed_requests(isight.codec)
     data = b"".join(encode(f, isight.profile) for f in frames)
     conn = isight.connect()
     start = time.monotonic()
@@ -213,7 +213,7 @@ def test_pipelined_order(isight: CaseContext) -> None:
 @case("A1-02", ["A1"], Level.MUST, "Requests sent one at a time are answered once each",
       "each request's next frame is its own answer; nothing follows the last one", checks=SEQUENCE)
 def test_lockstep_once(isight: CaseContext) -> None:
-    frames = mixed_requests(isight.profile.first_index)
+    frames = mixed_requests(isight.codec)
     conn = isight.connect()
     outcomes: list[Outcome] = []
     for frame in frames:
@@ -237,7 +237,6 @@ def test_lockstep_once(isight: CaseContext) -> None:
                                       accept=lambda action, **_: answered(action))})
 @pytest.mark.parametrize("actions", [a for _, a in A2_ACTIONS], ids=[i for i, _ in A2_ACTIONS])
 def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None:
-    first = isight.profile.first_index
     conn = isight.connect()
     for action in actions:
         if action is None:  # an error answer must have the same shape (A2 covers every answer)
@@ -250,9 +249,9 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
         else:
             blocks: tuple[Block, ...] = ()
             if action in (POSE, REG):
-                blocks = pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, float(action))], first)
+                blocks = isight.codec.pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, float(action))])
             elif action is TOL:
-                blocks = tolerance_blocks([0.5], first)
+                blocks = isight.codec.tolerance_blocks([0.5])
             outcome = conn.request(request(action, blocks), f"{action.name} request")
         sent = isight.transcript.sent(conn.conn_id)
         if isinstance(outcome, Malformed):
@@ -285,7 +284,7 @@ def test_answer_shape(isight: CaseContext, actions: list[Action | None]) -> None
 def test_parse_error_codes(isight: CaseContext, action: Action) -> None:
     conn = isight.connect("malformed")
     results: list[tuple[str, bytes, Outcome]] = []
-    for what, bad in malformed_set(action, isight.profile.first_index, isight.profile):
+    for what, bad in malformed_set(action, isight.profile):
         if conn.closed_by_peer is not None:
             conn = isight.connect("malformed (reconnected after the box closed)")
         results.append((what, bad, isight.send_malformed(bad, f"{action.name} request with {what}", conn=conn)))
@@ -354,7 +353,7 @@ def test_extension_actions_unknown(isight: CaseContext, action: Action) -> None:
         raise Skip("--extension off: whether the box implements E is not known, so 26/27 are not judged as unknown")
     if isight.session.detect_extension(isight.transcript):
         raise Skip(f"the box implements extension E ({isight.session.extension_how}): 26/27 are known actions")
-    blocks = value_blocks([7], isight.profile.first_index) if action is Action.PROG_IDX else ()
+    blocks = isight.codec.value_blocks([7]) if action is Action.PROG_IDX else ()
     bad = encode(request(action, blocks), isight.profile)
     isight.judge(isight.send_malformed(bad, f"{action.name} ({action:#04x}) request to a box without extension E"))
 

@@ -17,10 +17,9 @@ from conformance.protocol import (
     Action,
     Header,
     Profile,
+    codec_for,
     encode_raw,
-    pose_blocks,
     request,
-    tolerance_blocks,
 )
 from conformance.protocol.constants import EDGE_FLOAT32, f32_bits
 from conformance.suite import (
@@ -45,7 +44,7 @@ ACTION_IDS = {POSE: "pose", REG: "register-pose", TOL: "tolerance"}
 
 
 def f32(bits: int, profile: Profile) -> bytes:
-    return bits.to_bytes(4, profile.float_byte_order)  # type: ignore[arg-type]
+    return bits.to_bytes(4, profile.float_byte_order)
 
 
 def value_bits(value: float) -> int:
@@ -119,7 +118,7 @@ def with_odd_float(action: Action, bits: int, where: tuple[int, int], profile: P
     per = 6 if action in (POSE, REG) else 1
     floats = [[value_bits(10.0 * b + j) for j in range(per)] for b in range(block_no + 1)]
     floats[block_no][pos] = bits
-    indexes = [profile.first_index + b for b in range(block_no + 1)]
+    indexes = [codec_for(profile).block_index(b) for b in range(block_no + 1)]
     return data_request(action, indexes, profile, floats)
 
 
@@ -169,7 +168,7 @@ SHAPE_CASES = shape_cases()
 @pytest.mark.parametrize("action", [POSE, REG], ids=["pose", "register-pose"])
 @pytest.mark.parametrize("count", [1, 3, 255])
 def test_pose_block_counts(isight: CaseContext, action: Action, count: int) -> None:
-    frame = request(action, pose_blocks(sample_poses(count), isight.profile.first_index))
+    frame = request(action, isight.codec.pose_blocks(sample_poses(count)))
     outcome = isight.exchange(frame, f"{action.name} request with {count} pose block(s) (L=25)")
     isight.judge(outcome)
 
@@ -179,9 +178,10 @@ def test_pose_block_counts(isight: CaseContext, action: Action, count: int) -> N
 @pytest.mark.parametrize("action", [POSE, REG], ids=["pose", "register-pose"])
 @pytest.mark.parametrize("length", [24, 26], ids=["L24", "L26"])
 def test_pose_wrong_length(isight: CaseContext, action: Action, length: int) -> None:
-    block = block_bytes(action, isight.profile.first_index, isight.profile)
+    first = isight.codec.block_index(0)
+    block = block_bytes(action, first, isight.profile)
     body = block[:length] if length < 25 else block + b"\x00" * (length - 25)
-    bad = data_request(action, [isight.profile.first_index], isight.profile, length=length, body=body)
+    bad = data_request(action, [first], isight.profile, length=length, body=body)
     outcome = isight.send_malformed(bad, f"{action.name} request with block length {length}")
     isight.judge(outcome, what=f"{action.name} request with L={length}")
 
@@ -193,7 +193,7 @@ def test_pose_wrong_length(isight: CaseContext, action: Action, length: int) -> 
 @pytest.mark.parametrize("count", [1, 3, 255])
 def test_tolerance_block_counts(isight: CaseContext, count: int) -> None:
     values = [0.25 + 0.5 * i for i in range(count)]
-    frame = request(TOL, tolerance_blocks(values, isight.profile.first_index))
+    frame = request(TOL, isight.codec.tolerance_blocks(values))
     outcome = isight.exchange(frame, f"tolerance request with {count} block(s) (L=5)")
     isight.judge(outcome)
 
@@ -202,7 +202,7 @@ def test_tolerance_block_counts(isight: CaseContext, count: int) -> None:
       "not 0000 (MUST); answered 1002 (SHOULD, A3)", checks={"": PARSE_ERROR}, shares_box=True)
 @pytest.mark.parametrize("length", [4, 6, 25], ids=["L4", "L6", "L25"])
 def test_tolerance_wrong_length(isight: CaseContext, length: int) -> None:
-    first = isight.profile.first_index
+    first = isight.codec.block_index(0)
     if length == 25:  # a pose-sized block announced as a tolerance block (type 02)
         body = block_bytes(POSE, first, isight.profile)
     else:
@@ -287,7 +287,7 @@ def test_non_finite(isight: CaseContext, action: Action, bits: int, where: tuple
 @pytest.mark.parametrize("bits", [b for _, b in EDGE_FLOATS], ids=[n for n, _ in EDGE_FLOATS])
 def test_edge_floats(isight: CaseContext, action: Action, bits: int) -> None:
     per = 6 if action is POSE else 1
-    data = data_request(action, [isight.profile.first_index], isight.profile, [[bits] * per])
+    data = data_request(action, [isight.codec.block_index(0)], isight.profile, [[bits] * per])
     isight.judge(isight.exchange(data, f"{action.name} request, every float {bits:08X}"))
 
 
@@ -300,11 +300,10 @@ def test_edge_floats(isight: CaseContext, action: Action, bits: int) -> None:
       shares_box=True)
 @pytest.mark.parametrize("action,btype,count,length,body_kind", [c[1:] for c in SHAPE_CASES], ids=[c[0] for c in SHAPE_CASES])
 def test_wrong_shape(isight: CaseContext, action: int, btype: int, count: int, length: int, body_kind: str) -> None:
-    first = isight.profile.first_index
     body = b""
     if body_kind:
         kind = POSE if body_kind == "pose" else TOL
-        body = b"".join(block_bytes(kind, first + i, isight.profile) for i in range(count))
+        body = b"".join(block_bytes(kind, isight.codec.block_index(i), isight.profile) for i in range(count))
     header = Header(action=action, block_type=btype, block_count=count, block_length=length)
     bad = encode_raw(header, body, profile=isight.profile)
     what = f"{Action(action).name} request with block type {btype:02x}, N={count}, L={length}"

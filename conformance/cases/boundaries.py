@@ -289,5 +289,5 @@ def test_wrong_index_positions(isight: CaseContext, action: Action) -> None:
 @pytest.mark.parametrize("action", ACTIONS, ids=ACTION_IDS)
 def test_legal_float_values(isight: CaseContext, action: Action) -> None:
     items = [(label, encode(request(action, blks), isight.profile), {"name": label, "where": where, "bits": bits})
-             for label, blks, where, bits in float_requests(action, isight.profile.first_index)]
+             for label, blks, where, bits in float_requests(action, isight.codec.block_index(0))]
     exchange_all(isight, items).finish()

@@ -29,6 +29,7 @@ from typing import Any
 from conformance.protocol import (
     Action,
     BlockType,
+    ByteOrder,
     Frame,
     PoseBlock,
     Profile,
@@ -41,7 +42,6 @@ from conformance.protocol import (
     peek_header,
     pose_blocks,
     request,
-    value_blocks,
 )
 from conformance.suite import (
     CaseContext,
@@ -62,7 +62,7 @@ from conformance.suite import (
 )
 
 # -- the family's helpers: Profile discovery (conformance/cases/discovery.py): the box's byte order, first block index and UDP CRC, found by trying each.
-ORDERS = ("big", "little")
+ORDERS: tuple[ByteOrder, ...] = ("big", "little")
 
 POSE = (640.0, -12.5, 280.0, 180.0, 0.0, 90.0)
 
@@ -119,7 +119,7 @@ def _until(conn: TcpConnection, start: float, done: Any, time_out_s: float) -> l
 def discover_byte_order(isight: CaseContext) -> tuple[dict[str, bool], dict[str, str]]:
     """Which header byte orders the box answers NONE 0000 in (and what it did with each)."""
     mine = isight.profile.byte_order
-    other = "little" if mine == "big" else "big"
+    other: ByteOrder = "little" if mine == "big" else "big"
     none = {o: encode(request(Action.NONE), isight.profile.replace(byte_order=o)) for o in ORDERS}
     accepted: dict[str, bool] = {}
     seen: dict[str, str] = {}
@@ -165,9 +165,9 @@ def discover_first_index(isight: CaseContext, profile: Profile) -> tuple[dict[in
     return accepted, seen
 
 
-def crc_candidates(profile: Profile) -> list[tuple[str, str]]:
+def crc_candidates(profile: Profile) -> list[tuple[str, ByteOrder]]:
     names = [profile.crc, *COMMON_CRCS, *crc16_names()]
-    pairs = [(profile.crc, profile.crc_byte_order)]
+    pairs: list[tuple[str, ByteOrder]] = [(profile.crc, profile.crc_byte_order)]
     for name in dict.fromkeys(n for n in names if n in crc16_names()):
         pairs += [(name, order) for order in ORDERS]
     return list(dict.fromkeys(pairs))
@@ -216,11 +216,11 @@ def checks_crc(ch: UdpChannel, body: bytes, good: bytes, wait_s: float, settle_s
 
 def crc_scan(isight: CaseContext, ch: UdpChannel, body: bytes) -> dict[str, Any]:
     """The first (algorithm, byte order) whose NONE datagram is answered 0000, confirmed by a resend."""
-    tried: dict[bytes, tuple[str, str]] = {}
-    previous: tuple[bytes, tuple[str, str]] | None = None
+    tried: dict[bytes, tuple[str, ByteOrder]] = {}
+    previous: tuple[bytes, tuple[str, ByteOrder]] | None = None
     total = len(crc_candidates(isight.profile))
     for pair in crc_candidates(isight.profile):
-        check = crc_function(pair[0])(body).to_bytes(2, pair[1])  # type: ignore[arg-type]
+        check = crc_function(pair[0])(body).to_bytes(2, pair[1])
         if check in tried:
             continue
         tried[check] = pair
@@ -236,7 +236,7 @@ def crc_scan(isight: CaseContext, ch: UdpChannel, body: bytes) -> dict[str, Any]
             "note": f"no NONE datagram was answered 0000 under any of {len(tried)} CRC/byte-order combinations"}
 
 
-def discover_crc(isight: CaseContext, byte_order: str) -> dict[str, Any]:
+def discover_crc(isight: CaseContext, byte_order: ByteOrder) -> dict[str, Any]:
     """The CRC the box answers NONE 0000 under, when a datagram with a wrong check is refused (else
     ``found`` is None: a box that answers any check gives no evidence of its algorithm)."""
     try:
@@ -351,7 +351,7 @@ def test_answer_byte_order(isight: CaseContext) -> None:
     judged: list[str] = []
 
     def expect(raw: bytes, field: str, value: int, what: str, sent: bytes) -> None:
-        want = value.to_bytes(2, order)  # type: ignore[arg-type]
+        want = value.to_bytes(2, order)
         got = header_field_bytes(raw, field)
         if got == want:
             judged.append(what)
@@ -371,14 +371,14 @@ def test_answer_byte_order(isight: CaseContext) -> None:
     if len(raw) < 12:
         answers_other_order_only(isight, sent)
     expect(raw, "version", 1, "version 00 01", sent)
-    first = isight.profile.first_index
-    gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(first, POSE), PoseBlock(first + 2, POSE)))
+    index = isight.codec.block_index
+    gap = Frame(TransferType.ROBOT_TO_BOX, Action.POSE, (PoseBlock(index(0), POSE), PoseBlock(index(2), POSE)))
     bad = encode(gap, isight.profile)
     raw = isight.send_malformed(bad, "two poses with indexes first, first+2 (B3 gap): answered 1001?").raw
     if header_field_bytes(raw, "error_code") in (b"\x10\x01", b"\x01\x10"):
         expect(raw, "error_code", 0x1001, "error code 1001", bad)
     if isight.session.detect_extension(isight.transcript):
-        sent = encode(request(Action.PROG_IDX, value_blocks([5], first)), isight.profile)
+        sent = encode(request(Action.PROG_IDX, isight.codec.value_blocks([5])), isight.profile)
         conn = isight.connect()
         conn.request(sent, "ProgIdx 5: block length reads 5?")
         raw = isight.transcript.received(conn.conn_id)  # the wire bytes: a swapped L would derail the decoder

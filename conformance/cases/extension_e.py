@@ -8,7 +8,7 @@ answer does not parse (e.g. result code 404): the E cases then judge it.
 
 Profile settings honoured: ``progidx_conflict`` (E2: a 409 travels in the block
 with error 0000, or in the error field), ``vision_time_out_ms`` (E3, E4) and
-``time_out_ms`` (E5), ``first_index`` (B3, the type-03 block's index).
+``time_out_ms`` (E5); the type-03 block's index follows the first index (B3: the codec applies it).
 """
 
 from __future__ import annotations
@@ -24,10 +24,7 @@ from conformance.protocol import (
     Frame,
     ResultCode,
     ValueBlock,
-    pose_blocks,
     request,
-    tolerance_blocks,
-    value_blocks,
 )
 from conformance.protocol.answers import CONFLICT, Cycle
 from conformance.suite import (
@@ -57,7 +54,7 @@ POSE = (800.0, 0.0, 300.0, 180.0, 0.0, 90.0)
 
 
 def prog_idx(isight: CaseContext, value: int) -> Frame:
-    return request(Action.PROG_IDX, value_blocks([value], isight.profile.first_index))
+    return request(Action.PROG_IDX, isight.codec.value_blocks([value]))
 
 
 def err(code: int) -> str:
@@ -112,10 +109,9 @@ def judge_prog_idx(isight: CaseContext, outcome: Outcome, value: int, sent: byte
 def stream_poses(isight: CaseContext, stream: TcpConnection, poses: Sequence[Sequence[float]], phase: str) -> None:
     """Send poses at the profile's rate, each answered 0000 (S3, S6) within time_out."""
     period = 1.0 / isight.profile.pose_rate_hz
-    first = isight.profile.first_index
     for i, pose in enumerate(poses):
         start = time.monotonic()
-        frame = request(Action.POSE, pose_blocks([pose], first))
+        frame = request(Action.POSE, isight.codec.pose_blocks([pose]))
         outcome = stream.request(frame, f"{phase}: pose {i + 1}/{len(poses)}")
         isight.judge(outcome, "pose", sent=stream.codec.encode(frame), phase=phase)
         assert isinstance(outcome, Answer)
@@ -126,7 +122,7 @@ def stream_poses(isight: CaseContext, stream: TcpConnection, poses: Sequence[Seq
 def request_result(isight: CaseContext, conn: TcpConnection) -> int:
     """27 within vision_time_out; 202 (busy) is retried until vision_time_out has passed. Each try waits its
     own vision_time_out (E5 bounds every 27), not what is left of the first one's."""
-    vision_s = isight.profile.vision_time_out_ms / 1000
+    vision_s = isight.profile.vision_time_out_s
     deadline = time.monotonic() + vision_s
     retry_gap = min(0.2, vision_s / 10)
     tries = 0
@@ -185,7 +181,7 @@ def test_prog_idx_answer(isight: CaseContext) -> None:
                               "never 0 or 404)", accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
 def test_vision_result(isight: CaseContext) -> None:
     isight.require_extension()
-    vision_s = isight.profile.vision_time_out_ms / 1000
+    vision_s = isight.profile.vision_time_out_s
     conn = isight.connect()
     frame = request(Action.VISION_RESULT)
     outcome = conn.request(frame, "result request (27)", timeout_s=vision_s)
@@ -247,14 +243,13 @@ def test_extended_session(isight: CaseContext) -> None:
                                             lambda o: not isinstance(o, (Silence, Closed))))})
 def test_time_out_bounds_actions(isight: CaseContext) -> None:
     isight.require_extension()
-    first = isight.profile.first_index
     steps: list[tuple[str, Frame]] = [
         ("NONE", request(Action.NONE)),
         ("PROG_IDX", prog_idx(isight, 1)),
         ("CYCLE_ON", request(Action.CYCLE_ON)),
-        ("POSE", request(Action.POSE, pose_blocks([POSE], first))),
-        ("REGISTER_POSE", request(Action.REGISTER_POSE, pose_blocks([POSE], first))),
-        ("TOLERANCE", request(Action.TOLERANCE, tolerance_blocks([0.5], first))),
+        ("POSE", request(Action.POSE, isight.codec.pose_blocks([POSE]))),
+        ("REGISTER_POSE", request(Action.REGISTER_POSE, isight.codec.pose_blocks([POSE]))),
+        ("TOLERANCE", request(Action.TOLERANCE, isight.codec.tolerance_blocks([0.5]))),
         ("CYCLE_OFF", request(Action.CYCLE_OFF)),
     ]
     conn = isight.connect()

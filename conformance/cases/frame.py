@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from conformance.protocol import Action, Header, Transport, encode, encode_raw, header_field_bytes, pose_blocks, request
+from conformance.protocol import Action, Frame, Header, Transport, encode, encode_raw, header_field_bytes, request
 from conformance.protocol.constants import START_BYTES
 from conformance.suite import (
     ANSWERED,
@@ -20,7 +20,12 @@ from conformance.suite import (
 )
 
 # -- the family's helpers: Helpers of the F cases (conformance/cases/frame.py): the pose request and an answer's bytes.
-POSE = request(Action.POSE, pose_blocks([(500.0, 0.0, 300.0, 180.0, 0.0, 90.0)]))
+POSE_VALUES = (500.0, 0.0, 300.0, 180.0, 0.0, 90.0)
+
+
+def pose_request(isight: CaseContext) -> Frame:
+    """A one-pose request, its block indexed from the profile's first index (the codec applies it, B3)."""
+    return request(Action.POSE, isight.codec.pose_blocks([POSE_VALUES]))
 
 
 def answer_bytes(isight: CaseContext, action: Action = Action.NONE) -> tuple[Answer, bytes]:
@@ -45,7 +50,7 @@ def test_answer_start_word(isight: CaseContext) -> None:
       "silence, a non-zero error, or a close; never 0000",
       checks={"": Requirement(("A5",), f"a frame that is not a request {NOT_0000}", accept=NOT_OK)}, shares_box=True)
 def test_wrong_start_word(isight: CaseContext) -> None:
-    bad = bytearray(encode(POSE))
+    bad = bytearray(encode(pose_request(isight), isight.profile))
     bad[0:2] = b"\xfe\xff"
     isight.judge(isight.send_malformed(bytes(bad), "pose with start word fe ff"))
 
@@ -72,7 +77,7 @@ def test_wrong_version(isight: CaseContext) -> None:
       shares_box=True)
 def test_answer_transfer_type(isight: CaseContext) -> None:
     for action in (Action.NONE, Action.POSE):
-        outcome = isight.exchange(request(action) if action is Action.NONE else POSE, f"{action.name} request")
+        outcome = isight.exchange(request(action) if action is Action.NONE else pose_request(isight), f"{action.name} request")
         header = outcome.error.header if isinstance(outcome, Malformed) else None
         if isinstance(outcome, Malformed) and header is not None and header.transfer_type != 0x10:  # F3 first
             raise isight.broken(expected="10", observed=f"{header.transfer_type:02x}", received=outcome.error.raw)
@@ -105,7 +110,7 @@ def test_answer_length(isight: CaseContext) -> None:
               "": Requirement(("F6",), "a TCP sender MUST send check 00 00")})
 def test_tcp_check_zero(isight: CaseContext) -> None:
     conn = isight.connect()
-    for action, frame in ((Action.NONE, request(Action.NONE)), (Action.POSE, POSE), (Action.CYCLE_OFF, request(Action.CYCLE_OFF))):
+    for action, frame in ((Action.NONE, request(Action.NONE)), (Action.POSE, pose_request(isight)), (Action.CYCLE_OFF, request(Action.CYCLE_OFF))):
         outcome = conn.request(frame, f"{action.name} request")
         if isinstance(outcome, Answer) and outcome.raw[-2:] != b"\x00\x00":
             raise isight.broken(expected="00 00", observed=outcome.raw[-2:].hex(" "), received=outcome.raw)
@@ -118,6 +123,6 @@ def test_tcp_check_zero(isight: CaseContext) -> None:
                               accept=answered_allowed(Action.POSE))}, shares_box=True)
 def test_tcp_check_crc_accepted(isight: CaseContext) -> None:
     # indexed from the profile's first index: a box taking 01 first refuses a block indexed 00 (B3), not the CRC
-    frame = request(Action.POSE, pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)], isight.profile.first_index))
+    frame = request(Action.POSE, isight.codec.pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)]))
     data = encode(frame, isight.profile, Transport.UDP)  # same bytes, CRC in the check field
     isight.judge(isight.exchange(data, "pose request whose check field holds its CRC"), sent=b"")

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from conformance.protocol import Action, Frame, Header, encode_raw, pose_blocks, request, tolerance_blocks
+from conformance.protocol import Action, Frame, Header, encode_raw, request
 from conformance.protocol.constants import START_BYTES
 from conformance.suite import (
     CLOSED,
@@ -38,12 +38,11 @@ ALIVE = Requirement(("R2",), "whatever bytes one connection sends, the box keeps
 
 
 def valid_frames(isight: CaseContext) -> dict[str, Frame]:
-    first = isight.profile.first_index
     return {
         "none": request(Action.NONE),
-        "pose": request(Action.POSE, pose_blocks([DEFAULT_POSE], first)),
-        "tolerance": request(Action.TOLERANCE, tolerance_blocks([1.5, 2.5], first)),
-        "register-pose": request(Action.REGISTER_POSE, pose_blocks([DEFAULT_POSE, (1, 2, 3, 4, 5, 6)], first)),
+        "pose": request(Action.POSE, isight.codec.pose_blocks([DEFAULT_POSE])),
+        "tolerance": request(Action.TOLERANCE, isight.codec.tolerance_blocks([1.5, 2.5])),
+        "register-pose": request(Action.REGISTER_POSE, isight.codec.pose_blocks([DEFAULT_POSE, (1, 2, 3, 4, 5, 6)])),
     }
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import socket
 import time
 
-from conformance.protocol import Action, ErrorCode, Frame, pose_blocks, request, tolerance_blocks
+from conformance.protocol import Action, ErrorCode, Frame, request
 from conformance.protocol.answers import CANONICAL_CODES, Cycle
 from conformance.suite import (
     ANSWERED,
@@ -43,11 +43,10 @@ POSES_0 = Requirement(("S3",), "poses are answered 0000 whether or not a cycle i
 
 
 def step_frame(isight: CaseContext, action: Action) -> Frame:
-    first = isight.profile.first_index
     if action in (Action.POSE, Action.REGISTER_POSE):
-        return request(action, pose_blocks([HOME], first))
+        return request(action, isight.codec.pose_blocks([HOME]))
     if action is Action.TOLERANCE:
-        return request(action, tolerance_blocks([0.5], first))
+        return request(action, isight.codec.tolerance_blocks([0.5]))
     return request(action)
 
 
@@ -105,8 +104,7 @@ def test_canonical_session(isight: CaseContext) -> None:
     command = isight.connect("command")
     for action in (Action.NONE, Action.TOLERANCE, Action.REGISTER_POSE):
         ask(isight, command, action, "configure")
-    stream = PoseStream(open_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s,
-                        first_index=isight.profile.first_index).start()
+    stream = PoseStream(open_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s).start()
     try:
         time.sleep(0.1)
         cycle_on(isight, command)
@@ -215,8 +213,7 @@ def test_busy_stream(isight: CaseContext) -> None:
     base_conn = isight.connect("command (baseline)")
     base = p50_latency(isight, base_conn, 10, "none")
     base_conn.close()
-    stream = PoseStream(open_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s,
-                        first_index=isight.profile.first_index).start()
+    stream = PoseStream(open_stream(isight), isight.profile.pose_rate_hz, None, isight.time_out_s).start()
     try:
         command = isight.connect("command")
         during = p50_latency(isight, command, 20, "during", 0.02)

@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from conformance.protocol import Action, Frame, ProtocolError, StreamDecoder, TransferType, encode, pose_blocks, request
+from conformance.protocol import Action, Frame, ProtocolError, StreamDecoder, TransferType, encode, request
 from conformance.protocol.constants import CHECK_LEN, HEADER_LEN
 from conformance.suite import (
     DEFAULT_POSE,
@@ -277,7 +277,7 @@ def _connect(isight: CaseContext, label: str) -> TcpConnection:
 
 
 def _pose(isight: CaseContext) -> bytes:
-    return encode(request(Action.POSE, pose_blocks([DEFAULT_POSE], isight.profile.first_index)), isight.profile)
+    return encode(request(Action.POSE, isight.codec.pose_blocks([DEFAULT_POSE])), isight.profile)
 
 
 #: why a wait was cut short (harness.waits): streams, or several requests in one write, of earlier FAILed cases

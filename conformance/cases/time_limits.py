@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 
-from conformance.protocol import Action, Frame, encode, pose_blocks, request, tolerance_blocks
+from conformance.protocol import Action, Frame, encode, request
 from conformance.suite import (
     DEFAULT_POSE,
     Answer,
@@ -21,16 +21,15 @@ from conformance.suite import (
 
 # -- the family's helpers: Helpers of the T cases (conformance/cases/time_limits.py): the requests timed and the time_out check.
 def timed_requests(isight: CaseContext) -> list[Frame]:
-    first = isight.profile.first_index
-    pose = request(Action.POSE, pose_blocks([DEFAULT_POSE], first))
+    pose = request(Action.POSE, isight.codec.pose_blocks([DEFAULT_POSE]))
     return [
         request(Action.NONE),
-        request(Action.TOLERANCE, tolerance_blocks([0.5], first)),
-        request(Action.REGISTER_POSE, pose_blocks([DEFAULT_POSE], first)),
+        request(Action.TOLERANCE, isight.codec.tolerance_blocks([0.5])),
+        request(Action.REGISTER_POSE, isight.codec.pose_blocks([DEFAULT_POSE])),
         request(Action.CYCLE_ON),
         *[pose] * 20,
         request(Action.CYCLE_OFF),
-        request(Action.POSE, pose_blocks([DEFAULT_POSE] * 255, first)),  # the largest legal frame
+        request(Action.POSE, isight.codec.pose_blocks([DEFAULT_POSE] * 255)),  # the largest legal frame
     ]
 
 
@@ -73,7 +72,7 @@ def test_every_answer_within_time_out(isight: CaseContext) -> None:
 def test_stream_at_rate(isight: CaseContext) -> None:
     rate, seconds = isight.profile.pose_rate_hz, isight.settings.stream_seconds
     conn = isight.connect("stream", target=isight.session.stream_target())
-    result = PoseStream(conn, rate, seconds, isight.time_out_s, first_index=isight.profile.first_index).start().wait()
+    result = PoseStream(conn, rate, seconds, isight.time_out_s).start().wait()
     isight.latencies_ms.extend(result.latencies_ms)
     isight.details["stream"] = result.figures()
     if result.max_send_lag_ms > max(2000 / rate, 10.0):

@@ -26,9 +26,7 @@ from conformance.protocol import (
     encode,
     peek_action,
     peek_header,
-    pose_blocks,
     request,
-    tolerance_blocks,
 )
 from conformance.protocol.constants import CHECK_LEN
 from conformance.suite import (
@@ -59,7 +57,7 @@ def udp_bytes(isight: CaseContext, frame: Frame) -> bytes:
 
 
 def pose_request(isight: CaseContext, action: Action = Action.POSE) -> Frame:
-    return request(action, pose_blocks([POSE], isight.profile.first_index))
+    return request(action, isight.codec.pose_blocks([POSE]))
 
 
 def action_of(outcome: Outcome) -> int | None:
@@ -217,9 +215,8 @@ def test_udp_none(isight: CaseContext) -> None:
                               accept=lambda action, **_: answered_allowed(action))})
 def test_udp_pose_answers(isight: CaseContext) -> None:
     ch = isight.udp()
-    first = isight.profile.first_index
     for frame in (pose_request(isight), pose_request(isight, Action.REGISTER_POSE),
-                  request(Action.TOLERANCE, tolerance_blocks([0.25], first))):
+                  request(Action.TOLERANCE, isight.codec.tolerance_blocks([0.25]))):
         data = udp_bytes(isight, frame)
         outcome = ch.request(data, f"{frame.action.name} datagram")
         isight.judge(outcome, sent=data, action=frame.action)

@@ -78,11 +78,6 @@ def params(result: str) -> list[Any]:
     return chosen or [pytest.param(None, id="no-vectors")]
 
 
-def has_blocks(v: Vector) -> bool:
-    head = peek_header(v.data)
-    return head is not None and head.block_count > 0
-
-
 def applicable(isight: CaseContext, v: Vector | None) -> Vector:
     """The vector, or Skip with the reason it cannot be judged in this run."""
     if v is None:
@@ -93,9 +88,9 @@ def applicable(isight: CaseContext, v: Vector | None) -> Vector:
     if prof.byte_order != "big" or prof.float_byte_order != "big":
         raise Skip(f"the vectors are big-endian (F4/B4); this run's profile has byte_order={prof.byte_order}, "
                    f"float_byte_order={prof.float_byte_order}")
-    if v.profile.first_index != prof.first_index and has_blocks(v):
-        raise Skip(f"vector written for first index {v.profile.first_index} (its group's profile); "
-                   f"this run's profile uses --first-index {prof.first_index}")
+    other_index = v.other_first_index(prof)
+    if other_index is not None:
+        raise Skip(other_index)
     if "Extension" in v.flags and v.result != "invalid" and not isight.session.detect_extension(isight.transcript):
         raise Skip(f"extension vector and the box lacks E ({isight.session.extension_how}); A5-02 covers 26/27 then")
     return v

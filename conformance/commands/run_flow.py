@@ -4,8 +4,8 @@
 A thin driver around pytest: the handler reads the same options the pytest plugin offers,
 starts the bundled reference box when no ``--target`` is given, checks that the
 target is reachable (one clear line and exit 2 if not); this module runs ``conformance.cases``
-through :func:`pytest.main` with its settings passed as the plugin's flags (so they
-are resolved in one place), shows progress, applies the expected-failures list and
+through :func:`pytest.main` with its resolved settings handed over as an object
+(:class:`~conformance.runtime.settings.SettingsPlugin`), shows progress, applies the expected-failures list and
 sets the exit code: 0 nothing FAILed or ERRORed (or the failing set equals the
 expected-failures list), 1 something did, 2 usage error or unreachable target, 3 the
 run was cut short (Ctrl-C, SIGTERM, SIGHUP: the reports cover the cases that ran and
@@ -32,7 +32,7 @@ from ..model.verdicts import RootCause
 from ..protocol.clauses import all_clauses, clause_ids
 from ..protocol.clauses import families as registry_families
 from ..report.run_comparison import Baseline, print_comparison
-from ..runtime.settings import SuiteSettings
+from ..runtime.settings import SettingsPlugin, SuiteSettings
 from ..suite.record import CaseRecord, info_of
 
 
@@ -108,12 +108,12 @@ class _RunPlugin:
             self.progress.case_done(done[-1])
 
 
-def _pytest_args(settings: SuiteSettings, collect_only: bool = False) -> list[str]:
+def _pytest_args(collect_only: bool = False) -> list[str]:
     # -c devnull: the user's own pytest configuration (addopts, plugins) stays out of the run;
     # --assert=plain: verdicts carry their own evidence, pytest need not rewrite the cases' asserts
     args = ["-c", os.devnull, "--rootdir", os.getcwd(), "--pyargs", "conformance.cases",
             "-p", "no:cacheprovider", "-p", "no:terminal", "-p", "no:warnings", "--assert=plain",
-            *settings.to_args(), "--isight-lang", i18n.current()]
+            "--isight-lang", i18n.current()]
     if collect_only:
         args.append("--collect-only")
     return args
@@ -122,14 +122,14 @@ def _pytest_args(settings: SuiteSettings, collect_only: bool = False) -> list[st
 def collect(settings: SuiteSettings) -> list[CaseRecord] | None:
     """The selected cases' metadata (None if the catalogue fails to load)."""
     plugin = _RunPlugin()
-    code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
+    code = pytest.main(_pytest_args(collect_only=True), plugins=[plugin, SettingsPlugin(settings)])
     return None if code not in (0, 5) or plugin.collect_errors else plugin.collected
 
 
 def plan_lanes(settings: SuiteSettings, lanes: int) -> dict[str, str] | None:
     """Each selected case's lane (:mod:`conformance.engine.lanes`); None if no two lanes would have work."""
     plugin = _RunPlugin(lanes=lanes)
-    code = pytest.main(_pytest_args(settings, collect_only=True), plugins=[plugin])
+    code = pytest.main(_pytest_args(collect_only=True), plugins=[plugin, SettingsPlugin(settings)])
     if code not in (0, 5) or plugin.collect_errors or not plugin.plan:
         return None
     return plugin.plan if len({s for s in plugin.plan.values() if s != ALONE}) > 1 else None
@@ -203,7 +203,8 @@ def run_suite(settings: SuiteSettings, expected: set[str] | None, quiet: bool, b
     plan = plan_lanes(settings, lanes) if lanes > 1 else None
     plugin = _RunPlugin(progress, baseline, plan=plan, acceptance=acceptance)
     try:
-        code = pytest.main(_pytest_args(settings) + (["-n", str(lanes)] if plan else []), plugins=[plugin])
+        code = pytest.main(_pytest_args() + (["-n", str(lanes)] if plan else []),
+                           plugins=[plugin, SettingsPlugin(settings)])
     except KeyboardInterrupt:  # a signal between pytest's own handlers: the plugin wrote what it could
         code = pytest.ExitCode.INTERRUPTED
     finally:

@@ -17,6 +17,7 @@ import time
 from collections.abc import Sequence
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
+from ..harness.connection import Dialer
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..protocol import Action, PoseBlock, Profile, ToleranceBlock, Transport, codec_for, request
@@ -50,20 +51,20 @@ class Prober:
 
     def __init__(self, target: Target, profile: Profile, time_out_s: float, deadline: float,
                  transcript: Transcript | None = None) -> None:
-        self.target = target
         self.profile = profile
-        self.time_out_s = time_out_s
-        self.deadline = deadline
-        self.transcript = transcript if transcript is not None else Transcript(case_id="DIAGNOSE")
+        #: the connections: dialled fresh for each exchange, every wait time_out cut to what is left before the deadline
+        self.dialer = Dialer(transcript if transcript is not None else Transcript(case_id="DIAGNOSE"), target, profile,
+                             time_out_s, deadline)
         self.codec = codec_for(profile)
         self.count = 0  # exchanges made
         self.unreachable = ""  # why the last connection could not be made
 
     def left(self) -> float:
-        return self.deadline - time.monotonic()
+        return self.dialer.left()
 
-    def _wait(self) -> float:
-        return max(0.0, min(self.time_out_s, self.left()))
+    def _by(self, quiet: bool = False) -> float:
+        """The deadline of the wait for an answer starting now (:data:`QUIET_S` at most for one that may not come)."""
+        return time.monotonic() + min(QUIET_S, self.dialer.wait_s()) if quiet else self.dialer.by()
 
     def exchange(self, frames: Sequence[bytes], quiet: Sequence[bool] = (), settle: bool = True,
                  together: bool = False, stop_silent: bool = False) -> Exchange | None:
@@ -75,9 +76,8 @@ class Prober:
         if self.left() < MIN_LEFT_S:
             return None
         self.count += 1
-        conn = TcpConnection(self.transcript, self.target, self.profile, "diagnose", time_out_s=self._wait())
         try:
-            conn.connect()
+            conn = self.dialer.dial("diagnose")
         except Unreachable as exc:
             self.unreachable = str(exc)
             return Exchange(tuple(frames), (), reached=False)
@@ -90,7 +90,7 @@ class Prober:
                     readings.append(Reading((), True))
                     break
                 may_skip = i < len(quiet) and quiet[i]
-                reading = self._read(conn, min(QUIET_S, self._wait()) if may_skip else self._wait(), settle)
+                reading = self._read(conn, self._by(quiet=may_skip), settle)
                 readings.append(reading)
                 if reading.closed or (stop_silent and reading.silent and not may_skip):
                     break
@@ -104,7 +104,7 @@ class Prober:
             return Reading((), True)
         got: list[Outcome] = []
         while len(got) < count + 4:
-            outcome = conn.next_outcome(self._wait() if not got else min(QUIET_S, self._wait()))
+            outcome = conn.receive(self._by(quiet=bool(got)))
             if isinstance(outcome, Silence):
                 break
             got.append(outcome)
@@ -116,8 +116,8 @@ class Prober:
         answers = tuple(heard(o) for o in got if isinstance(o, (Answer, Malformed)))
         return Reading(answers, any(isinstance(o, Closed) for o in got))
 
-    def _read(self, conn: TcpConnection, wait_s: float, settle: bool = True) -> Reading:
-        first = conn.next_outcome(wait_s)
+    def _read(self, conn: TcpConnection, by: float, settle: bool = True) -> Reading:
+        first = conn.receive(by)
         if isinstance(first, Silence):
             return Reading()
         if isinstance(first, Closed):

@@ -44,7 +44,8 @@ Choices where PROTOCOL.md allows several behaviours (the most helpful one each t
   the ``progidx_conflict`` knob). E3: the result request is answered with
   ``vision_result`` whatever the cycle did.
 * A refused CycleOn (0001) leaves the cycle off; a failed CycleOff (0002) leaves
-  it on.
+  it on: the session table (:mod:`conformance.protocol.session_table`) gives each answer's
+  next state, and where a tester cannot know it (0002) the box keeps its own.
 """
 
 from __future__ import annotations
@@ -69,8 +70,9 @@ from ..protocol import (
     codec_for,
     value_blocks,
 )
-from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes, request_action
+from ..protocol.answers import SENDABLE_RESULTS, allowed_codes, request_action
 from ..protocol.constants import EXTENSION_ACTIONS
+from ..protocol.session_table import Cycle, box_cycle_after
 
 
 class Reaction(str, enum.Enum):
@@ -114,16 +116,30 @@ _ALWAYS = {  # state-independent requests: action -> (reaction when true, reacti
     Action.VISION_RESULT: (Reaction.VISION_RESULT, Reaction.VISION_RESULT),
 }
 
+_CYCLE_CODE = {Reaction.OK: ErrorCode.OK, Reaction.NOT_READY: ErrorCode.NOT_READY,
+               Reaction.CYCLE_OFF_FAILED: ErrorCode.CYCLE_OFF_FAILED}
+
+
+def _cycle(state: Cycle, action: Action, reaction: Reaction, note: str) -> Transition:
+    """A CycleOn/CycleOff transition: its next state is the session table's (where a tester cannot know
+    the state, the box keeps its own: :func:`~conformance.protocol.session_table.box_cycle_after`)."""
+    return Transition(reaction, box_cycle_after(state, action, _CYCLE_CODE[reaction]), note)
+
+
 #: Well-formed requests: (state, action, condition) -> (reaction, next state, note).
 TRANSITIONS: dict[tuple[Cycle, Action, bool], Transition] = {
-    (_IDLE, Action.CYCLE_ON, True): Transition(Reaction.OK, _ON, "S2: cycle started"),
-    (_IDLE, Action.CYCLE_ON, False): Transition(Reaction.NOT_READY, _IDLE, "S2: box not ready, 0001"),
-    (_ON, Action.CYCLE_ON, True): Transition(Reaction.OK, _ON, "S3: CycleOn while a cycle is on, 0000 (informational)"),
-    (_ON, Action.CYCLE_ON, False): Transition(Reaction.NOT_READY, _ON, "S2: box not ready, 0001 (cycle stays on)"),
-    (_ON, Action.CYCLE_OFF, True): Transition(Reaction.OK, _IDLE, "S1: cycle stopped"),
-    (_ON, Action.CYCLE_OFF, False): Transition(Reaction.CYCLE_OFF_FAILED, _ON, "A3: CycleOff failed, 0002"),
-    (_IDLE, Action.CYCLE_OFF, True): Transition(Reaction.OK, _IDLE, "S3: CycleOff with no cycle on, 0000 (informational)"),
-    (_IDLE, Action.CYCLE_OFF, False): Transition(Reaction.CYCLE_OFF_FAILED, _IDLE, "A3: CycleOff failed, 0002"),
+    (_IDLE, Action.CYCLE_ON, True): _cycle(_IDLE, Action.CYCLE_ON, Reaction.OK, "S2: cycle started"),
+    (_IDLE, Action.CYCLE_ON, False): _cycle(_IDLE, Action.CYCLE_ON, Reaction.NOT_READY, "S2: box not ready, 0001"),
+    (_ON, Action.CYCLE_ON, True): _cycle(_ON, Action.CYCLE_ON, Reaction.OK,
+                                         "S3: CycleOn while a cycle is on, 0000 (informational)"),
+    (_ON, Action.CYCLE_ON, False): _cycle(_ON, Action.CYCLE_ON, Reaction.NOT_READY,
+                                          "S2: box not ready, 0001 (cycle stays on)"),
+    (_ON, Action.CYCLE_OFF, True): _cycle(_ON, Action.CYCLE_OFF, Reaction.OK, "S1: cycle stopped"),
+    (_ON, Action.CYCLE_OFF, False): _cycle(_ON, Action.CYCLE_OFF, Reaction.CYCLE_OFF_FAILED, "A3: CycleOff failed, 0002"),
+    (_IDLE, Action.CYCLE_OFF, True): _cycle(_IDLE, Action.CYCLE_OFF, Reaction.OK,
+                                            "S3: CycleOff with no cycle on, 0000 (informational)"),
+    (_IDLE, Action.CYCLE_OFF, False): _cycle(_IDLE, Action.CYCLE_OFF, Reaction.CYCLE_OFF_FAILED,
+                                             "A3: CycleOff failed, 0002"),
     **{
         (state, action, cond): Transition(pair[0] if cond else pair[1], state, "")
         for state in BOX_STATES

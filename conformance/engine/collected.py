@@ -23,6 +23,8 @@ from ..runtime.settings import SuiteSettings
 from .lanes import LANE_PLAN, lanes_of
 from .rootcause import SessionFacts, find_root_causes
 
+#: the run's resolved settings (every box's); each box's session holds them with its own target
+SETTINGS = pytest.StashKey[SuiteSettings]()
 SESSIONS = pytest.StashKey[dict[str, SessionState]]()  # target key ("" for one box) -> session
 RESULTS = pytest.StashKey[dict[str, list[CaseResult]]]()
 FACTS = pytest.StashKey[dict[str, SessionFacts]]()  # the controller's: what the workers' sessions learnt

@@ -24,6 +24,7 @@ from ..protocol import (
     TransferType,
     Transport,
     ValueBlock,
+    peek_header,
 )
 
 SCHEMA = "isight-vectors-1"
@@ -56,6 +57,15 @@ class Vector:
     @property
     def name(self) -> str:
         return f"{Path(self.file).stem}-tc{self.tc_id}"
+
+    def other_first_index(self, profile: Profile) -> str | None:
+        """Why these bytes cannot be judged under ``profile``: their blocks are indexed from their group's
+        first index and ``profile`` reads another (B3); None when they can."""
+        head = peek_header(self.data)
+        if head is None or head.block_count == 0 or self.profile.first_index == profile.first_index:
+            return None
+        return (f"vector written for first index {self.profile.first_index} (its group's profile); "
+                f"this run's profile uses --first-index {profile.first_index}")
 
 
 def group_profile(group: Mapping[str, Any], base: Profile | None = None) -> Profile:

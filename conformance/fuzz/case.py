@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..protocol import Transport
+from ..protocol import ByteOrder, Transport
 from .oracle import Expectation
 
 
@@ -51,13 +51,13 @@ class FuzzCase:
         return f"{self.kind}: {self.note} [{len(self.data)} bytes{tail}{how}]"
 
 
-def _finite(raw: bytes, order: str) -> bytes:
+def _finite(raw: bytes, order: ByteOrder) -> bytes:
     """float32 words with any all-ones exponent (NaN/inf) turned into a finite value."""
     out = bytearray(raw)
     for i in range(0, len(out) - 3, 4):
-        bits = int.from_bytes(out[i : i + 4], order)  # type: ignore[arg-type]
+        bits = int.from_bytes(out[i : i + 4], order)
         if bits & 0x7F800000 == 0x7F800000:
-            out[i : i + 4] = (bits ^ 0x40000000).to_bytes(4, order)  # type: ignore[arg-type]
+            out[i : i + 4] = (bits ^ 0x40000000).to_bytes(4, order)
     return bytes(out)
 
 

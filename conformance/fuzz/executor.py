@@ -31,6 +31,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection, UdpChannel
+from ..harness.connection import Dialer
 from ..harness.exchange import (
     PROBE_ACTIONS,
     Settle,
@@ -53,12 +54,10 @@ from .strategies import FuzzCase
 
 #: At most this many answers to one case are read (a box flooding answers ends the case).
 MAX_ANSWERS = 64
-#: The connection the executor uses (the harness's; it can poll what has arrived without waiting).
-FuzzConnection = TcpConnection
 #: R2: a fresh connection's NONE request got a frame-like answer (the harness's one liveness test).
 alive = responsive
 
-__all__ = ["MAX_ANSWERS", "PROBE_ACTIONS", "Executor", "FuzzConnection", "Result", "Stats", "alive", "frame_of"]
+__all__ = ["MAX_ANSWERS", "PROBE_ACTIONS", "Executor", "Result", "Stats", "alive", "frame_of"]
 
 
 @dataclass
@@ -134,7 +133,9 @@ class Executor:
         self.extension = extension
         self.liveness_every = max(1, liveness_every)
         self.settle_s = settle_s
-        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_ms / 1000
+        #: the connections (the harness's: dial, send, receive with a deadline)
+        self.dialer = Dialer(transcript, target, profile, time_out_s)
+        self.time_out_s = self.dialer.time_out_s
         self.isolate = False
         self.settle = False
         self.stats = Stats()
@@ -144,13 +145,12 @@ class Executor:
         self._probes: dict[Transport, dict[Action, bytes]] = {
             t: {a: codec.encode(probe_request(a, profile), t) for a in PROBE_ACTIONS} for t in (Transport.TCP, Transport.UDP)
         }
-        self._conn: FuzzConnection | None = None
+        self._conn: TcpConnection | None = None
         self._udp: UdpChannel | None = None
 
     # -- connections ---------------------------------------------------------------------
-    def _connect(self, label: str) -> FuzzConnection:
-        conn = FuzzConnection(self.transcript, self.target, self.profile, label, self.time_out_s)
-        conn.connect()
+    def _connect(self, label: str) -> TcpConnection:
+        conn = self.dialer.dial(label)
         self.stats.connections += 1
         return conn
 
@@ -223,7 +223,7 @@ class Executor:
                 conn.close("fuzz: the box closed the connection; a new one for the next case")
         return result
 
-    def exchange(self, conn: FuzzConnection, case: FuzzCase, note: str = "") -> Result:
+    def exchange(self, conn: TcpConnection, case: FuzzCase, note: str = "") -> Result:
         """The case's bytes and a probe on ``conn``; what came before the probe's answer, judged.
 
         ``result.conn`` is negative when the connection is no longer usable (closed, reset, hung)."""
@@ -285,7 +285,7 @@ class Executor:
             raise RuntimeError("a UDP case without a UDP target")
         if self._udp is None:
             try:
-                self._udp = UdpChannel(self.transcript, self.udp_target, self.profile, "fuzz-udp")
+                self._udp = self.dialer.udp("fuzz-udp", self.udp_target)
             except Unreachable:
                 gone = Closed(True, 0.0)
                 return Result(case, [], gone, judge(case.expects, [], gone, self.profile, Action.NONE), 0, True)

@@ -97,8 +97,8 @@ class Coverage:
     """The points of each space a campaign reached (see the module docstring)."""
 
     def __init__(self, profile: Profile) -> None:
-        self.order: Any = "big" if profile.byte_order == "big" else "little"
-        self.forder: Any = "big" if profile.float_byte_order == "big" else "little"
+        self.order = profile.byte_order
+        self.forder = profile.float_byte_order
         self.space = field_space()
         self.counts: dict[int, set[int]] = {int(a): set() for a in BLOCK_ACTIONS}
         self.fields: dict[str, set[int]] = {name: set() for name in self.space}

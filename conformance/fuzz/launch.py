@@ -48,7 +48,7 @@ def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tupl
     """(target, udp target, the bundled box if started); raises SystemExit(2) when unreachable."""
     target, udp = _parse_target(args.target), _parse_target(args.udp_target)
     if target is not None:
-        problem = check_reachable(target, profile.time_out_ms / 1000)
+        problem = check_reachable(target, profile.time_out_s)
         if problem:
             print(f"isight-conformance {name}: {problem}", file=sys.stderr)
             raise SystemExit(EXIT_USAGE)
@@ -98,7 +98,7 @@ def _fuzz(args: argparse.Namespace) -> int:
     if unknown:
         raise ValueError(f"unknown fuzz categories {', '.join(unknown)}; choose from {', '.join(known)}")
     quiet = args.quiet
-    with box_child(args.restart_cmd, _parse_target(args.target), profile.time_out_ms / 1000) as child, \
+    with box_child(args.restart_cmd, _parse_target(args.target), profile.time_out_s) as child, \
             _box(args, profile, "fuzz") as (target, udp, box):
         try:  # once the target is known to answer: an unreachable one leaves no directories behind
             report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir, prefix="fuzz-")
@@ -177,7 +177,7 @@ def _replay(args: argparse.Namespace) -> int:
     if repros:
         with _box(args, profile, "replay") as (target, _udp, _started):
             print(f"replay: {len(repros)} root-cause repro(s) to {target}; profile {profile.describe()}", flush=True)
-            status = replay_repros(repros, target, profile, profile.time_out_ms / 1000, lambda line: print(line, flush=True))
+            status = replay_repros(repros, target, profile, profile.time_out_s, lambda line: print(line, flush=True))
         args.files = [f for f in args.files if f not in repros]
         if not args.files:
             return EXIT_OK if status == 0 else EXIT_FAILED

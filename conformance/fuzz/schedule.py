@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import random
 from collections.abc import Iterator
-from typing import Literal
 
 from ..protocol import BLOCK_LEN, MAX_FRAME_LEN, REQUEST_SHAPE, Action, BlockType, Header, Transport
 from ..protocol.constants import MAX_BLOCK_COUNT
@@ -126,7 +125,7 @@ class Schedule:
     def _field(self, name: str, off: int, width: int) -> Iterator[FuzzCase]:
         s = self.s
         bases = [(Action.NONE, self.request(Action.NONE, 0)), (Action.POSE, self.request(Action.POSE, 1))]
-        order: Literal["big", "little"] = "big" if s.profile.byte_order == "big" else "little"
+        order = s.profile.byte_order
         for value in field_space()[name]:
             for action, base in bases:
                 data = bytearray(base)
@@ -150,7 +149,7 @@ class Schedule:
                 yield s.case("edge-float", "B4", bytes(data), f"{action.name} ×{n}, every value {bits:08x}")
         if s.extension:
             for value in INT32_EDGES:
-                body = bytes([s.first]) + value.to_bytes(4, s.order, signed=True)  # type: ignore[arg-type]
+                body = bytes([s.first]) + value.to_bytes(4, s.order, signed=True)
                 header = Header(action=Action.PROG_IDX, block_type=BlockType.VALUE, block_count=1, block_length=5)
                 yield s.case("edge-progidx", "", s.raw(header, body), f"ProgIdx {value} (an int32 edge)")
 

@@ -4,7 +4,8 @@ Rules: NONE, CycleOn, CycleOff, poses on the stream connection (one at a time or
 pipelined, S6), register poses and tolerances on the command connection, ProgIdx and
 the result request (only when the box implements extension E), malformed frames from
 the frame strategies on either connection (each followed by a probe), and reconnects
-of either connection. The machine keeps the box's cycle state (S2, S3) and the last
+of either connection. The machine keeps the box's cycle state (S2, S3: each answer's effect is
+:func:`~conformance.protocol.session_table.cycle_after`'s) and the last
 answer on each connection; what a request may be answered comes from
 :func:`~conformance.protocol.answers.allowed_codes` for that state, and every answer is
 judged by the frame oracle (:mod:`.oracle`). Teardown checks liveness on a fresh
@@ -31,15 +32,16 @@ from typing import Any, ClassVar
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, precondition, rule
 
-from ..harness.client import Answer, Closed, Malformed, Outcome, Silence
+from ..harness.client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
 from ..model.verdicts import Verdict
 from ..protocol import BLOCK_LEN, REQUEST_SHAPE, Action, BlockType, Header, codec_for
-from ..protocol.answers import SENDABLE_RESULTS, Cycle, allowed_codes
+from ..protocol.answers import SENDABLE_RESULTS, allowed_codes
+from ..protocol.session_table import Cycle, cycle_after
 from .config import CampaignConfig
 from .death_first import died, known_death
-from .executor import Executor, FuzzConnection, alive
+from .executor import Executor, alive
 from .oracle import Expectation, Finding, Rule, judge
 from .state_coverage import OPEN, StateCoverage, Transition
 from .strategies import FuzzCase, Strategies, _finite
@@ -102,15 +104,6 @@ def _codes(codes: frozenset[int] | None) -> Any:
     return "answered" if codes is None else {"errors": [f"{c:04X}" for c in sorted(codes)]}
 
 
-def _next_cycle(action: Action, code: int, cycle: Cycle) -> Cycle:
-    """S2/S3: the cycle state after ``action`` answered ``code`` (a refusal leaves it as it was)."""
-    if action is Action.CYCLE_ON:
-        return Cycle.ON if code == 0 else cycle if code == 1 else Cycle.UNKNOWN
-    if action is Action.CYCLE_OFF:
-        return Cycle.IDLE if code == 0 else cycle if code == 2 else Cycle.UNKNOWN
-    return cycle
-
-
 class IsightSession(RuleBasedStateMachine):
     """One robot session against the box (see the module docstring)."""
 
@@ -123,7 +116,7 @@ class IsightSession(RuleBasedStateMachine):
         self.tr = cfg.transcript if cfg.transcript is not None else Transcript(case_id="FUZZ-stateful")
         self.log: list[str] = []
         self.sequence: list[dict[str, Any]] = []
-        self.conns: dict[str, FuzzConnection] = {}
+        self.conns: dict[str, TcpConnection] = {}
         self.last: dict[str, str | None] = {}
         self.executor = Executor(cfg.target, cfg.profile, self.tr, extension=cfg.extension, settle_s=cfg.settle_s)
         self.cycle = Cycle.UNKNOWN
@@ -136,9 +129,8 @@ class IsightSession(RuleBasedStateMachine):
     # -- plumbing ------------------------------------------------------------------------------
     def _open(self, name: str) -> None:
         ctx = self.ctx
-        conn = FuzzConnection(self.tr, ctx.stream_target if name == "stream" else ctx.cfg.target, ctx.cfg.profile, name)
         try:
-            conn.connect()
+            conn = self.executor.dialer.dial(name, ctx.stream_target if name == "stream" else ctx.cfg.target)
         except Unreachable as exc:
             self._fail(Finding(Verdict.FAIL, "R2", "R2/S4: the box accepts the robot's connections", str(exc),
                                "R2/connect"), FuzzCase("connect", "R2", b"", f"open {name}"))
@@ -197,7 +189,7 @@ class IsightSession(RuleBasedStateMachine):
         if isinstance(outcome, Answer):
             code = outcome.frame.error_code
             ctx.coverage.record(before, name, last, action, code)
-            self.cycle = _next_cycle(action, code, self.cycle)
+            self.cycle = cycle_after(self.cycle, action, code)
             self.last[name] = action.name if ok is None or code in ok else None
         return outcome
 
@@ -349,11 +341,10 @@ class IsightSession(RuleBasedStateMachine):
 
     def _burst(self, count: int) -> None:
         ctx = self.ctx
-        extras: list[FuzzConnection] = []
+        extras: list[TcpConnection] = []
         for i in range(count):
-            conn = FuzzConnection(self.tr, ctx.cfg.target, ctx.cfg.profile, f"extra-{i + 1}")
             try:
-                conn.connect()
+                conn = self.executor.dialer.dial(f"extra-{i + 1}", ctx.cfg.target)
             except Unreachable:
                 break  # the box bounds its connections: allowed
             extras.append(conn)

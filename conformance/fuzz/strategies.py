@@ -78,7 +78,7 @@ class Strategies:
         self.extension = extension
         self.udp = udp
         self.codec = codec_for(profile)
-        self.order = "big" if profile.float_byte_order == "big" else "little"
+        self.order = profile.float_byte_order
         self._u32 = struct.Struct((">" if self.order == "big" else "<") + "I").pack
         self.first = profile.first_index
         self.actions = CORE_ACTIONS + ((Action.PROG_IDX, Action.VISION_RESULT) if extension else ())

@@ -29,7 +29,7 @@ def _wait_for(conn: TcpConnection, want: int, time_out_s: float) -> None:
 
 def replay_sends(original: Transcript, profile: Profile, into: Transcript, time_out_s: float | None = None) -> int:
     """Replay ``original``'s connections and writes (see the module docstring); the writes replayed."""
-    wait = time_out_s if time_out_s is not None else profile.time_out_ms / 1000
+    wait = time_out_s if time_out_s is not None else profile.time_out_s
     infos = dict(original.connections)
     conns: dict[int, TcpConnection] = {}
     want: dict[int, int] = {}

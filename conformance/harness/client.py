@@ -56,7 +56,7 @@ class TcpConnection:
         self, transcript: Transcript, target: Target, profile: Profile, label: str = "", time_out_s: float | None = None
     ) -> None:
         self.transcript, self.target, self.profile, self.label = transcript, target, profile, label
-        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_ms / 1000
+        self.time_out_s = time_out_s if time_out_s is not None else profile.time_out_s
         self.codec = codec_for(profile)
         self.decoder = StreamDecoder(profile, expect=TransferType.BOX_TO_ROBOT)
         self.sock: socket.socket | None = None
@@ -206,6 +206,11 @@ class TcpConnection:
         if timeout_s is None and self._coalesced_wait():
             return self._coalesced_outcome(since)
         return self._next_outcome(timeout_s, since)
+
+    def receive(self, deadline: float, since: float | None = None) -> Outcome:
+        """What the box does next by ``deadline`` (``time.monotonic()``): an answer, malformed bytes, a close,
+        or silence (:class:`~.connection.Connection`'s receive with a deadline)."""
+        return self.next_outcome(max(0.0, deadline - time.monotonic()), since)
 
     def _coalesced_wait(self) -> bool:  # for a frame that shared its write with frames already answered (R4)
         return self.write_frames > 1 and 0 < self.answers - self.answers_at_write < self.write_frames
@@ -359,7 +364,7 @@ class UdpChannel:
         self.target = target
         self.profile = profile
         self.codec = codec_for(profile)
-        self.time_out_s = profile.time_out_ms / 1000
+        self.time_out_s = profile.time_out_s
         family = socket.AF_INET6 if ":" in target.host else socket.AF_INET
         self.sock = socket.socket(family, socket.SOCK_DGRAM)
         self.sock.setblocking(False)
@@ -404,6 +409,10 @@ class UdpChannel:
                 return Answer(decode_datagram(data, self.profile, TransferType.BOX_TO_ROBOT), latency, data)
             except ProtocolError as exc:
                 return Malformed(exc, latency)
+
+    def receive(self, deadline: float, since: float | None = None) -> Outcome:
+        """The next datagram's outcome by ``deadline`` (``time.monotonic()``), or silence."""
+        return self.next_outcome(max(0.0, deadline - time.monotonic()), since)
 
     def request(self, data: bytes | Frame, note: str = "", timeout_s: float | None = None) -> Outcome:
         start = time.monotonic()

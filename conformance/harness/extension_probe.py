@@ -94,7 +94,7 @@ def detect_extension(conn: TcpConnection) -> tuple[bool, str]:
     fresh connection (``conn`` may be closed, or hold the probe's answer). A box that answered
     neither 27 nor the probe is not asked again (one wait, not two)."""
     # E5: 27 is bounded by vision_time_out, not time_out (a box may take that long to have a result)
-    vision_s = max(conn.time_out_s, conn.profile.vision_time_out_ms / 1000)
+    vision_s = max(conn.time_out_s, conn.profile.vision_time_out_s)
     seen = [ask(conn, request(Action.VISION_RESULT), "detect extension E: result request (27)", vision_s)]
     first = seen[0]
     quiet = isinstance(first.outcome, Silence) and not first.unanswered  # not even the probe was answered

@@ -94,7 +94,7 @@ class Hub:
                      if settings.pcap_dir is not None else None)
         self.wire = Wire(self.feed, self.ring, f"monitor-{int(self.started)}", clock)
         self.faults = FaultPlan(settings.faults, settings.seed)
-        self.reactions = Reactions(settings.config.profile.time_out_ms)
+        self.reactions = Reactions(settings.config.profile)
         self.open: dict[int, Conn] = {}
         self.connections = 0
         self.upstream_failures = 0

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from ..protocol import action_name
+from ..protocol import Profile, action_name
 
 __all__ = ["DETAILED", "Injection", "Reactions"]
 
@@ -61,9 +61,9 @@ class Injection:
 
 
 class Reactions:
-    def __init__(self, time_out_ms: float) -> None:
-        self.time_out_ms = time_out_ms
-        self.window_s = 2 * time_out_ms / 1000.0 + 5.0
+    def __init__(self, profile: Profile) -> None:
+        self.time_out_ms = profile.time_out_ms
+        self.window_s = 2 * profile.time_out_s + 5.0
         self.injections: list[Injection] = []
         self.per_spec: dict[str, int] = {}
         self.total = 0

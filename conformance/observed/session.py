@@ -7,8 +7,8 @@ answered something other than 0000 (CycleOn 0001, a malformed frame's 1001, Prog
 (``--inject close-mid-cycle``). A robot may stop its session there, so what it did not
 do after the cut is INCONCLUSIVE, not FAIL (S2); what it did before is judged.
 
-The canonical sessions are data (:data:`S1_STEPS`, :data:`E4_STEPS`), like the robot
-simulator's: each *milestone* gets the time it was first observed, and
+The canonical sessions are the session table's (:mod:`conformance.protocol.session_table`), as the
+robot simulator plays them: each step's *milestone* gets the time it was first observed, and
 :func:`judge_order` checks that every milestone happened, in that order, with each
 command sent once, except CycleOn and CycleOff: a robot may prime several parts in one
 session, so CycleOn → CycleOff pairs may repeat between stream on and stream off, each
@@ -24,27 +24,26 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..protocol import Action, ErrorCode, Profile, ResultCode, action_name
+from ..protocol import Action, Profile, ResultCode, action_name
+from ..protocol.session_table import (
+    E4,
+    E4_ONLY,
+    E4_RESULT_WAIT_S,
+    FREE_ACTIONS,
+    S1,
+    commands,
+    ends_session,
+    milestones,
+)
 from .connections import BY_BOX, BY_ROBOT, BY_ROBOT_RESET, BY_SUITE, ConnRecord, Exchange, SessionRecord
 from .robot_frames import FrameRecord, decode_conn
 
-S1_STEPS: tuple[str, ...] = (
-    "command connect", "stream connect", "CycleOn", "CycleOff", "stream close", "command disconnect",
-)
-E4_STEPS: tuple[str, ...] = (
-    "command connect", "ProgIdx", "stream connect", "CycleOn", "CycleOff", "stream close", "result request",
-    "command disconnect",
-)
+#: the canonical sessions' milestones, as an observer times them (the session table's S1 and E4)
+S1_STEPS: tuple[str, ...] = milestones(S1)
+E4_STEPS: tuple[str, ...] = milestones(E4)
 #: Commands of each canonical session, in order (each once, except the cycle pairs; a 27 may repeat after a 202).
-S1_COMMANDS = (Action.CYCLE_ON, Action.CYCLE_OFF)
-E4_COMMANDS = (Action.PROG_IDX, Action.CYCLE_ON, Action.CYCLE_OFF, Action.VISION_RESULT)
-#: Requests allowed anywhere on the command connection: the optional ping (NONE), tolerances, and the
-#: poses the source's ISIGHT sends there (23: ISIGHT(3,35) the current TP pose; 24: ISIGHT(3,36) a register pose).
-FREE_ACTIONS = frozenset({Action.NONE, Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE})
-#: The actions only the revision's session (E4) sends: a robot that sends one runs E4 (``--extension auto``).
-E4_ONLY = frozenset({Action.PROG_IDX, Action.VISION_RESULT})
-#: E4: the revision waits this long between Send_Pos_Off and the result request.
-E4_RESULT_WAIT_S = 1.0
+S1_COMMANDS = commands(S1)
+E4_COMMANDS = commands(E4)
 #: A request sent this close to the bound after the previous one counts as "waited time_out".
 WAIT_SLACK = 0.98
 
@@ -119,10 +118,10 @@ def find_cut(view: SessionView) -> Cut | None:
             what = action_name(ex.action)
             if ex.answer is None and ex.reaction in ("silent", "close"):
                 cuts.append(Cut(ex.t_request, f"the box did not answer {what} {where} (A5)"))
-            elif ex.error_code not in (None, ErrorCode.OK):
-                cuts.append(Cut(ex.t_answer or ex.t_request, f"the box answered {what} with 0x{ex.error_code:04X} {where}"))
-            elif ex.action == Action.PROG_IDX and ex.value == ResultCode.CONFLICT:
-                cuts.append(Cut(ex.t_answer or ex.t_request, f"the box answered ProgIdx with 409 {where} (E2)"))
+            elif ends_session(ex.action, ex.error_code, ex.value):  # the session table: a robot may stop here (S2)
+                text = (f"the box answered {what} with 0x{ex.error_code:04X} {where}" if ex.error_code
+                        else f"the box answered ProgIdx with 409 {where} (E2)")
+                cuts.append(Cut(ex.t_answer or ex.t_request, text))
         if conn.closed_by == BY_BOX and conn.t_close is not None:
             cuts.append(Cut(conn.t_close, f"the box closed connection {conn.number} ({conn.close_note})"))
     return min(cuts, key=lambda c: c.t) if cuts else None
@@ -318,7 +317,7 @@ def not_awaited(view: SessionView, profile: Profile) -> tuple[int, list[NotAwait
     for conn in view.commands:
         requests = view.requests(conn)
         for prev, cur in zip(requests, [*requests[1:], None]):
-            bound = (profile.vision_time_out_ms if prev.action == Action.VISION_RESULT else profile.time_out_ms) / 1000
+            bound = profile.answer_bound_s(prev.action)
             ex = view.answer(prev)
             answered = ex.t_answer if ex is not None else None
             if cur is None:  # the last request: the robot may close only after the answer or the bound

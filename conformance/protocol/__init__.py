@@ -59,7 +59,7 @@ from .frames import (
     tolerance_blocks,
     value_blocks,
 )
-from .profile import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc16_names, crc_function
+from .profile import DEFAULT_PROFILE, ByteOrder, Profile, TcpCheckPolicy, crc16_names, crc_function
 from .splitter import (
     HeaderPeek,
     Piece,
@@ -78,7 +78,7 @@ from .splitter import (
 from .stream import CLOSED, NEED_DATA, Event, StreamDecoder
 
 __all__ = [
-    "ACTION_ERROR", "AnswerError", "ANSWER_SHAPE", "BLOCK_LEN", "CLOSED", "DEFAULT_PORT", "DEFAULT_PROFILE",
+    "ACTION_ERROR", "AnswerError", "ANSWER_SHAPE", "BLOCK_LEN", "ByteOrder", "CLOSED", "DEFAULT_PORT", "DEFAULT_PROFILE",
     "EXTENSION_ACTIONS", "HEADER_LEN", "MAX_FRAME_LEN", "NEED_DATA", "REQUEST_SHAPE",
     "Action", "action_name", "Block", "BlockIndexError", "BlockType", "CheckError", "Codec", "DirectionError",
     "ErrorCode", "Event", "FloatError", "Frame", "Header", "LengthError", "PoseBlock", "Profile",

@@ -28,6 +28,7 @@ from .errors import DirectionError, FloatError, ProtocolError, StartWordError, U
 from .frames import Frame, Header, ToleranceBlock, ValueBlock
 from .levels import Level
 from .profile import Profile
+from .session_table import Cycle
 
 #: E3: ResultCodes only the robot writes (its initial value, and "no answer" on vision_time_out).
 ROBOT_RESULTS = frozenset({ResultCode.EMPTY, ResultCode.NO_ANSWER})
@@ -37,14 +38,6 @@ SENDABLE_RESULTS: tuple[int, ...] = tuple(int(r) for r in ResultCode if r not in
 NOT_UNDERSTOOD = int(ResultCode.NOT_UNDERSTOOD)
 #: E2: resource conflict / not ready.
 CONFLICT = int(ResultCode.CONFLICT)
-
-
-class Cycle(str, enum.Enum):
-    """The box's cycle state as a tester knows it (S2, S3)."""
-
-    IDLE = "idle"
-    ON = "on"
-    UNKNOWN = "unknown"  # e.g. the cycle state is per box and another connection may have changed it
 
 
 _ANY = None

@@ -12,6 +12,7 @@ content (A4 action 00 answered 0000, E3 result code never 0 or 404).
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterable, Sequence
 from math import isfinite
 from typing import cast
 
@@ -56,6 +57,9 @@ from .frames import (
     new_frame,
     new_pose_block,
     new_pose_blocks,
+    pose_blocks,
+    tolerance_blocks,
+    value_blocks,
 )
 from .profile import DEFAULT_PROFILE, Profile, TcpCheckPolicy, crc_function
 
@@ -104,6 +108,20 @@ class Codec:
         self._first = profile.first_index
         self._strict = profile.strict
         self._tcp_check = profile.tcp_check
+
+    # -- blocks by position: the profile's first index is applied here, not by the caller (B3) --
+    def block_index(self, position: int) -> int:
+        """B3: the index of the block at ``position`` (0: the first block) under this profile."""
+        return self._first + position
+
+    def pose_blocks(self, poses: Iterable[Sequence[float]]) -> tuple[PoseBlock, ...]:
+        return pose_blocks(poses, self._first)
+
+    def tolerance_blocks(self, values: Iterable[float]) -> tuple[ToleranceBlock, ...]:
+        return tolerance_blocks(values, self._first)
+
+    def value_blocks(self, values: Iterable[int]) -> tuple[ValueBlock, ...]:
+        return value_blocks(values, self._first)
 
     # -- encoding --------------------------------------------------------------------
     def check_bytes(self, body: bytes) -> bytes:

@@ -11,9 +11,11 @@ import enum
 import functools
 import struct
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import Any, Literal
 
 import crcmod.predefined
+
+from .constants import Action
 
 
 class TcpCheckPolicy(str, enum.Enum):
@@ -41,7 +43,10 @@ def crc_function(name: str) -> Callable[[bytes], int]:
     return crcmod.predefined.mkPredefinedCrcFun(name)
 
 
-_BYTE_ORDERS = ("big", "little")
+#: a byte order as ``int.to_bytes`` takes it (F4, F7, B4/E1)
+ByteOrder = Literal["big", "little"]
+
+_BYTE_ORDERS: tuple[ByteOrder, ...] = ("big", "little")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -51,15 +56,15 @@ class Profile:
     #: F7: crcmod predefined CRC-16 name for UDP frames.
     crc: str = "modbus"
     #: F7: byte order of the CRC in the check field.
-    crc_byte_order: str = "big"
+    crc_byte_order: ByteOrder = "big"
     #: B3: index of the first block (the normative text says 0, a diagram shows 1).
     first_index: int = 0
     #: F6: what a TCP receiver accepts in the check field.
     tcp_check: TcpCheckPolicy = TcpCheckPolicy.ZERO_OR_CRC
     #: F4: byte order of multi-byte header fields.
-    byte_order: str = "big"
+    byte_order: ByteOrder = "big"
     #: B4/E1: byte order of float32 and int32 block values.
-    float_byte_order: str = "big"
+    float_byte_order: ByteOrder = "big"
     #: T1: bound on connect and every answer, in milliseconds.
     time_out_ms: int = 5000
     #: E3: bound on the vision result answer (action 0x27), in milliseconds.
@@ -87,6 +92,21 @@ class Profile:
         if self.progidx_conflict not in ("block", "error-code"):
             raise ValueError("progidx_conflict must be 'block' or 'error-code'")
 
+    # -- time bounds, in the unit each caller needs ---------------------------------------
+    @property
+    def time_out_s(self) -> float:
+        """T1: the bound on connect and every answer, in seconds."""
+        return self.time_out_ms / 1000
+
+    @property
+    def vision_time_out_s(self) -> float:
+        """E3: the bound on the vision result answer (action 0x27), in seconds."""
+        return self.vision_time_out_ms / 1000
+
+    def answer_bound_s(self, action: int | None) -> float:
+        """The bound on the answer to a request of ``action``: E3's for the vision result, T1's otherwise."""
+        return self.vision_time_out_s if action == Action.VISION_RESULT else self.time_out_s
+
     # -- CRC ---------------------------------------------------------------------
     def crc_of(self, data: bytes) -> int:
         """F7: the CRC-16 of ``data`` under this profile's algorithm."""
@@ -102,7 +122,7 @@ class Profile:
 
     def swapped(self, header: bool = False, floats: bool = False) -> Profile:
         """This profile with the header's and/or the values' byte order the other way round."""
-        flip = {"big": "little", "little": "big"}
+        flip: dict[ByteOrder, ByteOrder] = {"big": "little", "little": "big"}
         return self.replace(byte_order=flip[self.byte_order] if header else self.byte_order,
                             float_byte_order=flip[self.float_byte_order] if floats else self.float_byte_order)
 

@@ -204,7 +204,7 @@ class SessionState:
     def _connect_once_freed(self, transcript: Transcript, why: str) -> TcpConnection | None:
         """A connection made right after one closed: a box with room for one connection frees its slot once it
         has seen the close, so a refusal is retried for up to time_out (None: refused all along)."""
-        deadline = time.monotonic() + self.profile.time_out_ms / 1000
+        deadline = time.monotonic() + self.profile.time_out_s
         while True:
             conn = TcpConnection(transcript, self.target(), self.profile, why)
             try:

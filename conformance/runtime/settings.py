@@ -3,20 +3,25 @@
 The pytest plugin adds these options to its ``isight`` group and ``isight-conformance
 run`` adds the same ones to argparse; :meth:`SuiteSettings.resolve` is the only code
 that turns option values into settings (and the only place defaults live).
+
+``run`` hands the resolved settings to pytest as an object (:class:`SettingsPlugin`), and the
+xdist controller hands them to its workers serialised once (:meth:`SuiteSettings.to_dict`):
+they are not written back to flags and parsed again.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import fnmatch
-from collections.abc import Callable
+import json
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
 from ..harness.target import Target
 from ..i18n import N_, gettext
 from ..protocol import DEFAULT_PORT, Profile
-from .profile_options import add_profile_options, profile_flags, profile_from_options
+from .profile_options import add_profile_options, profile_from_options
 
 #: (flag, argparse/pytest keyword arguments); dests all start with "isight_".
 SUITE_OPTIONS: tuple[tuple[str, dict[str, Any]], ...] = (
@@ -89,7 +94,8 @@ class SuiteSettings:
 
     @property
     def time_out_s(self) -> float:
-        return self.profile.time_out_ms / 1000
+        """T1's bound in seconds (the profile's)."""
+        return self.profile.time_out_s
 
     @classmethod
     def resolve(cls, get: Callable[[str], Any]) -> SuiteSettings:
@@ -134,31 +140,64 @@ class SuiteSettings:
             seed=get("isight_seed") if get("isight_seed") is not None else DEFAULT_SEED,
         )
 
-    def to_args(self, pytest: bool = True) -> list[str]:
-        """The command-line flags that resolve to these settings (the inverse of :meth:`resolve`):
-        ``run`` hands its settings to pytest this way, so they are resolved in one place."""
-        out: list[str] = []
+    # -- handed over as an object: to the plugin (SettingsPlugin), to xdist workers (serialised once) --------
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready; :meth:`from_dict` gives these settings back (an xdist worker's copy)."""
 
-        def flag(name: str) -> str:
-            return PYTEST_RENAMES.get(name, name) if pytest else name
+        def target(t: Target | None) -> list[Any] | None:
+            return None if t is None else [t.host, t.port]
 
-        for target in self.targets or ((self.target,) if self.target is not None else ()):
-            out += ["--target", str(target)]
-        for name, value in (("--udp-target", self.udp_target),
-                            ("--stream-target", self.stream_target), ("--report-dir", self.report_dir),
-                            ("--pcap-dir", self.pcap_dir), ("--target-label", self.target_label or None)):
-            if value is not None:
-                out += [flag(name), str(value)]
-        out += ["--extension", self.extension, flag("--capture"), self.capture,
-                "--stream-seconds", repr(self.stream_seconds), "--settle-ms", str(round(self.settle_s * 1000)),
-                "--seed", str(self.seed)]
-        for path in self.sequences:
-            out += ["--sequence", str(path)]
-        for glob in self.cases:
-            out += ["--cases", glob]
-        for glob in self.exclude:
-            out += ["--exclude", glob]
-        return out + profile_flags(self.profile)
+        return {
+            "target": target(self.target), "targets": [target(t) for t in self.targets],
+            "udp_target": target(self.udp_target), "stream_target": target(self.stream_target),
+            "profile": self.profile.to_dict(), "extension": self.extension,
+            "report_dir": None if self.report_dir is None else str(self.report_dir),
+            "pcap_dir": None if self.pcap_dir is None else str(self.pcap_dir),
+            "capture": self.capture, "stream_seconds": self.stream_seconds, "settle_s": self.settle_s,
+            "sequences": [str(p) for p in self.sequences], "target_label": self.target_label,
+            "cases": list(self.cases), "exclude": list(self.exclude), "seed": self.seed,
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> SuiteSettings:
+        def target(pair: list[Any] | None) -> Target | None:
+            return None if pair is None else Target(str(pair[0]), int(pair[1]))
+
+        def path(text: str | None) -> Path | None:
+            return None if text is None else Path(text)
+
+        return cls(
+            target=target(data["target"]), targets=tuple(Target(str(h), int(p)) for h, p in data["targets"]),
+            udp_target=target(data["udp_target"]), stream_target=target(data["stream_target"]),
+            profile=Profile.from_dict(data["profile"]), extension=data["extension"],
+            report_dir=path(data["report_dir"]), pcap_dir=path(data["pcap_dir"]), capture=data["capture"],
+            stream_seconds=data["stream_seconds"], settle_s=data["settle_s"],
+            sequences=tuple(Path(p) for p in data["sequences"]), target_label=data["target_label"],
+            cases=tuple(data["cases"]), exclude=tuple(data["exclude"]), seed=data["seed"],
+        )
+
+
+class SettingsPlugin:
+    """Resolved settings handed to pytest as an object: ``pytest.main(args, plugins=[SettingsPlugin(settings)])``.
+
+    The isight plugin takes them as they are (:func:`handed_settings`) instead of parsing its flags;
+    ``pytest --pyargs conformance.cases --target ...`` (no object) still resolves its flags."""
+
+    def __init__(self, settings: SuiteSettings) -> None:
+        self.settings = settings
+
+
+#: the controller's settings in an xdist worker's ``workerinput``: JSON, serialised once (:meth:`SuiteSettings.to_dict`)
+WORKER_INPUT = "isight_settings"
+
+
+def handed_settings(plugins: Iterable[object], workerinput: Mapping[str, Any] | None = None) -> SuiteSettings | None:
+    """The settings handed over as an object: on an xdist worker its controller's (``workerinput``), else
+    those a :class:`SettingsPlugin` among ``plugins`` carries (None: none were handed over)."""
+    sent = (workerinput or {}).get(WORKER_INPUT)
+    if sent:
+        return SuiteSettings.from_dict(json.loads(sent))
+    return next((p.settings for p in plugins if isinstance(p, SettingsPlugin)), None)
 
 
 #: pytest owns these flags; under pytest the suite's options take another name.

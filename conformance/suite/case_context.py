@@ -50,7 +50,7 @@ from ..harness.transcript import Transcript
 from ..harness.waits import COALESCED, STREAM
 from ..model.signature import Sig, Signature
 from ..model.verdicts import Level, Verdict
-from ..protocol import Action, Frame, encode, peek_action, peek_header
+from ..protocol import Action, Codec, Frame, codec_for, encode, peek_action, peek_header
 from ..protocol.framings import Explanation
 from ..runtime.run_state import UNREACHABLE_AT_CONNECT, SessionState
 from .case_judge import CaseVerdict, Inconclusive, Skip, broken, judge, judged_clauses, words
@@ -73,6 +73,9 @@ class CaseContext:
         self.transcript = transcript
         self.settings = session.settings
         self.profile = session.profile
+        #: the profile's codec: a case builds blocks by position with it (``isight.codec.pose_blocks(...)``),
+        #: and it applies the profile's first index (B3)
+        self.codec: Codec = codec_for(self.profile)
         self.time_out_s = self.settings.time_out_s
         self.needs_liveness = False
         self.informational: str | None = None

@@ -21,7 +21,7 @@ from ..harness.waits import STREAM
 from ..model.percentiles import percentile
 from ..model.signature import Sig, Signature
 from ..model.verdicts import Level
-from ..protocol import Action, pose_blocks, request
+from ..protocol import Action, request
 from .case_judge import Expect, Inconclusive, answered, check, fail
 
 DEFAULT_POSE = PrimerTrajectory().home
@@ -110,12 +110,10 @@ class PoseStream:
     """
 
     def __init__(self, conn: TcpConnection, rate_hz: float, duration_s: float | None, time_out_s: float,
-                 poses: Callable[[int], tuple[float, ...]] | None = None, expect: Expect | None = None,
-                 first_index: int = 0) -> None:
+                 poses: Callable[[int], tuple[float, ...]] | None = None, expect: Expect | None = None) -> None:
         self.conn, self.rate_hz, self.duration_s, self.time_out_s = conn, rate_hz, duration_s, time_out_s
         self.poses = poses or trajectory_poses("primer", rate_hz, duration_s)
         self.expect = expect or answered(Action.POSE, [0])
-        self.first_index = first_index
         self.result = StreamResult(rate_hz, time_out_s)
         self._sent_at: list[float] = self.result.sent_at
         self._frames: list[bytes] = []
@@ -159,7 +157,7 @@ class PoseStream:
                 if not self._read_until(due):
                     return
                 pose = self.poses(r.sent)
-                data = codec.encode(request(Action.POSE, pose_blocks([pose], self.first_index)))
+                data = codec.encode(request(Action.POSE, codec.pose_blocks([pose])))
                 now = time.monotonic()
                 r.max_send_lag_ms = max(r.max_send_lag_ms, (now - due) * 1000)
                 self._sent_at.append(now)

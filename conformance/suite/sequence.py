@@ -16,7 +16,7 @@ from typing import Any
 
 from ..harness.client import Answer, Outcome, Silence, TcpConnection
 from ..model.verdicts import Level
-from ..protocol import Action, Frame, peek_action, pose_blocks, request, tolerance_blocks, value_blocks
+from ..protocol import Action, Codec, Frame, peek_action, request
 from .case_judge import Expect, Inconclusive, answered, answered_error, check, fail
 from .pose_stream import (
     DEFAULT_POSE,
@@ -68,14 +68,15 @@ def expectation(spec: Any, action: Action | None) -> Expect:
     return out
 
 
-def frame_of(step: dict[str, Any], first_index: int) -> Frame:
+def frame_of(step: dict[str, Any], codec: Codec) -> Frame:
+    """The request a step names, its blocks by position (the codec applies the profile's first index)."""
     action = action_of(step["request"])
     if action in (Action.POSE, Action.REGISTER_POSE):
-        return request(action, pose_blocks(step.get("poses", [DEFAULT_POSE]), first_index))
+        return request(action, codec.pose_blocks(step.get("poses", [DEFAULT_POSE])))
     if action is Action.TOLERANCE:
-        return request(action, tolerance_blocks(step.get("tolerances", [0.5]), first_index))
+        return request(action, codec.tolerance_blocks(step.get("tolerances", [0.5])))
     if action is Action.PROG_IDX:
-        return request(action, value_blocks(step.get("values", [1]), first_index))
+        return request(action, codec.value_blocks(step.get("values", [1])))
     return request(action)
 
 
@@ -222,7 +223,7 @@ class SequenceRunner:
 
     def _request(self, step: dict[str, Any], path: str) -> None:
         conn = self._one(step.get("on", "command"), path)
-        frame = frame_of(step, self.isight.profile.first_index)
+        frame = frame_of(step, self.isight.codec)
         data = conn.codec.encode(frame)
         self._exchange(conn, data, step, frame.action, path, step.get("note") or f"{frame.action.name} request")
 
@@ -255,7 +256,7 @@ class SequenceRunner:
     def _burst(self, step: dict[str, Any], path: str) -> None:
         conn = self._one(step.get("on", "command"), path)
         items = step["burst"] * step.get("times", 1)
-        frames = [frame_of(item, self.isight.profile.first_index) for item in items]
+        frames = [frame_of(item, self.isight.codec) for item in items]
         data = b"".join(conn.codec.encode(f) for f in frames)
         self.isight.last_sent = data
         start = time.monotonic()
@@ -279,7 +280,7 @@ class SequenceRunner:
             duration = settings.stream_seconds
         stream = PoseStream(conn, rate, duration, self.isight.time_out_s,
                             trajectory_poses(step.get("trajectory", "primer"), rate, duration),
-                            expectation(step.get("expect"), Action.POSE), self.isight.profile.first_index)
+                            expectation(step.get("expect"), Action.POSE))
         self.streams[name] = (stream.start(), step, path)
         if not step.get("background"):
             self._stop(name, path)

@@ -231,7 +231,7 @@ def _timed(steps: list[dict[str, Any]], settings: Any) -> float:
 def seconds(value: Any, settings: Any) -> float:
     """A duration that may name a profile/suite value symbolically."""
     return float({"stream_seconds": settings.stream_seconds, "time_out": settings.time_out_s,
-                  "vision_time_out": settings.profile.vision_time_out_ms / 1000}.get(value, value))
+                  "vision_time_out": settings.profile.vision_time_out_s}.get(value, value))
 
 
 def load(path: str | Path) -> Sequence:

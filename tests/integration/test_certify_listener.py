@@ -13,7 +13,7 @@ from conformance.certify.records import CertifyConfig, RunRecord
 from conformance.harness.transcript import Kind
 from conformance.observed.connections import BY_BOX, BY_ROBOT, BY_SUITE
 from conformance.protocol import Action, Profile, encode, encode_udp, request
-from tests.unit.test_certify_session import POSE, frame
+from tests.unit.test_observed_session import POSE, frame
 
 pytestmark = pytest.mark.timeout(30)
 

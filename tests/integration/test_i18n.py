@@ -177,7 +177,7 @@ def test_run_writes_its_reports_in_the_chosen_language(tmp_path: Path, monkeypat
 
 def test_the_fleet_page_in_chinese_keeps_the_statuses_machines_read(tmp_path: Path):
     from conformance.fleet.fleet_page import render_fleet_html
-    from tests.unit.test_fleet_html import doc_for
+    from tests.unit.test_fleet_page import doc_for
 
     with i18n.language("zh-CN"):
         doc = doc_for(tmp_path)

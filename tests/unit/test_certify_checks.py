@@ -18,7 +18,7 @@ from conformance.observed.connections import BY_SUITE, InjectionEvent
 from conformance.protocol import DEFAULT_PROFILE, Action, ErrorCode, encode, pose_blocks, request
 from conformance.report import render_html
 from conformance.report.svg import histogram_svg
-from tests.unit.test_certify_session import POSE, Fake, canonical, frame
+from tests.unit.test_observed_session import POSE, Fake, canonical, frame
 
 NS = "{http://www.w3.org/2000/svg}"
 

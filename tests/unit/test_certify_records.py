@@ -6,7 +6,7 @@ import pytest
 
 from conformance.certify.records import INJECTIONS, CertifyConfig, monotonic_wall
 from conformance.protocol import Action, Profile, ResultCode
-from tests.unit.test_certify_session import Fake
+from tests.unit.test_observed_session import Fake
 
 
 def test_defaults_are_safe():

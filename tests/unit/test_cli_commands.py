@@ -7,10 +7,7 @@ import argparse
 
 import pytest
 
-from conformance.commands import COMMANDS, build_parser, main
-
-NAMES = ("decode", "serve", "robot", "certify-robot", "run", "fuzz", "replay", "clauses", "wireshark", "diff", "analyze", "monitor",
-         "verify", "sign")
+from conformance.commands import COMMANDS, NAMES, build_parser, main
 
 
 def test_every_add_parser_registers_one_command_with_its_handler() -> None:
@@ -59,3 +56,18 @@ def test_the_chosen_command_is_the_first_word_that_is_not_an_option() -> None:
 
 def test_every_command_module_is_named_for_its_command() -> None:
     assert tuple(command.name for command in COMMANDS) == NAMES
+
+
+def test_every_module_that_defines_a_command_is_in_the_list() -> None:
+    """NAMES is the one list: a command module left out of it would never be reachable."""
+    import importlib
+    import pkgutil
+
+    import conformance.commands as package
+
+    defining = set()
+    for info in pkgutil.iter_modules(package.__path__):
+        module = importlib.import_module(f"{package.__name__}.{info.name}")
+        if hasattr(module, "COMMAND"):
+            defining.add(module.COMMAND.name)
+    assert defining == set(NAMES) and len(NAMES) == len(set(NAMES))

@@ -16,7 +16,7 @@ from conformance.monitor.faults import FaultPlan, corrupt, parse_fault
 from conformance.monitor.live_findings import MAX_CAUSES, LiveFindings, signature
 from conformance.monitor.ring import Ring
 from conformance.monitor.split import Splitter
-from conformance.protocol import Action
+from conformance.protocol import Action, Profile
 
 POSE = bytes.fromhex("fefe0001102300000000000000 00".replace(" ", ""))  # a pose answer, 0000
 CYCLE_ON = bytes.fromhex("fefe00010101000000000000 0000".replace(" ", ""))
@@ -174,7 +174,7 @@ def test_without_a_terminal_a_status_line_every_minute(tmp_path: Path) -> None:
 def test_what_the_robot_did_after_a_fault() -> None:
     from conformance.monitor.reactions import DETAILED, Reactions
 
-    r = Reactions(time_out_ms=5000)
+    r = Reactions(Profile(time_out_ms=5000))
     a = r.injected("drop:CYCLE_ON", "drop", "A1", line=1, robot_host="10.0.0.2", action=1, t=100.0, frame=9,
                    what="CYCLE_ON answer dropped")
     b = r.injected("drop:CYCLE_OFF", "drop", "A1", line=3, robot_host="10.0.0.3", action=2, t=100.0, frame=9,

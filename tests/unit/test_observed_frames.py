@@ -28,7 +28,7 @@ from conformance.protocol import (
     request,
     value_blocks,
 )
-from tests.unit.test_certify_session import POSE, Fake, canonical, frame
+from tests.unit.test_observed_session import POSE, Fake, canonical, frame
 
 HOME = (800.0, -100.0, 300.0, 180.0, 0.5, 0.0)
 

@@ -98,8 +98,8 @@ class SessionIO:
             encode_profile = profile.replace(float_byte_order=faults.float_byte_order)
         self._codec = codec_for(encode_profile)
         self._first_index = faults.first_index if faults.first_index is not None else profile.first_index
-        self.time_out = profile.time_out_ms / 1000.0
-        self.vision_time_out = profile.vision_time_out_ms / 1000.0
+        self.time_out = profile.time_out_s
+        self.vision_time_out = profile.vision_time_out_s
         self.period = 1.0 / profile.pose_rate_hz
         # state
         self.result = RobotResult(steps=self.steps, nominal_interval_ms=self.period * 1000.0)

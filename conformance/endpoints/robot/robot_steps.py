@@ -8,36 +8,26 @@ E4: connect → ProgIdx (26) → ``Send_Pos_On`` → CycleOn → trajectory → 
 ``Send_Pos_Off`` → wait 1 s → result request (27, bounded by ``vision_time_out``)
 → disconnect.
 
-Like h11's ``_state.py``, what the session depends on is one table: :data:`STEP_TABLE`
-maps each step's name to a :class:`Step`, which says what I/O the step needs
-(:class:`Io`), the request it sends, the answer it expects and the judge that reads
-that answer. Judges are pure functions (an answer frame in, a :class:`Judgement` out);
+The canonical orders, each step's I/O (:class:`~conformance.protocol.session_table.Io`) and the
+request it sends are the session table's (:mod:`conformance.protocol.session_table`, like h11's
+``_state.py``); :data:`STEP_TABLE` adds, for each step's name, the answer it expects and the
+judge that reads that answer. Judges are pure functions (an answer frame in, a :class:`Judgement` out);
 the asyncio driver (:mod:`.robot`) does the I/O and asks them. :class:`RobotFaults`
 makes the deliberately broken robots. No sockets or clocks live here.
 """
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from ...protocol import Action, ErrorCode, Frame, ProtocolError, ResultCode
 from ...protocol.answers import SENDABLE_RESULTS
 from ...protocol.frames import ValueBlock
+from ...protocol.session_table import E4, S1, Io
+from ...protocol.session_table import STEPS as STEPS_OF_TABLE
 from .robot_result import EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, RobotResult
-
-
-class Io(enum.Enum):
-    """What the driver does for a step."""
-
-    CONNECT = "connect"  # open the command connection
-    COMMAND = "command"  # send the step's request on the command connection, wait for its answer
-    STREAM_ON = "stream-on"  # open the stream connection; poses flow; wait for the first answer
-    TRAJECTORY = "trajectory"  # the poses follow the primer trajectory for ``duration`` seconds
-    STREAM_OFF = "stream-off"  # stop the poses, wait for their answers, close the stream connection
-    WAIT = "wait"  # pause ``result_wait`` seconds
-    DISCONNECT = "disconnect"  # close the command connection
 
 
 @dataclass(frozen=True)
@@ -69,6 +59,12 @@ class Step:
     keep: Callable[[RobotResult, int | None], None] | None = None  # records the answer's value
     bound: str = "time_out"  # the profile's time-out that bounds the answer
     cycle: str | None = None  # "start"/"end": the step starts or ends the cycle the poses follow
+
+
+def _step(name: str, does: str, **how: Any) -> Step:
+    """The step called ``name``: its I/O and request from the session table, the rest as given."""
+    step = STEPS_OF_TABLE[name]
+    return Step(step.io, does, step.action, **how)
 
 
 def answer_value(frame: Frame) -> int | None:
@@ -149,38 +145,33 @@ def _keep_vision_result(result: RobotResult, value: int | None) -> None:
 
 #: Every step a session may play, by name (``--steps`` and :class:`~.robot.RobotSession`'s ``steps``).
 STEP_TABLE: dict[str, Step] = {
-    "connect": Step(Io.CONNECT, "ISIGHT opens the command connection", expects="open within time_out (T1)"),
-    "ping": Step(Io.COMMAND, "action 00, the keep-alive", Action.NONE, expects="0000 (A4)", judge=_zero("A4")),
-    "prog_idx": Step(Io.COMMAND, "ProgIdx: the program index for this cycle", Action.PROG_IDX, carries_index=True,
-                     expects="the same index back; 409: not ready, the cycle is inconclusive (E2)",
-                     judge=_judge_prog_idx, keep=_keep_prog_idx),
-    "send_pos_on": Step(Io.STREAM_ON, "Send_Pos_On: the stream connection, poses at the stream rate",
-                        expects="the first pose answered within time_out (T1)"),
-    "cycle_on": Step(Io.COMMAND, "CycleOn: detection starts", Action.CYCLE_ON,
-                     expects="0000 (S1); 0001: not ready, the cycle is inconclusive (S2)", judge=_judge_cycle_on,
-                     cycle="start"),
-    "trajectory": Step(Io.TRAJECTORY, "the primer trajectory: poses along it for duration seconds",
-                       expects="every pose answered 0000 within time_out (S3, T1)"),
-    "cycle_off": Step(Io.COMMAND, "CycleOff: detection ends", Action.CYCLE_OFF, expects="0000 (S1)",
-                      judge=_zero("S1"), cycle="end"),
-    "send_pos_off": Step(Io.STREAM_OFF, "Send_Pos_Off: the poses stop, the stream connection closes",
-                         expects="the last poses answered within time_out (T1)"),
-    "result_wait": Step(Io.WAIT, "wait result_wait seconds before asking for the result"),
-    "vision_result": Step(Io.COMMAND, "the result request", Action.VISION_RESULT,
-                          expects="a ResultCode the box may send, within vision_time_out (E3, E5)",
-                          judge=_judge_vision_result, keep=_keep_vision_result, bound="vision_time_out"),
-    "disconnect": Step(Io.DISCONNECT, "ISIGHT closes the command connection",
-                       expects="no unsolicited frame before it (A1)"),
+    "connect": _step("connect", "ISIGHT opens the command connection", expects="open within time_out (T1)"),
+    "ping": _step("ping", "action 00, the keep-alive", expects="0000 (A4)", judge=_zero("A4")),
+    "prog_idx": _step("prog_idx", "ProgIdx: the program index for this cycle", carries_index=True,
+                      expects="the same index back; 409: not ready, the cycle is inconclusive (E2)",
+                      judge=_judge_prog_idx, keep=_keep_prog_idx),
+    "send_pos_on": _step("send_pos_on", "Send_Pos_On: the stream connection, poses at the stream rate",
+                         expects="the first pose answered within time_out (T1)"),
+    "cycle_on": _step("cycle_on", "CycleOn: detection starts",
+                      expects="0000 (S1); 0001: not ready, the cycle is inconclusive (S2)", judge=_judge_cycle_on,
+                      cycle="start"),
+    "trajectory": _step("trajectory", "the primer trajectory: poses along it for duration seconds",
+                        expects="every pose answered 0000 within time_out (S3, T1)"),
+    "cycle_off": _step("cycle_off", "CycleOff: detection ends", expects="0000 (S1)",
+                       judge=_zero("S1"), cycle="end"),
+    "send_pos_off": _step("send_pos_off", "Send_Pos_Off: the poses stop, the stream connection closes",
+                          expects="the last poses answered within time_out (T1)"),
+    "result_wait": _step("result_wait", "wait result_wait seconds before asking for the result"),
+    "vision_result": _step("vision_result", "the result request",
+                           expects="a ResultCode the box may send, within vision_time_out (E3, E5)",
+                           judge=_judge_vision_result, keep=_keep_vision_result, bound="vision_time_out"),
+    "disconnect": _step("disconnect", "ISIGHT closes the command connection",
+                        expects="no unsolicited frame before it (A1)"),
 }
 
-#: The canonical sessions as data: each name is a step of :data:`STEP_TABLE`.
-S1_STEPS: tuple[str, ...] = (
-    "connect", "send_pos_on", "cycle_on", "trajectory", "cycle_off", "send_pos_off", "disconnect",
-)
-E4_STEPS: tuple[str, ...] = (
-    "connect", "prog_idx", "send_pos_on", "cycle_on", "trajectory", "cycle_off", "send_pos_off",
-    "result_wait", "vision_result", "disconnect",
-)
+#: The canonical sessions, as the session table orders them (protocol/session_table.py: S1, E4).
+S1_STEPS: tuple[str, ...] = tuple(step.name for step in S1)
+E4_STEPS: tuple[str, ...] = tuple(step.name for step in E4)
 STEPS = frozenset(STEP_TABLE)
 
 
