@@ -104,6 +104,7 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "short-send-drops": ("trust-header", "a small send buffer and one non-blocking send() per answer: what did not "
                                          "fit is dropped"),
     "latency-grows": ("trust-header", "each answer on a connection 2 ms later than the one before (a backlog)"),
+    "low-byte-length": ("trust-header", "reads the block length from its low byte only (L = 0x0119 taken as 25)"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
 _BASE_FIXED: dict[str, dict[str, str]] = {

@@ -21,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from .framers import Framer
+from .framers import Framer, LowByteLength
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
 from .systematic import ConnState
 
@@ -184,7 +184,7 @@ class ThreadBox:
 
     def _frame_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         choices = self.choices
-        framer = Framer(choices.has_extension, choices.framing)
+        framer = (LowByteLength if choices.defect == "low-byte-length" else Framer)(choices.has_extension, choices.framing)
         cycle = self.cycle if choices.cycle_scope == "box" else Cycle()
         latency = LATENCY[choices.latency] + choices.late * choices.time_out
         hung = choices.defect == "dead"
