@@ -5,6 +5,9 @@ command line (``python -m conformance run``) against it with the cases that cove
 
 * ``low-byte-length`` reads the block length from its low byte only, so L = 0x0119 passes as 25:
   F4-02, which changes each byte of each multi-byte field on its own, FAILs it; a legal box passes.
+* ``drops-unsendable`` sends each answer once, non-blocking, with the kernel's default buffers, and drops
+  what the kernel did not take: on loopback's 64 KiB segments nothing is ever refused, so it passed every
+  backpressure case; at Ethernet sizes (TCP_MAXSEG 1460) S6-05 FAILs it and names the first lost answer.
 """
 
 from __future__ import annotations
@@ -54,3 +57,21 @@ def test_a_legal_box_passes_every_byte_of_every_field(tmp_path: Path) -> None:
     verdicts = {k: c["verdict"] for k, c in cases.items() if k.startswith(("F4-02", "F7-05"))}
     assert len(verdicts) == 16 and set(verdicts.values()) == {"PASS"}, verdicts
     assert max(float(c["duration_s"]) for c in cases.values()) < 4.0, cases  # type: ignore[arg-type]
+
+
+@pytest.mark.impls(seconds=30)
+def test_a_box_dropping_the_answers_it_cannot_send_at_once_fails_s6_05(tmp_path: Path) -> None:
+    case = _run("drops-unsendable", tmp_path, "S6-05")["S6-05"]
+    assert case["verdict"] == "FAIL", case
+    assert set(case["judged"]) & {"S6", "A1", "F5"}, case  # type: ignore[arg-type]
+    message = str(case["message"])
+    assert "first lost answer is request" in message or "cut" in message, case  # where the loss began
+    assert case["received_hex"], case
+
+
+@pytest.mark.impls(seconds=30)
+def test_legal_boxes_keep_every_answer_of_the_unread_stream(tmp_path: Path) -> None:
+    for box in ("trust-header", "byte-by-byte"):  # byte-by-byte: slow, so the pace probe gives it fewer requests
+        cases = _run(box, tmp_path / box, "S6-0[2345]")
+        assert {k: c["verdict"] for k, c in cases.items() if k.startswith("S6")} == dict.fromkeys(
+            ("S6-02", "S6-03", "S6-04", "S6-05"), "PASS"), (box, cases)

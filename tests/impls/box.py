@@ -104,6 +104,8 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "short-send-drops": ("trust-header", "a small send buffer and one non-blocking send() per answer: what did not "
                                          "fit is dropped"),
     "latency-grows": ("trust-header", "each answer on a connection 2 ms later than the one before (a backlog)"),
+    "drops-unsendable": ("trust-header", "one non-blocking send() per answer with the kernel's default buffers: an "
+                                         "answer the kernel cannot take at once (EAGAIN, or a part) is dropped"),
     "low-byte-length": ("trust-header", "reads the block length from its low byte only (L = 0x0119 taken as 25)"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be

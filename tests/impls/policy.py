@@ -44,6 +44,7 @@ DEFECTS: dict[str, str] = {
     "latency-grows": "T2",
     # coverage found outside the catalogue (issue 36)
     "low-byte-length": "F4",
+    "drops-unsendable": "S6",
 } | {name: planted.clause for name, planted in systematic.SYSTEMATIC.items()}  # the root-cause benchmark's
 
 _RESUME = ("resume+1", "resume+5", "resume+12")
