@@ -43,6 +43,7 @@ class Backlog:
     elapsed_s: float = 0.0
     pace_hz: float = 0.0  # answers per second to the pace probe (0: no probe)
     last_read_at: float = 0.0  # time.monotonic() of the last recv() that returned data
+    first_read_at: float = 0.0  # ... and of the first
 
 
 @dataclass(frozen=True)
