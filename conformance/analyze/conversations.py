@@ -92,6 +92,18 @@ class TcpConversation:
         self.readers[d].gap(nbytes)
         self.judge.gap(self.side(d), before, after)
 
+    def snap(self, d: int, nbytes: int, no: int, ts: float) -> None:
+        """``nbytes`` of packet ``no`` cut by the capture's snap length: the reader frames past them, or (when
+        the frame they cut does not tell where it ends) they are a gap."""
+        self.ctx.now = ts
+        if not self.readers[d].snap(nbytes, no, ts):
+            stats = self.ctx.stats
+            stats.gaps += 1
+            stats.gap_bytes += nbytes
+            if self.gap_t is None:
+                self.gap_t = ts
+            self.judge.gap(self.side(d), no, no)
+
     def close(self, d: int, how: str, no: int, ts: float) -> None:
         side = self.side(d)
         if side not in self.closes:

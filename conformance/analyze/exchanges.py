@@ -48,6 +48,7 @@ from .judging import (
     judge_backlog,
     judge_pair,
 )
+from .snapcut import SnapCut, note_cut
 
 __all__ = ["ConnJudge", "action_name"]
 
@@ -59,6 +60,7 @@ KEEP_REQUESTS = 2000  # non-pose requests kept per connection for the session ju
 LATENCY_BATCH = 4096
 MAX_OUTSTANDING = 65536  # requests waiting for their answers; past it the box is far behind: pairing stops
 SKIPPED_KEEP = 64
+_READ = (Frame, SnapCut)
 
 
 def _header_action(err: ProtocolError) -> int | None:
@@ -137,7 +139,9 @@ class ConnJudge:
         self.seen_request = True
         action: int | None
         exp = None
-        if type(event) is Frame:
+        if type(event) is SnapCut and note_cut(self, event, (first, last), ROBOT) is None:
+            return
+        if type(event) in _READ:  # a frame, or one the capture cut: judged on its header
             action = event.action
             if action is POSE:
                 self.poses += 1
@@ -147,7 +151,7 @@ class ConnJudge:
                     self._note_action(action)
                 if self.want_pose_after is not None and self.pose_after is None and t > self.want_pose_after:
                     self.pose_after = (t, last, offset, event)
-                if self.f4[ROBOT] < F4_SAMPLE:
+                if self.f4[ROBOT] < F4_SAMPLE and type(event) is Frame:
                     byte_order(self, ROBOT, event, raw, offset, t, last)
                 else:
                     self.steady = self.desync is None
@@ -238,7 +242,13 @@ class ConnJudge:
 
     def _answer(self, event: Any, raw: bytes, offset: int, first: int, last: int, t: float) -> None:
         action: int | None
-        if type(event) is Frame:
+        code: int | None
+        if type(event) is SnapCut:  # a frame the capture cut: paired and timed by its header, its content not judged
+            if (action := note_cut(self, event, (first, last), BOX)) is None:
+                return
+            code = event.error_code
+            self.box_counts[action] = self.box_counts.get(action, 0) + 1
+        elif type(event) is Frame:
             action = event.action
             code = event.error_code
             self.box_counts[event.action] = self.box_counts.get(event.action, 0) + 1
@@ -282,7 +292,7 @@ class ConnJudge:
     def _ok_later(self, action: int | None) -> bool:
         return any(r[4] == OK and r[1] == action for r in self.queue)
 
-    def _unsolicited(self, raw: bytes, action: int | None, code: int, first: int, last: int) -> None:
+    def _unsolicited(self, raw: bytes, action: int | None, code: int | None, first: int, last: int) -> None:
         if self.midstart and not self.seen_request:
             return  # the answer to a request sent before the capture began
         name = action_name(action)
@@ -302,7 +312,7 @@ class ConnJudge:
         self.findings.add("A1", BOX, FAIL, f"{self.label}: {name} answer with no request left to answer "
                           "(an extra answer)", (first, last), box=raw)
 
-    def _pair(self, req: tuple[Any, ...], event: Any, raw: bytes, action: int | None, code: int, last: int,
+    def _pair(self, req: tuple[Any, ...], event: Any, raw: bytes, action: int | None, code: int | None, last: int,
               t: float) -> None:
         t_req, r_action, _r_first, r_last, kind, r_raw, r_event, exchange, exp = req
         ctx = self.ctx
@@ -333,7 +343,8 @@ class ConnJudge:
         if r_action is not None and action != r_action and kind != NOT_REQUEST:
             self.findings.add("A2", BOX, FAIL, f"{self.label}: the answer to {action_name(r_action)} carries action "
                               f"{action_name(action)}", frames, robot=r_raw, box=raw)
-        judge_pair(self, exp, r_action, r_event, event, code, frames, r_raw, raw, t)
+        if code is not None and type(event) is not SnapCut:
+            judge_pair(self, exp, r_action, r_event, event, code, frames, r_raw, raw, t)
         if self.garbage_t is not None and t_req > self.garbage_t and kind == OK and not self.r6_checked:
             self.r6_checked = True
             self.findings.check("R6", BOX)

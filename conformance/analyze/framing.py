@@ -39,6 +39,7 @@ from ..protocol import (
     find_plausible_header,
     frame_spanner,
 )
+from .snapcut import SnapCut, span_of_prefix
 
 __all__ = ["FrameReader", "plausible_header"]
 
@@ -77,11 +78,13 @@ class FrameReader:
         self.cut = 0  # frames cut by a gap or the capture's end, not judged
         self.eof = False
         self._simple = False
+        #: a frame the snap length cut, still running: (its first bytes, stream offset, size, first packet, bytes left)
+        self._snapped: tuple[bytes, int, int, int, int] | None = None
         self._settle()
 
     def _settle(self) -> None:
         """The short path is open when no partial frame waits, nothing is skipped and the stream is open."""
-        self._simple = not self._buf and not self.resync and not self.eof
+        self._simple = not self._buf and not self.resync and not self.eof and self._snapped is None
 
     def mark_midstart(self) -> None:
         """The bytes do not start at a frame: skip to the first plausible header."""
@@ -111,6 +114,10 @@ class FrameReader:
     def _feed(self, data: bytes, no: int, ts: float) -> None:
         if self.eof:
             return
+        if self._snapped is not None:
+            data = self._snap_rest(len(data), no, ts, data) or b""
+            if not data:
+                return
         if self.resync:
             data = self._find_header(data)
             if not data:
@@ -156,6 +163,9 @@ class FrameReader:
         if self.eof:
             return
         self.eof = True
+        if self._snapped is not None:  # the sender closed inside a frame the snap length cut: not judged
+            self._snapped = None
+            self.cut += 1
         if self.resync:
             self.skipped += len(self._carry)
             self._carry = b""
@@ -169,6 +179,9 @@ class FrameReader:
         """``nbytes`` are missing here: drop the frame they cut, resynchronise after them."""
         if self.eof:
             return
+        if self._snapped is not None:  # a frame the snap length cut, and now bytes missing from it too
+            self._snapped = None
+            self.cut += 1
         if self.decoder.buffered:
             self.cut += 1
         self.skipped += len(self._carry)
@@ -177,8 +190,50 @@ class FrameReader:
         self.resync = True
         self._settle()
 
+    def snap(self, nbytes: int, no: int, ts: float) -> bool:
+        """The capture's snap length cut ``nbytes`` of packet ``no`` here: a count at a known place, so the frame
+        they cut is a :class:`~.snapcut.SnapCut` when its first bytes tell its length, and framing goes on after
+        it. False when they are a gap after all (where the next frame starts is not known)."""
+        if self.eof:
+            return True
+        if self._snapped is not None:
+            return self._snap_rest(nbytes, no, ts) is not None
+        prefix = bytes(self._buf) if self.decoder.buffered and not self.resync else b""
+        start = self._base if prefix else self.offset
+        size = span_of_prefix(prefix, self._span)
+        if not size:
+            self.gap(nbytes)
+            return False
+        first = self._marks[0][1] if self._marks else no
+        self._reset()
+        self.offset = start + len(prefix)
+        self._snapped = (prefix, start, size, first, size - len(prefix))
+        return self._snap_rest(nbytes, no, ts) is not None
+
+    def _snap_rest(self, n: int, no: int, ts: float, data: bytes = b"") -> bytes | None:
+        """``n`` more bytes (``data``, or not captured) of the cut frame; when it ends in them it is emitted and
+        the rest of ``data`` returned; None when bytes not captured run past its end (a gap: framing resumes
+        at the next plausible header)."""
+        assert self._snapped is not None
+        prefix, start, size, first, left = self._snapped
+        take = min(n, left)
+        self.offset += take
+        if take < left:
+            self._snapped = (prefix, start, size, first, left - take)
+            return b""
+        self._snapped = None
+        self.emit(SnapCut(prefix, size, self.profile, start), prefix, start, first, no, ts)
+        self._settle()
+        if n > take and not data:
+            self.gap(n - take)
+            return None
+        return data[take:]
+
     def end(self) -> None:
         """The capture ended: a frame still incomplete is cut, not judged."""
+        if self._snapped is not None:
+            self._snapped = None
+            self.cut += 1
         if self.decoder.buffered and not self.eof:
             self.cut += 1
         self.skipped += len(self._carry)

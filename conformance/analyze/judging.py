@@ -34,6 +34,7 @@ from ..protocol.answers import (
 from ..protocol.session_table import CYCLE_ACTIONS, Cycle, cycle_after
 from .capture_timing import backlog
 from .findings import BOX, ROBOT
+from .snapcut import SnapCut, cut_counts, snap_expectation
 
 #: ``j`` below is the connection's :class:`~.exchanges.ConnJudge` (not imported: no import circle)
 ConnJudge = Any
@@ -55,6 +56,8 @@ _ACTIONS = frozenset(int(a) for a in Action)
 def expect(event: Any, ctx: Any, transport: str) -> Expectation:
     """What the box may do with a robot event (the protocol's facts)."""
     tr = Transport.TCP if transport == "tcp" else Transport.UDP
+    if type(event) is SnapCut:
+        return snap_expectation(event)
     if type(event) is Frame:
         return rule_for_frame(event, ctx.profile, tr)
     return rule_for_error(event, ctx.profile, tr)
@@ -209,8 +212,11 @@ def count_frames(j: ConnJudge) -> None:
         f.check(clause, ROBOT, n_robot)
     for clause in ("F1", "F2", "F3", "F5"):
         f.check(clause, BOX, n_box)
-    f.check("F6" if tcp else "F7", ROBOT, n_robot)
-    f.check("F6" if tcp else "F7", BOX, n_box)
+    cut_r, cut_b = cut_counts(j, ROBOT), cut_counts(j, BOX)  # frames the capture cut: their content is not judged
+    f.check("F6" if tcp else "F7", ROBOT, n_robot - sum(cut_r.values()))
+    f.check("F6" if tcp else "F7", BOX, n_box - sum(cut_b.values()))
+    rc = {a: n - cut_r.get(a, 0) for a, n in rc.items()}
+    bc = {a: n - cut_b.get(a, 0) for a, n in bc.items()}
     poses = rc.get(POSE, 0) + rc.get(Action.REGISTER_POSE, 0)
     f.check("B1", ROBOT, poses)
     f.check("B2", ROBOT, rc.get(Action.TOLERANCE, 0))

@@ -14,7 +14,7 @@ its sink each direction's bytes in stream order, exactly once:
   :data:`REORDER_S` seconds) the missing range is declared a gap (``gap``) and the
   stream resumes after it. Without ACK evidence a hole that lasts
   :data:`STALL_PACKETS` packets, or holds more than :data:`OOO_LIMIT` bytes waiting,
-  is a gap too. Bytes cut by the snap length are a gap at once;
+  is a gap too. Bytes cut by the snap length are handed on at once as a count (``snap``);
 * **causal order across directions**: bytes of one side whose segment acknowledges
   bytes of the other side not yet handed on are held back until those are (or are
   declared a gap), so an answer is never delivered before the request it answers, nor
@@ -25,7 +25,8 @@ Everything held is bounded (out-of-order bytes, held-back bytes, the recent byte
 so the state of a connection does not grow with its length.
 
 The bytes go to ``feed[d](payload, frame, ts)``; the sink has ``gap(d, nbytes,
-frame_before, frame_after, ts)``, ``close(d, how, frame, ts)`` (``how`` is ``"fin"`` or
+frame_before, frame_after, ts)``, ``snap(d, nbytes, frame, ts)`` (bytes of that frame the
+snap length cut), ``close(d, how, frame, ts)`` (``how`` is ``"fin"`` or
 ``"rst"``), ``conflict(d, frame, ts)`` and ``midstart(d)`` (the direction's first bytes
 did not follow its SYN); ``d`` is 0 or 1, the direction of the
 connection's first packet or its reverse. The in-order case (nearly every segment)
@@ -53,7 +54,7 @@ RECENT = 64  # segments kept per direction to compare retransmissions with
 RESTART = "restart"
 #: ``segment`` returns this when the connection has ended (reset, or closed both ways)
 DONE = "done"
-_DATA, _GAP, _FIN = 0, 1, 2
+_DATA, _GAP, _FIN, _SNAP = 0, 1, 2, 3
 
 
 def _behind(a: int, b: int) -> bool:
@@ -204,6 +205,8 @@ class TcpStream:
             self.feed[d](value, no, ts)
         elif kind == _GAP:
             self.sink.gap(d, value, no, no, ts)
+        elif kind == _SNAP:
+            self.sink.snap(d, value, no, ts)
         else:
             self.sink.close(d, "fin", no, ts)
             other = self.dirs[d ^ 1]
@@ -239,8 +242,8 @@ class TcpStream:
         if payload:
             me.recent.append((start, payload))
             self._deliver(d, _DATA, payload, no, ts, ack, (start + len(payload)) & MASK)
-        if missing:
-            self._deliver(d, _GAP, missing, no, ts, ack, me.next)
+        if missing:  # cut by the snap length: a count at a known place (``snap``), not a gap
+            self._deliver(d, _SNAP, missing, no, ts, ack, me.next)
 
     def _fin(self, d: int, no: int, ts: float, ack: int | None) -> None:
         me = self.dirs[d]

@@ -1,9 +1,34 @@
-"""F: the frame (start word, version, direction, byte order, length, check fields)."""
+"""F: the frame (start word, version, direction, byte order, length, check fields).
+
+F4-02 changes each byte of each multi-byte header field on its own (``protocol/field_bytes.py``
+derives the changes from the frame layout): the start word, the version and the block length of a
+valid one-pose request, every other byte kept. A block length made longer is followed by zero bytes
+up to the frame it announces, so a box that reads the whole field waits for nothing that never
+comes, and one that reads only its low byte (L = 0x0119 taken as 25) answers the 39 bytes 0000.
+The error code is left out: a request's error field is undefined, and a box may accept or refuse a
+non-zero one (``protocol/legal.py``, request-error-field), so no verdict follows from it. The check
+field's bytes matter only over UDP (F7-05, ``udp_datagrams.py``); over TCP a receiver SHOULD ignore
+it (F6).
+"""
 
 from __future__ import annotations
 
-from conformance.protocol import Action, Frame, Header, Transport, encode, encode_raw, header_field_bytes, request
+import pytest
+
+from conformance.protocol import (
+    DEFAULT_PROFILE,
+    Action,
+    Frame,
+    Header,
+    Transport,
+    codec_for,
+    encode,
+    encode_raw,
+    header_field_bytes,
+    request,
+)
 from conformance.protocol.constants import START_BYTES
+from conformance.protocol.field_bytes import ByteChange, byte_changes, completed
 from conformance.suite import (
     ANSWERED,
     ANSWERED_0,
@@ -33,6 +58,25 @@ def answer_bytes(isight: CaseContext, action: Action = Action.NONE) -> tuple[Ans
     isight.judge(outcome, "answered", sent=b"", action=action)
     assert isinstance(outcome, Answer)
     return outcome, outcome.raw
+
+
+#: F4-02's fields: the multi-byte header fields whose change makes a request invalid (not the error code: see above)
+CHANGED_FIELDS = ("start_word", "version", "block_length")
+HEADER_CHANGES = byte_changes(*CHANGED_FIELDS)
+
+
+#: the one-pose request's header (its fields do not depend on the first index, which only the blocks carry)
+POSE_HEADER = request(Action.POSE, codec_for(DEFAULT_PROFILE).pose_blocks([POSE_VALUES])).header
+
+
+def valid_value(change: ByteChange) -> int:
+    """The changed field's value in the valid one-pose request (the same under either byte order)."""
+    return int(getattr(POSE_HEADER, change.field))
+
+
+def change_id(change: ByteChange) -> str:
+    """E.g. ``block-length-0119``: the field and the value it reads after the change."""
+    return f"{change.field.replace('_', '-')}-{change.value(valid_value(change)):04x}"
 
 
 # -- the cases
@@ -126,3 +170,26 @@ def test_tcp_check_crc_accepted(isight: CaseContext) -> None:
     frame = request(Action.POSE, isight.codec.pose_blocks([(1.0, 2.0, 3.0, 4.0, 5.0, 6.0)]))
     data = encode(frame, isight.profile, Transport.UDP)  # same bytes, CRC in the check field
     isight.judge(isight.exchange(data, "pose request whose check field holds its CRC"), sent=b"")
+
+
+@case("F4-02", ["F4", "F1", "F2", "F5", "A5", "R1"], Level.MUST,
+      "Each byte of each multi-byte header field, changed on its own, makes the request invalid",
+      "a one-pose request with one byte of its start word, version or block length changed (XOR 01 or FF), every "
+      "other byte valid, is never answered 0000: silence, a non-zero error or a close (a box reading only one byte "
+      "of a field, e.g. L = 0x0119 taken as 25, answers 0000); a longer L is followed by zero bytes up to the "
+      "frame it announces. The error code is not changed: a request's error field is undefined (a box may accept "
+      "or refuse a non-zero one)",
+      checks={"start_word": Requirement(("F4", "F1", "A5"), "a frame whose start word reads {value:04X} is not a request "
+                                        f"and {NOT_0000}", accept=NOT_OK),
+              "version": Requirement(("F4", "F2", "A5"), f"a frame whose version reads {{value:04X}} {NOT_0000}",
+                                     accept=NOT_OK),
+              "block_length": Requirement(("F4", "F5", "B1", "R1"), "a pose request whose block length reads {value:04X} "
+                                          "(its one block is 25 bytes) is a parse error and MUST NOT be answered 0000",
+                                          accept=NOT_OK)}, shares_box=True)
+@pytest.mark.parametrize("change", HEADER_CHANGES, ids=[change_id(c) for c in HEADER_CHANGES])
+def test_each_byte_of_each_field(isight: CaseContext, change: ByteChange) -> None:
+    bad = change.apply(encode(pose_request(isight), isight.profile), isight.profile.byte_order)
+    bad = completed(bad, codec_for(isight.profile).frame_length(bad))  # a longer L: its frame sent whole
+    valid = valid_value(change)
+    outcome = isight.send_malformed(bad, f"pose request with {change.describe(valid)}")
+    isight.judge(outcome, change.field, sent=bad, value=change.value(valid))

@@ -1,23 +1,39 @@
 """S6/R4/A1 under backpressure: the robot reads late or in small pieces, and the box keeps every answer.
 
 Every other case reads its answers promptly, so the box's send buffer never fills. Here
-the suite's receive buffer is small (``SO_RCVBUF``) and it reads late: a stream read after
+the suite's receive buffer is small (``SO_RCVBUF``) and its segments Ethernet-sized
+(``TCP_MAXSEG`` 1460: on loopback's 64 KiB segments a box's kernel would take hundreds of
+thousands of unread answers before refusing one), and it reads late: a stream read after
 time_out, a burst of thousands of pipelined poses read only when the suite could not
-send, and the same burst read in random pieces of 1 to 24 bytes. A box that drops what a
-short ``send()`` did not write cuts frames (F5) and loses answers (S6, A1).
+send, the same burst read in random pieces of 1 to 24 bytes, and (S6-05) mixed requests
+streamed unread until the box stops reading or a bound passes. A box that drops what a
+``send()`` did not take at once cuts frames (F5) and loses answers (S6, A1); the mixed
+actions of S6-05 tell which answer was lost first (``suite/answer_runs.py``).
 """
 
 from __future__ import annotations
 
+import bisect
+import contextlib
+import itertools
 import random
 import select
 import socket
+import struct
 import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
 
-from conformance.protocol import Action, Frame, ProtocolError, StreamDecoder, TransferType, encode, request
-from conformance.protocol.constants import CHECK_LEN, HEADER_LEN
+try:  # the answers waiting unread (S6-05's hold): POSIX
+    import fcntl
+    import termios
+except ImportError:  # pragma: no cover - Windows
+    pass
+
+from conformance.protocol import (
+    Action,
+    encode,
+    request,
+)
 from conformance.suite import (
     DEFAULT_POSE,
     STREAM,
@@ -32,14 +48,13 @@ from conformance.suite import (
     case,
     responsive,
 )
+from conformance.suite.answer_runs import ANSWER_LEN, Backlog, judge_answers
 
 # -- the family's helpers: Backpressure (S6, R4, A1): the robot reads its answers late, or in small pieces, and the box keeps them all.
 #: the suite's receive buffer in these cases (the kernel rounds it up to its minimum, about 2 KB)
 SMALL_RCVBUF = 2048
-#: a blockless answer's length (F5: 12 + 0 + 2)
-ANSWER_LEN = HEADER_LEN + CHECK_LEN
-#: how many bytes of the stream a finding quotes around the first bad answer
-SHOWN = 48
+#: the TCP segment size of Ethernet (1500-byte MTU less 40 bytes of IP and TCP headers)
+ETHERNET_MSS = 1460
 #: the pace probe: this many poses pipelined and read at once, for at most PACE_S, before a burst
 PACE_REQUESTS, PACE_S = 100, 2.0
 #: a burst is sized so the box's measured pace answers it in about BURST_S, and never below MIN_BURST
@@ -49,35 +64,15 @@ BURST_S, MIN_BURST = 5.0, 500
 BUDGET_S = 12.0
 
 
-@dataclass
-class Backlog:
-    """What a backpressure exchange sent and read."""
-
-    requests: int = 0  # requests sent whole
-    sent_bytes: int = 0
-    received: bytearray = field(default_factory=bytearray)
-    reads: int = 0  # recv() calls that returned data
-    ended: str = ""  # "", "closed", "reset", "silent" (time_out with answers still due), "blocked" (sends stalled),
-    # "budget" (answers still coming when BUDGET_S ran out: too slow a box to wait for, not a lost answer)
-    unread_s: float = 0.0  # how long the suite read nothing at the start
-    elapsed_s: float = 0.0
-    pace_hz: float = 0.0  # answers per second to the pace probe (0: no probe)
-    last_read_at: float = 0.0  # time.monotonic() of the last recv() that returned data
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """The first thing wrong with the answers (None fields: all well)."""
-
-    clause: str  # F5 (cut short / malformed), A1 (wrong, out of order, missing or extra), S6 (lost)
-    expected: str
-    observed: str
-    received: bytes = b""
-
-
 def small_rcvbuf(sock: socket.socket) -> None:
-    """Before connect: the suite's receive buffer as small as the kernel allows (the window follows)."""
+    """Before connect: the suite's receive buffer as small as the kernel allows (the window follows), and Ethernet
+    segments (TCP_MAXSEG 1460, where the platform has it) as a robot on a wire would have them: the box's kernel
+    then keeps its unsent answers in segment-sized buffers, so its send buffer fills after thousands of unread
+    answers, where on loopback (64 KiB segments) it would take hundreds of thousands."""
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, SMALL_RCVBUF)
+    if hasattr(socket, "TCP_MAXSEG"):
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_MAXSEG, ETHERNET_MSS)
 
 
 def _read(conn: TcpConnection, out: Backlog, size: int) -> bool:
@@ -97,6 +92,7 @@ def _read(conn: TcpConnection, out: Backlog, size: int) -> bool:
     out.received += data
     out.reads += 1
     out.last_read_at = time.monotonic()
+    out.first_read_at = out.first_read_at or out.last_read_at
     return True
 
 
@@ -193,6 +189,67 @@ def late_stream(conn: TcpConnection, frame_at: Callable[[int], bytes], rate_hz: 
     return out
 
 
+def unread_stream(conn: TcpConnection, chunk: bytes, ends: Sequence[int], most: int, out: Backlog,
+                  note: str = "") -> int:
+    """Send ``chunk`` (whole requests ending at the offsets ``ends``) again and again, reading nothing, for
+    UNREAD_S or ``most`` requests at most (recorded in ``out``); it ends early once sends have been refused for
+    CLOSED_S (the window closed: the box stopped reading). Returns how many requests were sent whole."""
+    assert conn.sock is not None
+    sock, start, sent, requests = conn.sock, time.monotonic(), 0, 0
+    whole, rest = divmod(most, len(ends))
+    limit = whole * len(chunk) + (ends[rest - 1] if rest else 0)  # the bytes of ``most`` requests
+    stalled_since: float | None = None
+    while time.monotonic() - start < UNREAD_S and sent < limit:
+        at = sent % len(chunk)
+        try:
+            n = sock.send(memoryview(chunk)[at : at + limit - sent])
+        except BlockingIOError:
+            stalled_since = stalled_since or time.monotonic()
+            if time.monotonic() - stalled_since > CLOSED_S:
+                break  # the window closed: the box stopped reading, its answers back up
+            select.select([], [sock], [], 0.02)
+            continue
+        except OSError:
+            out.ended = "reset"
+            break
+        conn.transcript.add(conn.conn_id, Kind.SEND, chunk[at : at + n], note)
+        sent, stalled_since = sent + n, None
+        whole, rest = divmod(sent, len(chunk))
+        requests = whole * len(ends) + bisect.bisect_right(ends, rest)
+    else:  # every request sent: still nothing read until the box's answers stop coming in (it cannot send more)
+        _hold(sock, start)
+    conn.sent_bytes += sent
+    out.sent_bytes += sent
+    out.requests += requests
+    out.unread_s = time.monotonic() - start
+    return requests
+
+
+def _hold(sock: socket.socket, start: float) -> None:
+    """Read nothing until the answers waiting in the suite's receive buffer have not grown for CLOSED_S (the window
+    closed, or the box answered everything), or UNREAD_S since ``start``."""
+    last, since = -1, time.monotonic()
+    while time.monotonic() - start < UNREAD_S:
+        try:
+            waiting = struct.unpack("i", fcntl.ioctl(sock.fileno(), termios.FIONREAD, b"\0\0\0\0"))[0]
+        except (OSError, NameError):
+            return  # the platform does not tell: no hold
+        if waiting != last:
+            last, since = waiting, time.monotonic()
+        elif waiting and time.monotonic() - since > CLOSED_S:
+            return
+        time.sleep(0.02)
+
+
+def throughput(out: Backlog) -> float:
+    """The pace probe's answers per second from the first to the last one (a box's latency is not its pace), or its
+    pace when they came at once."""
+    answers = len(out.received) // ANSWER_LEN
+    if answers < 2 or out.last_read_at - out.first_read_at < 1e-3:
+        return out.pace_hz if answers < 2 else float(UNREAD_MAX)
+    return max(out.pace_hz, (answers - 1) / (out.last_read_at - out.first_read_at))
+
+
 def _whole(frames: list[bytes], sent: int) -> int:
     count = 0
     for frame in frames:
@@ -221,43 +278,6 @@ def _read_rest(conn: TcpConnection, out: Backlog, expect_bytes: int, time_out_s:
             out.ended = "budget"
 
 
-def judge_answers(out: Backlog, action: int, requests: int) -> Verdict | None:
-    """The first thing wrong with the answers read: cut short or malformed (F5), not the expected answer
-    (A1), fewer than the requests (S6, A1: lost), or more (A1). None: every answer intact, in order, one each."""
-    decoder = StreamDecoder(expect=TransferType.BOX_TO_ROBOT)
-    events = decoder.feed(bytes(out.received))
-    offset, good = 0, 0
-    for event in events:
-        if isinstance(event, ProtocolError):
-            at = event.offset or offset
-            return Verdict("F5", f"answer {good + 1} a whole frame (12 + N×L + 2 bytes)",
-                           f"after {good} intact answer(s), at byte {at} of {len(out.received)} read: {event}",
-                           _around(out.received, at))
-        assert isinstance(event, Frame)
-        size = HEADER_LEN + len(event.blocks) * event.block_length + CHECK_LEN
-        if int(event.action) != action or event.error_code != 0:
-            return Verdict("A1", f"answer {good + 1} echoes action {action:02X} with error 0000 (in request order)",
-                           f"answer {good + 1} at byte {offset}: {event.describe()}", _around(out.received, offset))
-        offset += size
-        good += 1
-    tail = decoder.buffered
-    if good < requests and out.ended == "budget":
-        return None  # answers still coming, all intact so far: too slow to wait for, not lost (the case says so)
-    if good < requests:
-        why = {"closed": "then the box closed the connection", "reset": "then the box reset the connection",
-               "silent": "then nothing more came for time_out", "blocked": "the box stopped reading"}.get(out.ended, "")
-        cut = f"; the last {tail} byte(s) are a frame cut short (F5)" if tail else ""
-        return Verdict("S6", f"{requests} answers, one per request, however late the robot reads them",
-                       f"{good} intact answers ({len(out.received)} bytes of the {requests * ANSWER_LEN} due): "
-                       f"{requests - good} lost{cut}" + (f"; {why}" if why else ""),
-                       _around(out.received, max(0, offset - 14)))
-    if good > requests:
-        return Verdict("A1", f"{requests} answers, one per request", f"{good} answers", b"")
-    return None
-
-
-def _around(data: bytearray, offset: int) -> bytes:
-    return bytes(data[max(0, offset - 14) : offset + SHOWN])
 
 
 # -- the cases
@@ -265,6 +285,16 @@ def _around(data: bytearray, offset: int) -> bytes:
 #: how many poses a burst pipelines (each answer 14 bytes: about 40 KB of answers behind a 2 KB window); fewer
 #: when the box's pace (pace) would take more than a few seconds to answer them
 BURST = 3000
+#: S6-05: the actions streamed unread (each answered 0000 in any cycle state: A4, S3), in a seeded order of PATTERN
+#: requests sent again and again, so that where answers were lost shows in the answers' actions
+MIXED, PATTERN = (Action.POSE, Action.REGISTER_POSE, Action.TOLERANCE, Action.NONE), 2048
+#: S6-05's unread stream: at most UNREAD_MAX requests (their answers 280 KB: a box sending each answer at once to a
+#: 1460-byte-segment peer finds its default send buffer full after about 2 500 unread) and UNREAD_S seconds; the window
+#: is closed once sends have been refused for CLOSED_S (a box that stops reading while its answers back up)
+UNREAD_MAX, UNREAD_S, CLOSED_S = 20_000, 2.0, 0.3
+#: ... and no more requests than the box's pace (the pace probe's) answers in UNREAD_PACE_S, nor fewer than UNREAD_MIN:
+#: a slow box is its own bottleneck (its answers cannot back up), and one that writes byte by byte reads slower still
+UNREAD_PACE_S, UNREAD_MIN = 1.0, 300
 #: one root cause for the backpressure verdicts: answers the box never delivered whole once the robot read late
 LOST = Signature(Sig.SILENCE, "every POSE when the robot reads late (S6)")
 CHECKS = {"F5": Requirement(("F5", "S6"), "every answer the box writes is a whole frame, however late the robot reads"),
@@ -295,17 +325,18 @@ def _quiet_s(isight: CaseContext, conn: TcpConnection, one_write: bool = False) 
     return isight.time_out_s, ""
 
 
-def _judge(isight: CaseContext, conn: TcpConnection, out: Backlog, what: str, quiet: tuple[float, str]) -> None:
+def _judge(isight: CaseContext, conn: TcpConnection, out: Backlog, what: str, quiet: tuple[float, str],
+           actions: Sequence[int] | None = None) -> None:
     quiet_s, why = quiet
     isight.details[what] = {"requests": out.requests, "sent_bytes": out.sent_bytes, "received_bytes": len(out.received),
                             "reads": out.reads, "unread_s": round(out.unread_s, 3), "elapsed_s": round(out.elapsed_s, 3),
                             "pace_hz": round(out.pace_hz, 1), "ended": out.ended or "normally"}
-    bad = judge_answers(out, int(Action.POSE), out.requests)
+    bad = judge_answers(out, int(Action.POSE) if actions is None else actions, out.requests)
     if bad is None and out.ended == "budget":
         raise Inconclusive(f"{what}: {len(out.received) // ANSWER_LEN} of {out.requests} answers read in "
                            f"{BUDGET_S:.0f} s, every one intact and in order, and more still coming: too slow to wait "
                            "for in bounded time, so the rest were not judged", judged=("S6",))
-    if bad is not None and out.ended == "silent" and quiet_s < isight.time_out_s:
+    if bad is not None and bad.shortfall and out.ended == "silent" and quiet_s < isight.time_out_s:
         isight.close_all()
         if responsive(isight.check_alive()):
             seen = bad.observed.replace("; then nothing more came for time_out", "")
@@ -361,3 +392,31 @@ def _burst(isight: CaseContext, conn: TcpConnection, quiet: float, rng: random.R
         return out
     size = burst_size(out.pace_hz, BURST)
     return burst(conn, [pose] * size, (out.requests + size) * ANSWER_LEN, isight.time_out_s, rng, note, quiet, out)
+
+
+@case("S6-05", ["S6", "A1", "F5", "R4"], Level.MUST, "A stream left unread until the window closes, at Ethernet sizes",
+      f"the pace probe, then mixed requests (POSE, RegisterPose, Tolerance, NONE in a seeded order) streamed back to "
+      f"back with nothing read (TCP_MAXSEG 1460 and a small receive buffer on the suite's socket) until the box stops "
+      f"reading or {UNREAD_MAX} requests (fewer to a slow box) / {UNREAD_S} s, then everything read: one intact 0000 answer per request, in order "
+      "(a box that drops the answers it cannot send at once loses them; the first lost one is named)", checks=CHECKS)
+def test_unread_until_the_window_closes(isight: CaseContext) -> None:
+    conn, start = _connect(isight, "stream (unread until the window closes)"), time.monotonic()
+    quiet = _quiet_s(isight, conn, one_write=True)
+    rng = random.Random(isight.settings.seed)
+    actions = [rng.choice(MIXED) for _ in range(PATTERN)]
+    codec = isight.codec
+    frames = {a: encode(request(a, codec.pose_blocks([DEFAULT_POSE]) if a in (Action.POSE, Action.REGISTER_POSE)
+                                else codec.tolerance_blocks([0.5]) if a is Action.TOLERANCE else ()), isight.profile)
+              for a in MIXED}
+    note = "stream unread until the window closes"
+    out = pace(conn, frames[Action.POSE], ANSWER_LEN, quiet[0], note)  # a slow box gets fewer requests
+    probe, sent = out.requests, 0
+    if not out.ended:
+        chunk, ends = b"".join(frames[a] for a in actions), list(itertools.accumulate(len(frames[a]) for a in actions))
+        most = max(min(UNREAD_MAX, int(throughput(out) * UNREAD_PACE_S)), UNREAD_MIN)
+        sent = unread_stream(conn, chunk, ends, most, out, note)
+    if not out.ended:
+        _read_rest(conn, out, out.requests * ANSWER_LEN, quiet[0], None, deadline=time.monotonic() + BUDGET_S)
+    out.elapsed_s = time.monotonic() - start
+    _judge(isight, conn, out, "unread stream", quiet,
+           [int(Action.POSE)] * probe + [int(actions[i % PATTERN]) for i in range(sent)])

@@ -14,6 +14,7 @@ all costs a full time_out (and its R7 cases end INCONCLUSIVE: F7-01 judges it).
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import pytest
 
@@ -29,6 +30,7 @@ from conformance.protocol import (
     request,
 )
 from conformance.protocol.constants import CHECK_LEN
+from conformance.protocol.field_bytes import ByteChange, byte_changes
 from conformance.suite import (
     Answer,
     CaseContext,
@@ -235,11 +237,35 @@ def test_udp_pose_answers(isight: CaseContext) -> None:
               "dropped": Requirement(("R7",), "a datagram with a wrong CRC or not exactly one frame SHOULD be dropped "
                                      "silently", level=Level.SHOULD)})
 def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
+    judge_bad_datagram(isight, bad_datagram(isight, kind), f"bad datagram: pose {kind}")
+
+
+#: F7-05: each byte of the check field XORed on its own (the frame layout's table, protocol/field_bytes.py)
+CHECK_CHANGES = byte_changes("check")
+
+
+@pytest.mark.parametrize("change", CHECK_CHANGES, ids=[f"check-byte{c.byte}-x{c.mask:02x}" for c in CHECK_CHANGES])
+@case("F7-05", ["F7", "R7", "R1"], Level.MUST, "Each byte of the UDP check field, changed on its own, makes the "
+      "datagram invalid",
+      "a pose datagram with one byte of its CRC changed (XOR 01 or FF), every other byte valid, is never answered "
+      "0000 (MUST) and gets no answer at all (SHOULD: an answer with a non-zero error is NON-STRICT); a box that "
+      "checks only one byte of the CRC answers it",
+      checks={"no-0000": Requirement(("F7", "R7"), "a datagram whose CRC has {where} changed MUST NOT be answered "
+                                     "0000"),
+              "dropped": Requirement(("R7",), "a datagram whose CRC has {where} changed SHOULD be dropped silently",
+                                     level=Level.SHOULD)})
+def test_udp_each_check_byte(isight: CaseContext, change: ByteChange) -> None:
+    bad = change.apply(udp_bytes(isight, pose_request(isight)))
+    where = f"byte {change.byte} (XOR {change.mask:02x})"
+    judge_bad_datagram(isight, bad, f"bad datagram: pose whose CRC has {where} changed", where=where)
+
+
+def judge_bad_datagram(isight: CaseContext, bad: bytes, note: str, **values: Any) -> None:
+    """R7: ``bad``, then a valid NONE probe datagram; never answered 0000 (MUST), no answer at all (SHOULD)."""
     ch = isight.udp()
     probe = require_udp_answers(isight, ch)
-    bad = bad_datagram(isight, kind)
     isight.last_sent = bad
-    start = send_datagram(ch, bad, f"bad datagram: pose {kind}")
+    start = send_datagram(ch, bad, note)
     ch.send(probe, "probe: a valid NONE datagram; its answer bounds the wait")
     extras, answer = await_probe(isight, ch, start)
     replies = [o for o in extras if isinstance(o, (Answer, Malformed))]
@@ -249,7 +275,8 @@ def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
     ok = [o for o in replies if getattr(peek_header(o.raw, 0, isight.profile.byte_order), "error_code", None) == 0]
     if ok:
         raise isight.broken("no-0000", expected="silence (or a non-zero error)",
-                            observed=f"{len(replies)} answer(s), {ok[0].describe()}", sent=bad, received=ok[0].raw)
+                            observed=f"{len(replies)} answer(s), {ok[0].describe()}", sent=bad, received=ok[0].raw,
+                            **values)
     if replies:
         raise isight.broken("dropped", expected="silence", observed="; ".join(o.describe() for o in replies), sent=bad,
-                            received=replies[0].raw)
+                            received=replies[0].raw, **values)

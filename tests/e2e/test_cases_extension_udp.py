@@ -262,7 +262,8 @@ def test_udp_wrong_answer_crc_fails_f7(tmp_path: Path) -> None:
 def test_udp_bad_crc_answered_0000_fails_r7(tmp_path: Path) -> None:
     with reference_box(patch=_udp_answers_bad_crc(0)) as box:
         results = run_suite(tmp_path, ["R7-*", "F7-*"], box)
-    assert failing(results) == {"R7-01[wrong-crc]": "FAIL"}, verdicts(results)
+    crc_bytes = {f"F7-05[check-byte{b}-x{m}]": "FAIL" for b in (0, 1) for m in ("01", "ff")}  # each CRC byte alone
+    assert failing(results) == {"R7-01[wrong-crc]": "FAIL", **crc_bytes}, verdicts(results)
 
 
 def test_udp_bad_crc_answered_error_is_non_strict(tmp_path: Path) -> None:

@@ -104,6 +104,9 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "short-send-drops": ("trust-header", "a small send buffer and one non-blocking send() per answer: what did not "
                                          "fit is dropped"),
     "latency-grows": ("trust-header", "each answer on a connection 2 ms later than the one before (a backlog)"),
+    "drops-unsendable": ("trust-header", "one non-blocking send() per answer with the kernel's default buffers: an "
+                                         "answer the kernel cannot take at once (EAGAIN, or a part) is dropped"),
+    "low-byte-length": ("trust-header", "reads the block length from its low byte only (L = 0x0119 taken as 25)"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
 _BASE_FIXED: dict[str, dict[str, str]] = {
@@ -112,6 +115,8 @@ _BASE_FIXED: dict[str, dict[str, str]] = {
                   "framing_version": "resume+1"},  # it hangs where a conforming box resynchronises, not closes
     "late-cycle-on": {"cycle_on_ready": "ready"},  # the late answer is a 0000 the suite waits for
     "nan-zero": {"nan": "accept"},
+    # one send() per answer, as planted: a writer in pieces or bytes (a pause per answer) is too slow to back up
+    "drops-unsendable": {"writer": "whole"},
 }
 #: knobs every run of the suite (the matrix) can serve: TCP only, one port
 _BROKEN_FIXED = {"udp": "off", "stream_port": "same"}

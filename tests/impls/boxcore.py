@@ -21,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from .framers import Framer
+from .framers import Framer, LowByteLength
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
 from .systematic import ConnState
 
@@ -36,6 +36,8 @@ LINGER = 1.0  # seconds a closing box reads (and drops) what still comes before 
 DROP_EVERY = 7  # drops-frames: every 7th answer on a connection is never written
 QUIET_AFTER = 150  # quiet-after-n: after this many answers (the whole box) it answers nothing more
 SHORT_SNDBUF = 4096  # short-send-drops: its small send buffer (the kernel doubles it)
+#: the defects that send each answer once, non-blocking, and drop what the kernel did not take (EAGAIN or a part)
+UNSENT_DROPPED = ("short-send-drops", "drops-unsendable")
 GROW_S = 0.002  # latency-grows: each answer on a connection this much later than the one before
 
 
@@ -184,7 +186,7 @@ class ThreadBox:
 
     def _frame_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         choices = self.choices
-        framer = Framer(choices.has_extension, choices.framing)
+        framer = (LowByteLength if choices.defect == "low-byte-length" else Framer)(choices.has_extension, choices.framing)
         cycle = self.cycle if choices.cycle_scope == "box" else Cycle()
         latency = LATENCY[choices.latency] + choices.late * choices.time_out
         hung = choices.defect == "dead"
@@ -254,7 +256,7 @@ class ThreadBox:
         return self._send(conn, data)
 
     def _send(self, conn: socket.socket, data: bytes) -> bool:
-        if self.choices.defect == "short-send-drops":  # one non-blocking send; what did not fit is dropped
+        if self.choices.defect in UNSENT_DROPPED:  # one non-blocking send; what did not fit is dropped
             with contextlib.suppress(BlockingIOError), socket.socket(fileno=os.dup(conn.fileno())) as nb:
                 nb.setblocking(False)  # this socket object never waits (the reader's keeps its timeout)
                 nb.send(data)

@@ -71,6 +71,10 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
     _bad("quiet-after-n", ("T1", "A1", "R2")),
     _bad("short-send-drops", ("S6", "A1", "F5")),
     _bad("latency-grows", ("T2", "S6", "T1", "A1", "S4")),
+    _bad("drops-unsendable", ("S6", "A1", "F5"),
+         note="its send buffer is the kernel's default: only a window closed at Ethernet sizes fills it"),
+    _bad("low-byte-length", ("F4", "F5", "B1", "R1"),
+         note="L = 0x0119 passes as 25: only F4-02, which changes each byte of each field on its own, sees it"),
     # robots, conforming
     _ok("canonical", "robot"),
     _ok("karel-calls", "robot", note="poses (23/24) on the command connection are legal: PROTOCOL.md, robot side"),

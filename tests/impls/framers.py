@@ -22,7 +22,7 @@ Every framer keeps at most one legal frame (``MAX_BODY`` + 14 bytes) plus one re
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .wire_format import HEADER_LEN, MAX_BODY, ROBOT_TO_BOX, START, Header, known
 
@@ -90,6 +90,10 @@ class Framer:
         if not self.closed:
             self.buf += data
 
+    def parse(self, data: bytearray) -> Header:
+        """The header at the start of ``data`` (at least 12 bytes), as this framer reads it."""
+        return Header.parse(data)
+
     def choice(self, h: Header) -> str:
         """What this framer does with the header ``h`` (its start word is right)."""
         f = self.framing
@@ -115,7 +119,7 @@ class Framer:
                 yield from self._to_start()
             if len(self.buf) < HEADER_LEN:
                 return
-            h = Header.parse(self.buf)
+            h = self.parse(self.buf)
             choice = self.choice(h)
             if choice == "close":
                 yield Rejected(h)
@@ -190,6 +194,15 @@ class CloseOnGarbage(Framer):
     @classmethod
     def preset(cls) -> Framing:
         return PRESETS["close"]
+
+
+class LowByteLength(Framer):
+    """A defect (``low-byte-length``): the block length read from its low byte only, so L = 0x0119 is taken as 25
+    (a C parser that stores bytes 8-9 in a char)."""
+
+    def parse(self, data: bytearray) -> Header:
+        header = Header.parse(data)
+        return replace(header, length=header.length & 0xFF)
 
 
 FRAMERS: dict[str, type[Framer]] = {

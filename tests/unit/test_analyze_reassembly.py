@@ -19,6 +19,9 @@ class Sink:
     def gap(self, d, nbytes, before, after, ts):
         self.events.append(("gap", d, nbytes, before, after))
 
+    def snap(self, d, nbytes, no, ts):
+        self.events.append(("snap", d, nbytes, no))
+
     def close(self, d, how, no, ts):
         self.events.append(("close", d, how, no))
 
@@ -116,12 +119,13 @@ def test_a_hole_without_ack_evidence_is_a_gap_after_a_long_stall():
     assert s.data(0) == b"later"
 
 
-def test_a_snapped_segment_is_a_gap_at_once():
+def test_a_snapped_segment_hands_on_the_bytes_not_kept_as_a_count_at_once():
+    """Bytes cut by the snap length are a known count at a known place (``snap``), not a gap."""
     s = Sink()
     handshake(s)
     s.stream.segment(0, 101, 501, PA, b"ab", 5, 4, 1.0)
     s.stream.segment(0, 108, 501, PA, b"cd", 0, 5, 1.0)
-    assert s.events == [("data", 0, b"ab", 4), ("gap", 0, 5, 4, 4), ("data", 0, b"cd", 5)]
+    assert s.events == [("data", 0, b"ab", 4), ("snap", 0, 5, 4), ("data", 0, b"cd", 5)]
 
 
 def test_the_end_of_the_capture_flushes_what_waits():
