@@ -97,7 +97,7 @@ class CertifyConfig:
 
     @property
     def slow_delay_s(self) -> float:
-        return SLOW_SHARE * self.profile.time_out_ms / 1000.0 if "slow" in self.inject else 0.0
+        return SLOW_SHARE * self.profile.time_out_s if "slow" in self.inject else 0.0
 
     def box_config(self) -> BoxConfig:
         """The reference box's knobs for this run (the box always implements 26/27)."""
