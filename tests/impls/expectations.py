@@ -71,6 +71,11 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
     _bad("quiet-after-n", ("T1", "A1", "R2")),
     _bad("short-send-drops", ("S6", "A1", "F5")),
     _bad("latency-grows", ("T2", "S6", "T1", "A1", "S4")),
+    # issue 36: the kinds of box written outside this project that took longest
+    _bad("drops-rest-of-read", ("R4", "A1", "T1", "R3", "S6")),
+    _bad("split-header-lost", ("R3", "A1", "T1", "R6")),
+    _ok("slow-pieces", note="every answer 20 ms late, in two pieces with Nagle on: legal (T1)"),
+    _ok("slow-cycle-on", note="CycleOn answered after 0.6 time_out: legal (T1)"),
     # robots, conforming
     _ok("canonical", "robot"),
     _ok("karel-calls", "robot", note="poses (23/24) on the command connection are legal: PROTOCOL.md, robot side"),
