@@ -34,6 +34,7 @@ from ..harness.exchange import (
 )
 from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
 from ..harness.quiet import (
+    AFTER_FRAMES,
     CUT_S,
     HANG_CLAUSE,
     KIND_WORDS,
@@ -41,9 +42,10 @@ from ..harness.quiet import (
     bad_kind,
     broken_besides_hang,
     hung,
-    pattern_key,
+    pattern_keys,
     probe_wronged,
     refused_key,
+    whole_frames,
 )
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
@@ -226,8 +228,11 @@ class CaseContext:
         outcome = self._outcome_for_bad(bad, got, explanation)
         if action is not None:
             mine = bool(explanation.answers_within(0, len(bad)))
-            self.session.hangs.note(pattern_key(kind, mine), self.info.id, probe_answered=isinstance(
-                self.last_probe, (Answer, Malformed)), hung=isinstance(got.end, Silence) and hung(explanation))
+            if isinstance(self.last_probe, Answer):
+                self.session.hangs.paced(self.last_probe.latency_s)
+            for key in pattern_keys(kind, mine, whole_frames(bad, self.profile)):
+                self.session.hangs.note(key, self.info.id, probe_answered=isinstance(
+                    self.last_probe, (Answer, Malformed)), hung=isinstance(got.end, Silence) and hung(explanation))
             self._note_refused(kind, int(action), got, explanation)
         return outcome
 
@@ -256,17 +261,18 @@ class CaseContext:
                       kind: str) -> Collected:
         """The exchange; on a box known to hang after this kind of bytes (:mod:`.quiet`), cut short."""
         judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
-        bound = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
+        whole = whole_frames(bad, self.profile)
+        bound = self.session.hangs.bound(kind, judges, self.time_out_s, whole) if action is not None else None
         got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, bound)
         if bound is not None and action is not None and got.ran_out:
             return self._refused_bounded(conn, bad, action, probe_bytes, kind, bound, got)
         if bound is None or action is None or not isinstance(got.end, Silence):
             return got
-        cases = self.session.hangs.known(pattern_key(kind, bool(got.answers())))
+        known = self.session.hangs.known_any(pattern_keys(kind, bool(got.answers()), whole))
         so_far = attribute(bad + probe_bytes, got, self.profile, extension=self.session.extension_supported is not False,
                            probe_at=len(bad))
-        if cases is not None and not broken_besides_hang(so_far):
-            self._cut_short(kind, bool(got.answers()), action, bound, cases)
+        if known is not None and not broken_besides_hang(so_far):
+            self._cut_short(kind, bool(got.answers()), action, bound, known[1], after_frames=known[0] == AFTER_FRAMES)
         # not in the pattern, or what came already breaks a requirement: wait out time_out, judged in full
         more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
         return Collected(got.outcomes + more.outcomes, more.end, more.close)
@@ -291,13 +297,17 @@ class CaseContext:
                     sent=self.last_sent)
         return await_rest(conn, int(action), got, max(0.0, self.time_out_s - bound))
 
-    def _cut_short(self, kind: str, answered: bool, probe: Action, wait_s: float, cases: list[str]) -> None:
+    def _cut_short(self, kind: str, answered: bool, probe: Action, wait_s: float, cases: list[str],
+                   after_frames: bool = False) -> None:
         """The probe behind bytes the box is known to hang on went unanswered for ``wait_s``: INCONCLUSIVE
-        under that pattern (if the box still answers a fresh connection; else R2 judges)."""
+        under that pattern (if the box still answers a fresh connection; else R2 judges). ``after_frames``: the
+        pattern is :data:`~.quiet.AFTER_FRAMES` (a probe in one write behind whole frames, answered or not)."""
         if not responsive(self.check_alive()):
             return
         what = KIND_WORDS.get(kind, kind) + (", once it answered them," if answered else "")
-        clauses, why = (("R4", "A1"), "R4: every frame of a segment is answered") if answered else (
+        if after_frames:
+            what = f"whole frames ({KIND_WORDS.get(kind, kind)}) in the same write as it"
+        clauses, why = (("R4", "A1"), "R4: every frame of a segment is answered") if answered or after_frames else (
             (HANG_CLAUSE,), "R6: hanging silently is NON-STRICT")
         raise Inconclusive(
             f"after {what} the box left the request behind them unanswered for the whole time_out in cases "
