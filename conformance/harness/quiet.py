@@ -27,10 +27,10 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass, field
 
-from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, Transport, codec_for
+from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, Transport
 from ..protocol.answers import rule_for_error, rule_for_frame
-from ..protocol.constants import HEADER_LEN, START_WORD
 from ..protocol.framings import Explanation
+from ..protocol.splitter import frame_span
 
 #: After this many cases found the probe unanswered behind one kind of bad bytes, later cases are cut short.
 HANG_CASES = 2
@@ -103,12 +103,12 @@ AFTER_FRAMES = "whole-frames/probe-lost"
 
 
 def whole_frames(data: bytes, profile: Profile) -> bool:
-    """``data`` is one or more whole frames by their headers: each starts with the start word and ends where
-    its header's N x L says, the last at the end of ``data`` (a box that reads a frame by its header, whatever
-    it makes of the frame, is at a frame's start right after them)."""
-    codec, at = codec_for(profile), 0
-    while at + HEADER_LEN <= len(data) and int.from_bytes(data[at:at + 2], "big") == START_WORD:
-        at += codec.frame_length(data, at)
+    """``data`` is one or more whole frames by their trusted headers (start word, version 1, a plausible
+    length), the last ending at the end of ``data``: a box that reads a frame by its header, whatever it
+    makes of the frame, is at a frame's start right after them."""
+    at = 0
+    while 0 < (span := frame_span(data, at, profile.byte_order)) and at + span <= len(data):
+        at += span
     return 0 < at == len(data)
 
 

@@ -49,7 +49,7 @@ from ..harness.quiet import (
 )
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
-from ..harness.waits import COALESCED, STREAM
+from ..harness.waits import COALESCED, SPLIT_PLACES, STREAM
 from ..model.signature import Sig, Signature
 from ..model.verdicts import Level, Verdict
 from ..protocol import Action, Frame, encode, peek_action, peek_header
@@ -151,6 +151,33 @@ class CaseContext:
         conn.on_ran_out = lambda place: ran_out.ran_out(self.info.id, place)
         conn.coalesced_bound = ran_out.bound(COALESCED, self.time_out_s)
         conn.on_coalesced = coalesced
+        self._bound_split_waits(conn)
+
+    def _bound_split_waits(self, conn: TcpConnection) -> None:
+        """Bounded time for bytes sent in pieces (:data:`~.waits.SPLIT`, R3): learnt as the other places."""
+        ran_out = self.session.ran_out
+
+        def split(answered: bool) -> None:
+            place = SPLIT_PLACES[conn.split_write]
+            if answered:
+                ran_out.answered_at(place)
+            else:
+                ran_out.ran_out(self.info.id, place)
+
+        def cut(wait_s: float) -> None:
+            cases = ran_out.known(SPLIT_PLACES[conn.split_write])
+            if cases is None or not responsive(self.check_alive()):
+                return  # a dead box: the wait goes on, and R2 judges
+            raise Inconclusive(
+                f"the box left bytes sent in pieces ({conn.split_write} split across segments) unanswered for the whole "
+                f"time_out in cases {', '.join(cases[:3])} (R3: a frame split across segments is handled like the "
+                f"whole); here too no answer came within {wait_s * 1000:.0f} ms of the last piece, so the wait "
+                "ended there (the box still answers a fresh connection)",
+                signature=Signature(Sig.SILENCE, "a frame sent in pieces (R3)"), judged=("R3", "A1"))
+
+        conn.split_bound = lambda c: ran_out.bound(SPLIT_PLACES[c.split_write], self.time_out_s)
+        conn.on_split = split
+        conn.on_split_cut = cut
 
     def _waits_behind_another(self) -> bool:
         """The box serves one connection at a time (the S4 preflight) and this case holds one open: a
