@@ -186,3 +186,20 @@ def test_the_short_wait_follows_the_boxs_own_pace() -> None:
     for _ in range(3):
         quick.paced(0.0001)
     assert quick.cut_s(5.0) == CUT_MIN_S
+
+
+def test_bytes_sent_in_pieces_are_their_own_places_by_where_the_first_piece_ends() -> None:
+    """d02's kind (R3): a frame whose header came in pieces goes unanswered; learnt after two cases, and a
+    frame split only after its header, answered, does not withdraw it."""
+    from conformance.harness.waits import SPLIT_PLACES, STREAM_CUT_S
+
+    ran_out = RanOut()
+    header, body = SPLIT_PLACES["header"], SPLIT_PLACES["body"]
+    assert header != body
+    for n in range(REPEAT):
+        ran_out.ran_out(f"R3-01[{n}]", header)
+        ran_out.case_ended(f"R3-01[{n}]", failed_on_silence=True)
+    ran_out.answered_at(body)
+    assert ran_out.bound(header, 5.0) == STREAM_CUT_S and ran_out.bound(body, 5.0) is None
+    ran_out.answered_at(header)
+    assert ran_out.bound(header, 5.0) is None
