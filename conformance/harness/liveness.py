@@ -10,6 +10,8 @@ that still answers (a frame-like answer, right or wrong: the cases judge the res
 
 from __future__ import annotations
 
+import select
+
 from ..protocol import Action, Frame, Profile, request
 from .client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
 from .target import Refused, Target, Unreachable
@@ -46,3 +48,14 @@ def check_alive(transcript: Transcript, target: Target, profile: Profile, *, tim
     outcome = conn.request(PROBE_NONE, note)
     conn.close()
     return outcome
+
+
+def still_quiet(conn: TcpConnection) -> bool:
+    """Nothing has arrived on ``conn`` that was not read yet (one last look before a short wait is taken for a
+    silence: a box kept from running for a moment answers now)."""
+    if conn.sock is None or not conn.is_open:
+        return True
+    try:
+        return not select.select([conn.sock], [], [], 0)[0]
+    except (OSError, ValueError):
+        return True

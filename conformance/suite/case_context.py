@@ -32,7 +32,7 @@ from ..harness.exchange import (
     probe_request,
     send_and_collect,
 )
-from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
+from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive, still_quiet
 from ..harness.quiet import (
     AFTER_FRAMES,
     CUT_S,
@@ -121,7 +121,7 @@ class CaseContext:
         def cut(data: bytes, wait_s: float) -> None:
             place = COALESCED if not data else conn.answers
             cases = ran_out.known(place)
-            if cases is None or not responsive(self.check_alive()):
+            if cases is None or not self._cut_holds(conn):
                 return  # a dead box: the wait goes on, and R2 judges
             if place == COALESCED:
                 nth = conn.answers - conn.answers_at_write + 1
@@ -166,7 +166,7 @@ class CaseContext:
 
         def cut(wait_s: float) -> None:
             cases = ran_out.known(SPLIT_PLACES[conn.split_write])
-            if cases is None or not responsive(self.check_alive()):
+            if cases is None or not self._cut_holds(conn):
                 return  # a dead box: the wait goes on, and R2 judges
             raise Inconclusive(
                 f"the box left bytes sent in pieces ({conn.split_write} split across segments) unanswered for the whole "
@@ -299,7 +299,7 @@ class CaseContext:
         so_far = attribute(bad + probe_bytes, got, self.profile, extension=self.session.extension_supported is not False,
                            probe_at=len(bad))
         if known is not None and not broken_besides_hang(so_far):
-            self._cut_short(kind, bool(got.answers()), action, bound, known[1], after_frames=known[0] == AFTER_FRAMES)
+            self._cut_short(conn, kind, bool(got.answers()), action, bound, known[1], known[0] == AFTER_FRAMES)
         # not in the pattern, or what came already breaks a requirement: wait out time_out, judged in full
         more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
         return Collected(got.outcomes + more.outcomes, more.end, more.close)
@@ -313,7 +313,7 @@ class CaseContext:
         if cases is not None:
             so_far = attribute(bad + probe_bytes, got, self.profile,
                                extension=self.session.extension_supported is not False, probe_at=len(bad))
-            if not broken_besides_hang(so_far, REFUSED_KEYS) and responsive(self.check_alive()):
+            if not broken_besides_hang(so_far, REFUSED_KEYS) and self._cut_holds(conn):
                 what = KIND_WORDS.get(kind, kind)
                 raise Inconclusive(
                     f"after {what} the box answered the request behind them ({action.name}) with error {code:04X} "
@@ -324,16 +324,19 @@ class CaseContext:
                     sent=self.last_sent)
         return await_rest(conn, int(action), got, max(0.0, self.time_out_s - bound))
 
-    def _cut_short(self, kind: str, answered: bool, probe: Action, wait_s: float, cases: list[str],
-                   after_frames: bool = False) -> None:
+    def _cut_holds(self, conn: TcpConnection) -> bool:
+        """A short wait ran out: the box still answers a fresh connection (else R2 judges) and, one last look,
+        nothing came on ``conn`` meanwhile (a box kept from running a moment is then judged in full)."""
+        return responsive(self.check_alive()) and still_quiet(conn)
+
+    def _cut_short(self, conn: TcpConnection, kind: str, answered: bool, probe: Action, wait_s: float,
+                   cases: list[str], after_frames: bool = False) -> None:
         """The probe behind bytes the box is known to hang on went unanswered for ``wait_s``: INCONCLUSIVE
-        under that pattern (if the box still answers a fresh connection; else R2 judges). ``after_frames``: the
-        pattern is :data:`~.quiet.AFTER_FRAMES` (a probe in one write behind whole frames, answered or not)."""
-        if not responsive(self.check_alive()):
+        under that pattern (``after_frames``: :data:`~.quiet.AFTER_FRAMES`) if :meth:`_cut_holds`."""
+        if not self._cut_holds(conn):
             return
-        what = KIND_WORDS.get(kind, kind) + (", once it answered them," if answered else "")
-        if after_frames:
-            what = f"whole frames ({KIND_WORDS.get(kind, kind)}) in the same write as it"
+        what = f"whole frames ({KIND_WORDS.get(kind, kind)}) in the same write as it" if after_frames else \
+            KIND_WORDS.get(kind, kind) + (", once it answered them," if answered else "")
         clauses, why = (("R4", "A1"), "R4: every frame of a segment is answered") if answered or after_frames else (
             (HANG_CLAUSE,), "R6: hanging silently is NON-STRICT")
         raise Inconclusive(
