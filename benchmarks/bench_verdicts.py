@@ -46,6 +46,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import statistics
 import sys
 import tempfile
@@ -118,6 +119,9 @@ def run_node(name: str, out: Path, limit: float, extra: tuple[str, ...] = ()) ->
     box_name = name.removeprefix("node:")
     work = out / "-".join((name.replace(":", "-"),) + extra)
     work.mkdir(parents=True, exist_ok=True)
+    if shutil.which("node") is None:
+        return {"name": name, "exit": None, "wall_s": 0.0, "peak_rss_mb": 0.0,
+                "judgement": "not run: node (Node.js 20) is not installed", "root_cause": "-"}
     box = Proc(["node", str(NODE_BOX), box_name, "--port", "0"], work, "box")
     line = box.first_line(20)
     if line is None or not line.startswith("listening tcp "):
