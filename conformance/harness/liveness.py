@@ -11,6 +11,7 @@ that still answers (a frame-like answer, right or wrong: the cases judge the res
 from __future__ import annotations
 
 import select
+from collections.abc import Callable
 
 from ..protocol import Action, Frame, Profile, request
 from .client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
@@ -59,3 +60,12 @@ def still_quiet(conn: TcpConnection) -> bool:
         return not select.select([conn.sock], [], [], 0)[0]
     except (OSError, ValueError):
         return True
+
+
+def cut_holds(alive: Outcome, conn: TcpConnection, paced: Callable[[float], None]) -> bool:
+    """After a short wait ran out on ``conn`` and a liveness check answered ``alive``: the box is alive (else R2
+    judges) and nothing came on ``conn`` meanwhile (:func:`still_quiet`). The check's answer latency goes to
+    ``paced`` (the box's own pace bounds the next short waits, :meth:`~.quiet.Hangs.cut_s`)."""
+    if isinstance(alive, Answer):
+        paced(alive.latency_s)
+    return responsive(alive) and still_quiet(conn)

@@ -32,7 +32,7 @@ from ..harness.exchange import (
     probe_request,
     send_and_collect,
 )
-from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive, still_quiet
+from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, cut_holds
 from ..harness.quiet import (
     AFTER_FRAMES,
     CUT_S,
@@ -325,9 +325,9 @@ class CaseContext:
         return await_rest(conn, int(action), got, max(0.0, self.time_out_s - bound))
 
     def _cut_holds(self, conn: TcpConnection) -> bool:
-        """A short wait ran out: the box still answers a fresh connection (else R2 judges) and, one last look,
-        nothing came on ``conn`` meanwhile (a box kept from running a moment is then judged in full)."""
-        return responsive(self.check_alive()) and still_quiet(conn)
+        """A short wait ran out: the box still answers a fresh connection (else R2 judges; its NONE's latency
+        paces the short waits) and, one last look, nothing came on ``conn`` (else judged in full)."""
+        return cut_holds(self.check_alive(), conn, self.session.hangs.paced)
 
     def _cut_short(self, conn: TcpConnection, kind: str, answered: bool, probe: Action, wait_s: float,
                    cases: list[str], after_frames: bool = False) -> None:
