@@ -74,8 +74,10 @@ ENDPOINTS = ["reference", "no-resync", "drops-coalesced", "one-at-a-time", "dead
 CONFORMING = ("reference", *(n for n in ENDPOINTS if n in EXPECTATIONS and EXPECTATIONS[n].conforming),
               *(n for n in ENDPOINTS if n.startswith("node:legal-")))
 #: the legal boxes that answer late: their bound is 30 s + 600 x their answer latency (seconds)
-LATENCY_S = {"late-inside-timeout": 0.1, "slow-pieces": 0.02, "slow-cycle-on": 3.0, "node:legal-b": 0.01,
-             "node:legal-c": 0.06, "node:legal-e": 1.5}
+LATENCY_S = {"late-inside-timeout": 0.1, "slow-pieces": 0.02, "node:legal-b": 0.01, "node:legal-c": 0.06,
+             "node:legal-d": 0.002, "node:legal-e": 0.02}
+#: ... and those whose CycleOn alone is slow (1.5 s, 3 s): no latency bound fits them, only "every box <= 120 s"
+SLOW_CYCLE_ON = ("slow-cycle-on", "node:legal-e")
 NODE_BOX = Path(__file__).resolve().parents[1] / "tests" / "impls" / "node" / "box.js"
 
 
@@ -159,12 +161,16 @@ def goals(walls: dict[str, float]) -> None:
         print(f"median broken {statistics.median(broken):.1f} s over {len(broken)} boxes (goal <= 60 s)")
     if conforming:
         print(f"conforming max {max(conforming):.1f} s (goal <= 30 s)")
-        prompt = [w for n, w in walls.items() if n in CONFORMING and n not in LATENCY_S]
+        prompt = [w for n, w in walls.items() if n in CONFORMING and n not in LATENCY_S and n not in SLOW_CYCLE_ON]
         if prompt:
             print(f"conforming max of the boxes that answer at once {max(prompt):.1f} s (goal <= 30 s)")
         for n, d in LATENCY_S.items():
             if n in walls:
-                print(f"{n} (answers {d * 1000:.0f} ms late) {walls[n]:.1f} s (goal <= {30 + 600 * d:.0f} s)")
+                print(f"{n} (answers {d * 1000:.0f} ms late) {walls[n]:.1f} s (goal <= {30 + 600 * d:.0f} s"
+                      f"{', more for its slow CycleOns' if n in SLOW_CYCLE_ON else ''})")
+        for n in SLOW_CYCLE_ON:
+            if n in walls and n not in LATENCY_S:
+                print(f"{n} (CycleOn slow) {walls[n]:.1f} s (goal <= 120 s, every box)")
 
 
 def main(argv: list[str] | None = None) -> int:
