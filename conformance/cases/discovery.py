@@ -157,7 +157,8 @@ def discover_first_index(isight: CaseContext, profile: Profile) -> tuple[dict[in
         start = time.monotonic()
         conn.send(encode(request(Action.POSE, pose_blocks([POSE], index)), profile), f"one pose with index {index}")
         conn.send(probe, "probe: NONE; its answer bounds the wait")
-        outs = _until(conn, start, lambda o: _action(o) == Action.NONE, isight.time_out_s)
+        # the pose's own answer ends the wait too: a box that answers one frame per segment drops the probe
+        outs = _until(conn, start, lambda o: _action(o) in (Action.NONE, Action.POSE), isight.time_out_s)
         poses = [o for o in outs if _action(o) == Action.POSE]
         accepted[index] = bool(poses) and ok(poses[0], Action.POSE)
         seen[index] = describe(poses[0]) if poses else "no answer"

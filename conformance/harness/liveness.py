@@ -10,6 +10,9 @@ that still answers (a frame-like answer, right or wrong: the cases judge the res
 
 from __future__ import annotations
 
+import select
+from collections.abc import Callable
+
 from ..protocol import Action, Frame, Profile, request
 from .client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
 from .target import Refused, Target, Unreachable
@@ -46,3 +49,23 @@ def check_alive(transcript: Transcript, target: Target, profile: Profile, *, tim
     outcome = conn.request(PROBE_NONE, note)
     conn.close()
     return outcome
+
+
+def still_quiet(conn: TcpConnection) -> bool:
+    """Nothing has arrived on ``conn`` that was not read yet (one last look before a short wait is taken for a
+    silence: a box kept from running for a moment answers now)."""
+    if conn.sock is None or not conn.is_open:
+        return True
+    try:
+        return not select.select([conn.sock], [], [], 0)[0]
+    except (OSError, ValueError):
+        return True
+
+
+def cut_holds(alive: Outcome, conn: TcpConnection, paced: Callable[[float], None]) -> bool:
+    """After a short wait ran out on ``conn`` and a liveness check answered ``alive``: the box is alive (else R2
+    judges) and nothing came on ``conn`` meanwhile (:func:`still_quiet`). The check's answer latency goes to
+    ``paced`` (the box's own pace bounds the next short waits, :meth:`~.quiet.Hangs.cut_s`)."""
+    if isinstance(alive, Answer):
+        paced(alive.latency_s)
+    return responsive(alive) and still_quiet(conn)

@@ -30,12 +30,19 @@ from dataclasses import dataclass, field
 from ..protocol import Frame, Profile, ProtocolError, StreamDecoder, TransferType, Transport
 from ..protocol.answers import rule_for_error, rule_for_frame
 from ..protocol.framings import Explanation
+from ..protocol.splitter import frame_span
 
 #: After this many cases found the probe unanswered behind one kind of bad bytes, later cases are cut short.
 HANG_CASES = 2
 #: ... to this first wait for the probe's answer (seconds; at most time_out): far above a box's usual answer
 #: latency on loopback, far below time_out (each cut case costs it, some fifty of them)
 CUT_S = 0.25
+#: ... or less on a box whose probe answers came quickly: this many times the slowest of its last
+#: :data:`PACE_WINDOW` probe answers, never under :data:`CUT_MIN_S` (a box known to hang is cut about a hundred
+#: times in a run, and on a prompt box 250 ms each is a quarter of its whole run)
+PACE_FACTOR = 10
+PACE_WINDOW = 32
+CUT_MIN_S = 0.1
 #: The clause a case judges when it reports the hang itself (it always waits the full time_out).
 HANG_CLAUSE = "R6"
 #: The kinds of bad bytes (:func:`bad_kind`) in words.
@@ -90,6 +97,27 @@ def refused_key(kind: str) -> str:
     return f"{_family(kind)}/probe-error"
 
 
+#: The pattern of a box that reads one frame per segment (R4) however it phrases it: after bytes that are whole
+#: frames by their headers (answered or not, requests or not), the probe in the same write went unanswered.
+AFTER_FRAMES = "whole-frames/probe-lost"
+
+
+def whole_frames(data: bytes, profile: Profile) -> bool:
+    """``data`` is one or more whole frames by their trusted headers (start word, version 1, a plausible
+    length), the last ending at the end of ``data``: a box that reads a frame by its header, whatever it
+    makes of the frame, is at a frame's start right after them."""
+    at = 0
+    while 0 < (span := frame_span(data, at, profile.byte_order)) and at + span <= len(data):
+        at += span
+    return 0 < at == len(data)
+
+
+def pattern_keys(kind: str, answered: bool, whole: bool) -> tuple[str, ...]:
+    """The patterns one case with these bytes notes: its :func:`pattern_key`, and :data:`AFTER_FRAMES` when the
+    bytes are :func:`whole_frames`."""
+    return (pattern_key(kind, answered), AFTER_FRAMES) if whole else (pattern_key(kind, answered),)
+
+
 def pattern_key(kind: str, answered: bool) -> str:
     """A hang pattern: the kind of bad bytes (bytes that are not a request, a frame with a request's header
     and bad content, an incomplete frame), and whether the box answered them before going quiet (a box
@@ -104,7 +132,21 @@ class Hangs:
     cases: dict[str, list[str]] = field(default_factory=dict)
     #: patterns after which the box has answered the probe at least once
     answered: set[str] = field(default_factory=set)
+    #: the latencies of the last probe answers (seconds): the box's own pace bounds the short wait
+    paces: list[float] = field(default_factory=list)
     _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def paced(self, latency_s: float) -> None:
+        """A probe was answered after ``latency_s``."""
+        with self._lock:
+            self.paces = [*self.paces[-(PACE_WINDOW - 1):], latency_s]
+
+    def cut_s(self, time_out_s: float) -> float:
+        """The short first wait: :data:`CUT_S`, or :data:`PACE_FACTOR` times the slowest of the last probe
+        answers when that is less (never under :data:`CUT_MIN_S`), at most time_out."""
+        with self._lock:
+            pace = max(self.paces) * PACE_FACTOR if len(self.paces) >= HANG_CASES else CUT_S
+        return min(max(CUT_MIN_S, min(CUT_S, pace)), time_out_s)
 
     def note(self, key: str, case_id: str, *, hung: bool, probe_answered: bool) -> None:
         with self._lock:
@@ -121,14 +163,23 @@ class Hangs:
             cases = self.cases.get(key, [])
             return list(cases) if len(cases) >= HANG_CASES and key not in self.answered else None
 
-    def bound(self, kind: str, judges_hang: bool, time_out_s: float) -> float | None:
-        """The short first wait for a case sending ``kind`` when some pattern of that kind is established;
-        None (wait in full) otherwise, or when the case judges the hang itself (R6 at MUST or SHOULD)."""
+    def bound(self, kind: str, judges_hang: bool, time_out_s: float, whole: bool = False) -> float | None:
+        """The short first wait for a case sending ``kind`` (``whole``: bytes that are whole frames) when some
+        pattern of that kind is established; None (wait in full) otherwise, or when the case judges the hang
+        itself (R6 at MUST or SHOULD)."""
         if judges_hang:
             return None
-        if not any(self.known(k) for k in (pattern_key(kind, False), pattern_key(kind, True), refused_key(kind))):
+        keys = (pattern_key(kind, False), pattern_key(kind, True), refused_key(kind)) + ((AFTER_FRAMES,) if whole else ())
+        if not any(self.known(k) for k in keys):
             return None
-        return min(CUT_S, time_out_s)
+        return self.cut_s(time_out_s)
+
+    def known_any(self, keys: tuple[str, ...]) -> tuple[str, list[str]] | None:
+        """The first established pattern among ``keys`` and its cases (None: none is)."""
+        for key in keys:
+            if (cases := self.known(key)) is not None:
+                return key, cases
+        return None
 
     def withdraw_refused(self, kind: str) -> None:
         """After this kind of bytes a probe's 0000 came behind an error answer with its action: the refused

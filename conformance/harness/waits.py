@@ -6,8 +6,9 @@ of :meth:`~conformance.harness.client.TcpConnection.request`: a well-formed requ
 answer did not come within time_out. The pattern is where on its connection it happened,
 the number of answers the connection had carried before (a box that drops every Nth
 answer, or goes quiet on a connection after N answers, leaves the same place unanswered in
-every case that gets that far), a pose stream's overdue answer (:data:`STREAM`), or the
-answer to a later frame of one write whose first frames were answered (:data:`COALESCED`).
+every case that gets that far), a pose stream's overdue answer (:data:`STREAM`), the
+answer to a later frame of one write whose first frames were answered (:data:`COALESCED`), or the answer to
+bytes sent in pieces (:data:`SPLIT`).
 
 A wait that ran out is *pending* until its case ends; it counts only when the case FAILed
 on that silence (a :data:`~.signature.Sig.SILENCE` verdict: the answer was required, not
@@ -34,6 +35,13 @@ STREAM_CUT_S = 1.0
 #: The place of the answer to a later frame of one write whose earlier frames were answered (R4: a box that
 #: answers only the first frame of a read leaves this place unanswered in every case that pipelines).
 COALESCED = -2
+#: The place of the answer to bytes sent in pieces, the first one shorter than a header (R3: a box that loses a
+#: frame whose header came in pieces leaves this place unanswered in every case that splits headers) ...
+SPLIT = -3
+#: ... and split after the first header.
+SPLIT_BODY = -4
+#: the place of bytes sent in pieces, by where the first piece ends (``TcpConnection.split_write``)
+SPLIT_PLACES = {"header": SPLIT, "body": SPLIT_BODY}
 
 
 @dataclass
@@ -75,4 +83,4 @@ class RanOut:
         """The short first wait for a request at ``place`` (None: wait in full)."""
         if self.known(place) is None:
             return None
-        return min(STREAM_CUT_S if place in (STREAM, COALESCED) else CUT_S, time_out_s)
+        return min(STREAM_CUT_S if place in (STREAM, COALESCED, SPLIT, SPLIT_BODY) else CUT_S, time_out_s)

@@ -1,13 +1,10 @@
 """What one case works with: :class:`CaseContext`, the ``isight`` fixture.
 
-It opens recorded connections and sends malformed input with a *probe* (a valid
-request right behind it: answers come in order (A1), so the probe's answer bounds the
-wait without sleeping). What the box did is attributed with every legal framing of
-the bytes (:mod:`conformance.protocol.explain`): an answer belongs to the bytes some
-legal framing makes it answer, so an answer to a valid frame embedded in bad bytes, or
-the probe's own (even malformed) answer, is never taken for an answer to the bad bytes.
-The session (:mod:`.run_state`) holds what lasts between cases: health, liveness (R2),
-the witness, extension support.
+It opens recorded connections and sends malformed input with a *probe* (a valid request right behind it,
+whose answer bounds the wait, A1). What the box did is attributed with every legal framing of the bytes
+(:mod:`conformance.protocol.explain`), so an answer to a valid frame embedded in bad bytes, or the probe's own,
+is never taken for an answer to the bad bytes. The session (:mod:`conformance.runtime.run_state`) holds what
+lasts between cases: health, liveness (R2), the witness, extension support.
 """
 
 from __future__ import annotations
@@ -32,8 +29,9 @@ from ..harness.exchange import (
     probe_request,
     send_and_collect,
 )
-from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, responsive
+from ..harness.liveness import LIVENESS_NOTE, PROBE_NONE, check_alive, cut_holds
 from ..harness.quiet import (
+    AFTER_FRAMES,
     CUT_S,
     HANG_CLAUSE,
     KIND_WORDS,
@@ -41,13 +39,14 @@ from ..harness.quiet import (
     bad_kind,
     broken_besides_hang,
     hung,
-    pattern_key,
+    pattern_keys,
     probe_wronged,
     refused_key,
+    whole_frames,
 )
 from ..harness.target import Target, Unreachable
 from ..harness.transcript import Transcript
-from ..harness.waits import COALESCED, STREAM
+from ..harness.waits import COALESCED, SPLIT_PLACES, STREAM
 from ..model.signature import Sig, Signature
 from ..model.verdicts import Level, Verdict
 from ..protocol import Action, Codec, Frame, codec_for, encode, peek_action, peek_header
@@ -122,7 +121,7 @@ class CaseContext:
         def cut(data: bytes, wait_s: float) -> None:
             place = COALESCED if not data else conn.answers
             cases = ran_out.known(place)
-            if cases is None or not responsive(self.check_alive()):
+            if cases is None or not self._cut_holds(conn):
                 return  # a dead box: the wait goes on, and R2 judges
             if place == COALESCED:
                 nth = conn.answers - conn.answers_at_write + 1
@@ -152,6 +151,33 @@ class CaseContext:
         conn.on_ran_out = lambda place: ran_out.ran_out(self.info.id, place)
         conn.coalesced_bound = ran_out.bound(COALESCED, self.time_out_s)
         conn.on_coalesced = coalesced
+        self._bound_split_waits(conn)
+
+    def _bound_split_waits(self, conn: TcpConnection) -> None:
+        """Bounded time for bytes sent in pieces (:data:`~.waits.SPLIT`, R3): learnt as the other places."""
+        ran_out = self.session.ran_out
+
+        def split(answered: bool) -> None:
+            place = SPLIT_PLACES[conn.split_write]
+            if answered:
+                ran_out.answered_at(place)
+            else:
+                ran_out.ran_out(self.info.id, place)
+
+        def cut(wait_s: float) -> None:
+            cases = ran_out.known(SPLIT_PLACES[conn.split_write])
+            if cases is None or not self._cut_holds(conn):
+                return  # a dead box: the wait goes on, and R2 judges
+            raise Inconclusive(
+                f"the box left bytes sent in pieces ({conn.split_write} split across segments) unanswered for the whole "
+                f"time_out in cases {', '.join(cases[:3])} (R3: a frame split across segments is handled like the "
+                f"whole); here too no answer came within {wait_s * 1000:.0f} ms of the last piece, so the wait "
+                "ended there (the box still answers a fresh connection)",
+                signature=Signature(Sig.SILENCE, "a frame sent in pieces (R3)"), judged=("R3", "A1"))
+
+        conn.split_bound = lambda c: ran_out.bound(SPLIT_PLACES[c.split_write], self.time_out_s)
+        conn.on_split = split
+        conn.on_split_cut = cut
 
     def _waits_behind_another(self) -> bool:
         """The box serves one connection at a time (the S4 preflight) and this case holds one open: a
@@ -229,8 +255,11 @@ class CaseContext:
         outcome = self._outcome_for_bad(bad, got, explanation)
         if action is not None:
             mine = bool(explanation.answers_within(0, len(bad)))
-            self.session.hangs.note(pattern_key(kind, mine), self.info.id, probe_answered=isinstance(
-                self.last_probe, (Answer, Malformed)), hung=isinstance(got.end, Silence) and hung(explanation))
+            if isinstance(self.last_probe, Answer):
+                self.session.hangs.paced(self.last_probe.latency_s)
+            for key in pattern_keys(kind, mine, whole_frames(bad, self.profile)):
+                self.session.hangs.note(key, self.info.id, probe_answered=isinstance(
+                    self.last_probe, (Answer, Malformed)), hung=isinstance(got.end, Silence) and hung(explanation))
             self._note_refused(kind, int(action), got, explanation)
         return outcome
 
@@ -259,17 +288,18 @@ class CaseContext:
                       kind: str) -> Collected:
         """The exchange; on a box known to hang after this kind of bytes (:mod:`.quiet`), cut short."""
         judges = HANG_CLAUSE in self.info.clauses and self.info.level is not Level.MAY  # it reports the hang itself
-        bound = self.session.hangs.bound(kind, judges, self.time_out_s) if action is not None else None
+        whole = whole_frames(bad, self.profile)
+        bound = self.session.hangs.bound(kind, judges, self.time_out_s, whole) if action is not None else None
         got = send_and_collect(conn, bad, action, probe_bytes, text, SETTLE, bound)
         if bound is not None and action is not None and got.ran_out:
             return self._refused_bounded(conn, bad, action, probe_bytes, kind, bound, got)
         if bound is None or action is None or not isinstance(got.end, Silence):
             return got
-        cases = self.session.hangs.known(pattern_key(kind, bool(got.answers())))
+        known = self.session.hangs.known_any(pattern_keys(kind, bool(got.answers()), whole))
         so_far = attribute(bad + probe_bytes, got, self.profile, extension=self.session.extension_supported is not False,
                            probe_at=len(bad))
-        if cases is not None and not broken_besides_hang(so_far):
-            self._cut_short(kind, bool(got.answers()), action, bound, cases)
+        if known is not None and not broken_besides_hang(so_far):
+            self._cut_short(conn, kind, bool(got.answers()), action, bound, known[1], known[0] == AFTER_FRAMES)
         # not in the pattern, or what came already breaks a requirement: wait out time_out, judged in full
         more = collect(conn, action, time.monotonic(), SETTLE, max(0.0, self.time_out_s - bound))
         return Collected(got.outcomes + more.outcomes, more.end, more.close)
@@ -283,7 +313,7 @@ class CaseContext:
         if cases is not None:
             so_far = attribute(bad + probe_bytes, got, self.profile,
                                extension=self.session.extension_supported is not False, probe_at=len(bad))
-            if not broken_besides_hang(so_far, REFUSED_KEYS) and responsive(self.check_alive()):
+            if not broken_besides_hang(so_far, REFUSED_KEYS) and self._cut_holds(conn):
                 what = KIND_WORDS.get(kind, kind)
                 raise Inconclusive(
                     f"after {what} the box answered the request behind them ({action.name}) with error {code:04X} "
@@ -294,13 +324,20 @@ class CaseContext:
                     sent=self.last_sent)
         return await_rest(conn, int(action), got, max(0.0, self.time_out_s - bound))
 
-    def _cut_short(self, kind: str, answered: bool, probe: Action, wait_s: float, cases: list[str]) -> None:
+    def _cut_holds(self, conn: TcpConnection) -> bool:
+        """A short wait ran out: the box still answers a fresh connection (else R2 judges; its NONE's latency
+        paces the short waits) and, one last look, nothing came on ``conn`` (else judged in full)."""
+        return cut_holds(self.check_alive(), conn, self.session.hangs.paced)
+
+    def _cut_short(self, conn: TcpConnection, kind: str, answered: bool, probe: Action, wait_s: float,
+                   cases: list[str], after_frames: bool = False) -> None:
         """The probe behind bytes the box is known to hang on went unanswered for ``wait_s``: INCONCLUSIVE
-        under that pattern (if the box still answers a fresh connection; else R2 judges)."""
-        if not responsive(self.check_alive()):
+        under that pattern (``after_frames``: :data:`~.quiet.AFTER_FRAMES`) if :meth:`_cut_holds`."""
+        if not self._cut_holds(conn):
             return
-        what = KIND_WORDS.get(kind, kind) + (", once it answered them," if answered else "")
-        clauses, why = (("R4", "A1"), "R4: every frame of a segment is answered") if answered else (
+        what = f"whole frames ({KIND_WORDS.get(kind, kind)}) in the same write as it" if after_frames else \
+            KIND_WORDS.get(kind, kind) + (", once it answered them," if answered else "")
+        clauses, why = (("R4", "A1"), "R4: every frame of a segment is answered") if answered or after_frames else (
             (HANG_CLAUSE,), "R6: hanging silently is NON-STRICT")
         raise Inconclusive(
             f"after {what} the box left the request behind them unanswered for the whole time_out in cases "

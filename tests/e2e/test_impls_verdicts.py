@@ -39,7 +39,8 @@ SAMPLE_SEED, BOX_SAMPLES, ROBOT_SAMPLES = 1, 3, 3
 #: about how long each run takes on a 2-core machine (s): tests/conftest.py starts the longest first. A box that
 #: stays silent after garbage, or drops coalesced requests, costs a time_out in each of ~60 malformed-input cases
 SECONDS = {"no-resync": 200, "drops-coalesced": 160, "one-at-a-time": 55, "byte-by-byte": 37, "drops-frames": 100,
-           "sticky-error": 90, "answers-some-actions": 70, "short-send-drops": 60, "late-inside-timeout": 120}
+           "sticky-error": 90, "answers-some-actions": 70, "short-send-drops": 60, "late-inside-timeout": 120,
+           "drops-rest-of-read": 150, "split-header-lost": 90, "slow-cycle-on": 120, "slow-pieces": 60}
 
 
 def params(exps: list[Expectation], default: float, known: dict[str, float] | None = None) -> list[object]:

@@ -77,6 +77,10 @@ _CONFORMING = [
             "B4: NaN/inf answered 1001/1002; no extension E (26/27 are unknown actions: silence)"),
     Variant("late-inside-timeout", replace(_preset("trust"), late=0.02),
             "T1: every answer a fiftieth of time_out late (100 ms at the default), inside it"),
+    Variant("slow-pieces", _preset("trust", latency="20ms", writer="pieces"),
+            "T1: every answer 20 ms late, written in two pieces with Nagle on (the header, then the rest)"),
+    Variant("slow-cycle-on", _preset("trust", cycle_on_latency="0.6 time_out"),
+            "T1: CycleOn answered after 0.6 time_out (the detection takes that long to start), inside time_out"),
 ]
 
 _BASE = {v.name: v for v in _CONFORMING}
@@ -107,6 +111,11 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "drops-unsendable": ("trust-header", "one non-blocking send() per answer with the kernel's default buffers: an "
                                          "answer the kernel cannot take at once (EAGAIN, or a part) is dropped"),
     "low-byte-length": ("trust-header", "reads the block length from its low byte only (L = 0x0119 taken as 25)"),
+
+    "drops-rest-of-read": ("trust-header", "handles the first whole frame of each read and discards the rest of the "
+                                           "read (answered or not: a frame that is not a request is consumed too)"),
+    "split-header-lost": ("trust-header", "expects a frame's 12-byte header in one read: a read of fewer than 12 "
+                                          "bytes at the start of a frame is discarded"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
 _BASE_FIXED: dict[str, dict[str, str]] = {

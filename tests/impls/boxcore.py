@@ -21,9 +21,10 @@ import threading
 import time
 from collections.abc import Callable
 
-from .framers import Framer, LowByteLength
+from .framers import Frame, Framer, LowByteLength
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
 from .systematic import ConnState
+from .wire_format import HEADER_LEN
 
 POLL = 0.2
 WRITE_BOUND = 10.0  # seconds a peer may leave an answer unread before the box gives up on it
@@ -202,9 +203,13 @@ class ThreadBox:
             arrived = time.monotonic()
             if hung or (choices.defect == "quiet-after-n" and self.answers >= QUIET_AFTER):
                 continue  # read and discard: the connection stays open, silent
+            if choices.defect == "split-header-lost" and not framer.buf and len(data) < HEADER_LEN:
+                continue  # a read shorter than a header at the start of a frame is dropped
             framer.feed(data)
             answered = 0
             for event in framer.events():
+                if choices.defect == "drops-rest-of-read" and isinstance(event, Frame):
+                    framer.buf.clear()  # one whole frame per read: the rest of the read is discarded
                 reply = decide(choices, event, cycle, remembers)
                 if reply.hang:
                     hung = True

@@ -75,6 +75,12 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
          note="its send buffer is the kernel's default: only a window closed at Ethernet sizes fills it"),
     _bad("low-byte-length", ("F4", "F5", "B1", "R1"),
          note="L = 0x0119 passes as 25: only F4-02, which changes each byte of each field on its own, sees it"),
+
+    # issue 36: the kinds of box written outside this project that took longest
+    _bad("drops-rest-of-read", ("R4", "A1", "T1", "R3", "S6")),
+    _bad("split-header-lost", ("R3", "A1", "T1", "R6")),
+    _ok("slow-pieces", note="every answer 20 ms late, in two pieces with Nagle on: legal (T1)"),
+    _ok("slow-cycle-on", note="CycleOn answered after 0.6 time_out: legal (T1)"),
     # robots, conforming
     _ok("canonical", "robot"),
     _ok("karel-calls", "robot", note="poses (23/24) on the command connection are legal: PROTOCOL.md, robot side"),

@@ -238,3 +238,42 @@ def test_a_box_dropping_the_probe_after_answering_the_bytes_is_its_own_pattern()
     assert state.hangs.known(pattern_key("reject", True)) == ["B3-0", "B3-1"]
     assert "once it answered them" in cut.value.message and later.transcript.timeouts == 0
     assert cut.value.judged == ("R4", "A1")  # the probe in the segment of bytes it answered was dropped
+
+
+def one_frame_per_read(conn: socket.socket) -> None:
+    """Handles the first whole frame of each read and drops the rest of it (d19's kind, R4): a malformed request
+    refused 1001, a frame that is not a request consumed in silence, garbage scanned past."""
+    conn.settimeout(10)
+    while data := conn.recv(65536):
+        for event in StreamDecoder(expect=TransferType.ROBOT_TO_BOX).feed(data):  # a new one per read: the rest is lost
+            if isinstance(event, ProtocolError):
+                if event.header is None or event.header.start_word != 0xFEFE:
+                    continue  # garbage: scanned past
+                if event.header.transfer_type == TransferType.ROBOT_TO_BOX:
+                    conn.sendall(encode(answer(Action(event.header.action), 0x1001)))
+                break  # a whole frame handled (answered or not): the rest of the read is dropped
+            conn.sendall(encode(answer(event.action)))
+            break
+
+
+def test_a_probe_lost_behind_whole_frames_is_one_pattern_however_the_box_phrases_it() -> None:
+    """Refusals (answered) establish it; a frame that is not a request (unanswered) is then cut under R4 at once,
+    and the probe answered behind garbage (not whole frames) does not withdraw it."""
+    from conformance.harness.quiet import AFTER_FRAMES
+    from conformance.protocol import Header, encode_raw
+
+    not_request = encode_raw(Header(action=1, transfer_type=0), profile=P)
+    with ScriptedBox(one_frame_per_read) as box:
+        state = SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=P))
+        for n in range(HANG_CASES):
+            context(state, f"B3-{n}").send_malformed(BAD_INDEX)
+        garbage = context(state, "A5-0")
+        garbage.send_malformed(GARBAGE)
+        later = context(state, "A5-9")
+        with pytest.raises(Inconclusive) as cut:
+            later.send_malformed(not_request)
+        later.close_all()
+        garbage.close_all()
+    assert state.hangs.known(AFTER_FRAMES) == ["B3-0", "B3-1"] and not isinstance(garbage.last_probe, Silence)
+    assert cut.value.judged == ("R4", "A1") and "whole frames" in cut.value.message
+    assert later.transcript.timeouts == 0  # it did not wait time_out

@@ -133,3 +133,73 @@ def test_a_probe_swallowed_by_a_legal_framing_is_not_wronged() -> None:
     assert not probe_wronged(swallowed)
     reached = explain(b"hello" + none, [Seen(0, 0xFFFF)], End.SILENT, DEFAULT_PROFILE, probe_at=5)
     assert probe_wronged(reached)  # every framing reaches the NONE behind 5 bytes of garbage: it must get 0000
+
+
+def test_bytes_that_are_whole_frames_by_their_headers() -> None:
+    from conformance.harness.quiet import whole_frames
+    from conformance.protocol import Header, Profile, encode_raw
+
+    profile = Profile()
+    one = encode_raw(Header(action=1, transfer_type=0), profile=profile)  # a frame that is not a request, whole
+    assert whole_frames(one, profile) and whole_frames(one + one, profile)
+    assert not whole_frames(one[:-1], profile)  # an incomplete frame
+    assert not whole_frames(one + b"\x00", profile)  # a trailing byte
+    assert not whole_frames(b"\x00" * 14, profile) and not whole_frames(b"", profile)  # garbage, nothing
+
+
+def test_probes_lost_after_whole_frames_are_one_pattern_however_the_box_phrases_it() -> None:
+    """d19's kind (R4): the probe behind whole frames goes unanswered, whether the box answered the frames (a
+    refusal) or not (a frame that is not a request): two such cases establish one pattern for both, and a probe
+    answered behind garbage (not whole frames) does not withdraw it."""
+    from conformance.harness.quiet import AFTER_FRAMES, pattern_keys
+
+    hangs = Hangs()
+    for n, (kind, answered) in enumerate([("reject", True), ("not-request", False)]):
+        for key in pattern_keys(kind, answered, whole=True):
+            hangs.note(key, f"case-{n}", hung=True, probe_answered=False)
+    for key in pattern_keys("not-request", False, whole=False):  # garbage: the probe was answered
+        hangs.note(key, "garbage", hung=False, probe_answered=True)
+    assert hangs.known(AFTER_FRAMES) == ["case-0", "case-1"]
+    assert hangs.bound("not-request", False, 5.0, whole=True) == CUT_S
+    assert hangs.bound("not-request", False, 5.0, whole=False) is None  # garbage is another pattern
+    assert hangs.known_any(pattern_keys("any", True, whole=True)) == (AFTER_FRAMES, ["case-0", "case-1"])
+    hangs.note(AFTER_FRAMES, "answered", hung=False, probe_answered=True)  # a probe behind whole frames answered
+    assert hangs.bound("any", False, 5.0, whole=True) is None
+
+
+def test_the_short_wait_follows_the_boxs_own_pace() -> None:
+    from conformance.harness.quiet import CUT_MIN_S, PACE_FACTOR
+
+    hangs = Hangs()
+    assert hangs.cut_s(5.0) == CUT_S  # nothing measured yet
+    for latency in (0.001, 0.015):
+        hangs.paced(latency)
+    assert hangs.cut_s(5.0) == PACE_FACTOR * 0.015
+    assert hangs.cut_s(0.05) == 0.05  # never over time_out
+    hangs.paced(0.0001)
+    assert hangs.cut_s(5.0) == PACE_FACTOR * 0.015  # the slowest of the recent answers
+    slow = Hangs()
+    for _ in range(3):
+        slow.paced(0.2)
+    assert slow.cut_s(5.0) == CUT_S  # a slow box keeps the full short wait
+    quick = Hangs()
+    for _ in range(3):
+        quick.paced(0.0001)
+    assert quick.cut_s(5.0) == CUT_MIN_S
+
+
+def test_bytes_sent_in_pieces_are_their_own_places_by_where_the_first_piece_ends() -> None:
+    """d02's kind (R3): a frame whose header came in pieces goes unanswered; learnt after two cases, and a
+    frame split only after its header, answered, does not withdraw it."""
+    from conformance.harness.waits import SPLIT_PLACES, STREAM_CUT_S
+
+    ran_out = RanOut()
+    header, body = SPLIT_PLACES["header"], SPLIT_PLACES["body"]
+    assert header != body
+    for n in range(REPEAT):
+        ran_out.ran_out(f"R3-01[{n}]", header)
+        ran_out.case_ended(f"R3-01[{n}]", failed_on_silence=True)
+    ran_out.answered_at(body)
+    assert ran_out.bound(header, 5.0) == STREAM_CUT_S and ran_out.bound(body, 5.0) is None
+    ran_out.answered_at(header)
+    assert ran_out.bound(header, 5.0) is None
