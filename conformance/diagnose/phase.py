@@ -30,8 +30,8 @@ from . import deaths, families, match, titles
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
 from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
+from .isolate import Isolator
 from .repro import repro_entry
-from .reproduce import reproduce
 
 #: the phase's bound in seconds (on top of the catalogue; inside the 120 s per box)
 BUDGET_S = 20.0
@@ -105,12 +105,10 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
     if unexplained():
         lab.add(families.per_connection(p))
-    by_id = {c.id: c for c in cases}
+    isolator = Isolator(p)  # the failure-inducing difference isolated; else the case sent again (issue 34)
     for cause in unexplained():
-        member = next((by_id[i] for i in cause.cases if i in by_id and by_id[i].sent_hex
-                       and "…" not in by_id[i].sent_hex and by_id[i].signature is not None), None)
-        if member is not None and p.left() > 1.0:
-            own[cause.id] = reproduce(p, member, cause.title)
+        if p.left() > 1.0:
+            own[cause.id] = isolator.diagnose(cause, cases)
 
 
 def _session_diagnosis(cause: RootCause) -> dict[str, Any]:

@@ -1,0 +1,310 @@
+"""Isolation, the general experiment: the minimal difference between a failing exchange and the nearest passing one.
+
+For a root cause no family explains, the requests its cases sent are paired with the nearest valid
+request (:func:`.differences.nearest_valid`) and the difference is narrowed live, each candidate on a
+fresh connection (delta debugging, :func:`.differences.ddmin`): first by field (a header field, a
+block's index, one float value, the check field), then byte by byte within a multi-byte field, then
+the field's bytes one at a time (which byte the box reads). A root cause whose cases sent several
+frames is put to segmentation (one write vs one frame at a time) and to what came before on the
+connection (the fewest earlier frames that still show it, :func:`.shrink.shrink`, vs a fresh
+connection). The title is built from what was isolated (:mod:`.isolation_titles`).
+
+What isolation could not pin keeps the catalogue's story, ``unconfirmed:``, and its diagnosis lists
+what was tried (this experiment's exchanges and finding).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from ..model.verdicts import CaseResult, RootCause
+from ..protocol.constants import HEADER_LEN
+from . import isolation_titles as T
+from .differences import (
+    REQUESTS,
+    Place,
+    applied,
+    ddmin,
+    differing,
+    field_bytes,
+    float_class,
+    low_high,
+    nearest_valid,
+    place,
+    units,
+)
+from .experiments import Prober
+from .families import Found
+from .hypotheses import Experiment, Mechanism, Status
+from .reproduce import expect_of, reproduce, shows
+from .shrink import shrink, split_frames
+from .titles import name
+
+#: distinct failing requests isolated per root cause
+MAX_REQUESTS = 3
+#: no isolation is started with less than this left of the phase (seconds)
+MIN_LEFT_S = 1.0
+#: the catalogue's stories that only say what the cases saw: confirmed again on a fresh connection, still no mechanism
+GENERIC = ("wrong-code", "fuzz", "own", "unanswered", "closes", "unanswered-errors", "unreachable")
+_CLAUSES = {"start_word": ("F1",), "version": ("F2", "A5"), "transfer_type": ("F3", "A5"), "action": ("A5",),
+            "block_type": ("B5",), "block_count": ("B5",), "block_length": ("B5", "F5"), "error_code": ("A3",),
+            "check": ("F6",), "index": ("B3",), "value": ("B4",)}
+
+
+@dataclass
+class Isolated:
+    """What isolation pinned for one failing request."""
+
+    key: tuple[object, ...]  # the same key: the same mechanism (root causes it explains become one)
+    title: str
+    clauses: tuple[str, ...]
+    action: int | None
+    repro: bytes  # the passing request with only the isolated difference
+    detail: dict[str, object] = field(default_factory=dict)
+
+
+class Isolator:
+    """Isolation for the root causes of one diagnose phase; one mechanism per isolated difference."""
+
+    def __init__(self, p: Prober) -> None:
+        self.p = p
+        self.mechanisms: dict[tuple[object, ...], Mechanism] = {}
+
+    def diagnose(self, cause: RootCause, cases: Sequence[CaseResult]) -> Found:
+        """Isolation for ``cause``; when it pins nothing, the case sent again (:func:`.reproduce.reproduce`),
+        whose generic story stays unconfirmed."""
+        exp = Experiment("isolate", "the failing request against the nearest valid one, the difference narrowed "
+                                    "field by field and byte by byte (ddmin), each candidate on a fresh connection; "
+                                    "several frames: one write vs one at a time, and the fewest earlier frames")
+        found = Found(exp)
+        by_id = {c.id: c for c in cases}
+        members = [by_id[i] for i in cause.cases if i in by_id and by_id[i].sent_hex and "…" not in by_id[i].sent_hex]
+        notes: list[str] = []
+        got = self._isolate(exp, members, notes)
+        exp.finding = got.title if got is not None else "; ".join(notes) or "no case quotes a whole request"
+        if got is not None:
+            mech = self.mechanisms.get(got.key)
+            if mech is None:
+                mech = Mechanism(f"isolated-{got.key[0]}", frozenset({got.action or 0}), exp.name, got.title,
+                                 got.clauses, ((got.repro, expect_of(got.repro, self.p)),), dict(got.detail))
+                self.mechanisms[got.key] = mech
+            found.mechanisms.append(mech)
+            found.stories["isolated"] = (Status.CONFIRMED, got.title)
+            return found
+        found.stories["isolated"] = (Status.RULED_OUT if members else Status.UNTESTED, exp.finding)
+        member = next((m for m in members if m.signature is not None), None)
+        if member is None or self.p.left() < MIN_LEFT_S:
+            return found
+        again = reproduce(self.p, member, cause.title)
+        found.stories.update(again.stories)
+        exp.exchanges += again.experiment.exchanges
+        exp.finding += f"; sent again: {again.experiment.finding}"
+        if again.mechanisms and not (cause.kind in GENERIC and again.mechanisms[0].kind in ("reproduces", "order-dependent")):
+            found.mechanisms += again.mechanisms
+        elif again.mechanisms:  # seen again, but no mechanism isolated: the story stays unconfirmed
+            found.stories[again.mechanisms[0].kind] = (Status.CONSISTENT, "seen again on a fresh connection; isolation "
+                                                                          "found no difference that explains it")
+        return found
+
+    # -- requests ----------------------------------------------------------------------------------------
+    def _isolate(self, exp: Experiment, members: list[CaseResult], notes: list[str]) -> Isolated | None:
+        done: set[tuple[object, ...]] = set()
+        for case in members:
+            if len(done) >= MAX_REQUESTS or self.p.left() < MIN_LEFT_S:
+                notes.append("out of time")
+                break
+            try:
+                frames = split_frames(bytes.fromhex(case.sent_hex), self.p.codec)
+            except ValueError:
+                continue
+            if len(frames) > 1:
+                got = self._sequence(exp, case, frames, notes)
+                if got is not None:
+                    return got
+                continue
+            passing = nearest_valid(frames[0], self.p.codec)
+            diff = differing(frames[0], passing) if passing is not None else []
+            if passing is None or not diff:
+                notes.append(f"{case.id}: no valid request of the same length differs from it")
+                continue
+            fields = tuple(sorted({place(o, len(passing), REQUESTS[passing[5]][0]).field for o in diff}))
+            if fields in done:
+                continue
+            done.add(fields)
+            got = self._request(exp, frames[0], passing, notes, members)
+            if got is not None:
+                return got
+        return None
+
+    def _fails(self, exp: Experiment, frame: bytes) -> bool | None:
+        """Whether the box's answer to ``frame`` alone, on a fresh connection, is outside its legal set."""
+        expect = expect_of(frame, self.p)
+        ex = self.p.exchange([frame], quiet=[expect.kind == "invalid"], settle=False)
+        if ex is None or not ex.reached:
+            return None
+        exp.exchanges.append(ex)
+        return bool(expect.broken_by(ex.reading(0)))
+
+    def _request(self, exp: Experiment, failing: bytes, passing: bytes, notes: list[str],
+                 members: list[CaseResult]) -> Isolated | None:
+        first = self._fails(exp, failing)
+        if not first:
+            notes.append(f"{failing.hex()}: " + ("out of time" if first is None else "answered right alone on a fresh "
+                                                 "connection"))
+            return None
+        if self._fails(exp, passing) is not False:
+            notes.append(f"the nearest valid request {passing.hex()} fails too")
+            return None
+        size = REQUESTS[passing[5]][0]
+        groups = units(differing(failing, passing), len(passing), size)
+
+        def fails_with(offsets: list[int]) -> bool | None:
+            return self._fails(exp, applied(passing, failing, offsets))
+
+        chosen = ddmin(groups, lambda gs: fails_with([o for g in gs for o in g]), max_tests=8)
+        offsets = [o for g in chosen for o in g]
+        where = place(offsets[0], len(passing), size)
+        if len(offsets) > 1 and where.field in ("version", "block_length", "start_word", "error_code"):
+            offsets = ddmin(offsets, fails_with, 4)
+        return self._name(exp, failing, passing, where, offsets, members)
+
+    def _name(self, exp: Experiment, failing: bytes, passing: bytes, where: Place, offsets: list[int],
+              members: list[CaseResult]) -> Isolated:
+        action = passing[5] if failing[5] in REQUESTS or where.field == "action" else failing[5]
+        repro = applied(passing, failing, offsets)
+        order = self.p.profile.byte_order
+        clauses = _CLAUSES.get(where.field, ("R1",))
+        if where.field == "index":
+            at = HEADER_LEN + (where.block - 1) * REQUESTS[passing[5]][0]
+            title = T.index_unchecked(where.block, failing[at], passing[at], self.p.profile.first_index, action)
+            return Isolated(("index",), title, clauses, action, repro, {"block": where.block, "value": failing[at]})
+        if where.field == "value":
+            at = HEADER_LEN + (where.block - 1) * REQUESTS[passing[5]][0] + 1 + 4 * where.part
+            kind = float_class(failing[at:at + 4], self.p.profile.float_byte_order) or failing[at:at + 4].hex(" ")
+            if expect_of(failing, self.p).kind == "invalid":
+                return Isolated(("value-accepted", kind), T.value_accepted(kind, action, where.block, where.part),
+                                clauses, action, repro, {"class": kind})
+            return Isolated(("value-refused", kind, action), T.value_refused(kind, action, where.block, where.part,
+                                                                             _what(exp)), ("B1", "B4"), action, repro,
+                            {"class": kind})
+        if where.field == "check":
+            title = T.differs("check", failing[-2:].hex(" "), action, _what(exp))
+            return Isolated(("check",), title, clauses, action, repro, {})
+        value = field_bytes(failing, where.field).hex(" ")
+        values = [value] + [v for v in _values(members, where.field, self.p) if v != value]
+        how = self._bytes(exp, passing, failing, where.field, order)
+        if expect_of(failing, self.p).kind != "invalid":
+            return Isolated(("differs", where.field), T.differs(where.field, value, action, _what(exp)), clauses,
+                            action, repro, {"field": where.field, "value": value})
+        if how in ("low", "high"):
+            title = T.one_byte(where.field, how == "low", value, action)
+        elif how == "from-type":
+            title = T.length_from_type(value, action, REQUESTS.get(action or 0, (25, 1))[0] or 25)
+        else:
+            title = T.unchecked(where.field, values[:3], action)
+        return Isolated((how, where.field), title, clauses, action, repro, {"field": where.field, "values": values[:6],
+                                                                              "bytes": how})
+
+    def _bytes(self, exp: Experiment, passing: bytes, failing: bytes, name: str, order: str) -> str:
+        """Which bytes of a 16-bit field the box reads: "low" (only the low byte), "high", "from-type" (the block
+        length ignored for the block type's), or "unchecked"."""
+        lh = low_high(name, order)
+        if lh is None:
+            return "unchecked"
+        accepted = []
+        for at in lh:
+            probe = bytearray(passing)
+            probe[at] = failing[at] if failing[at] != passing[at] else passing[at] ^ 0x01
+            accepted.append(self._fails(exp, bytes(probe)))
+        low_only, high_only = accepted[0] is True, accepted[1] is True  # the probe changing that byte is answered 0000
+        if high_only and not low_only:
+            return "low"  # a changed high byte goes unnoticed: only the low byte is read
+        if low_only and not high_only:
+            return "high"
+        if name == "block_length" and low_only and high_only:
+            pose = bytearray(self.p.valid_request(0x23))
+            low, _ = lh
+            pose[low] = 0x05
+            return "from-type" if self._fails(exp, bytes(pose)) else "unchecked"
+        return "unchecked"
+
+    # -- several frames ---------------------------------------------------------------------------------------
+    def _sequence(self, exp: Experiment, case: CaseResult, frames: list[bytes], notes: list[str]) -> Isolated | None:
+        sig = case.signature
+        if sig is None:
+            return None
+
+        def seen(candidate: Sequence[bytes], together: bool = False) -> bool | None:
+            ex = self.p.exchange(list(candidate), quiet=[True] * (len(candidate) - 1) + [False], settle=False,
+                                 together=together)
+            if ex is None or not ex.reached:
+                return None
+            exp.exchanges.append(ex)
+            return shows(sig, ex)
+
+        apart = seen(frames)
+        if apart is None:
+            return None
+        if not apart:
+            ex_count = len(exp.exchanges)
+            if not seen(frames, together=True):
+                notes.append(f"{case.id}: not seen again, one frame at a time nor in one write")
+                return None
+            heard = sum(len(r.answers) for r in exp.exchanges[ex_count].readings)
+            return Isolated(("coalesced",), T.coalesced(min(heard, len(frames)), len(frames)), ("R4", "A1"),
+                            frames[-1][5] if len(frames[-1]) > 5 else None, b"".join(frames), {"frames": len(frames)})
+        kept = shrink(frames, seen, max_tries=16)
+        if len(kept) == 1:
+            passing = nearest_valid(kept[0], self.p.codec)
+            if passing is not None and differing(kept[0], passing):
+                return self._request(exp, kept[0], passing, notes, [case])
+            notes.append(f"{case.id}: the last frame alone shows it, and no valid request of its length differs")
+            return None
+        last = exp.exchanges[-1] if exp.exchanges else None
+        prior = _describe(kept[:-1])
+        action = kept[-1][5] if len(kept[-1]) > 5 else None
+        reading = last.readings[-1] if last is not None and last.readings else None
+        closed_before = last is not None and any(r.closed for r in last.readings[:-1])
+        if closed_before or (reading is not None and reading.closed and not reading.answers):
+            return Isolated(("closes-after", prior), T.closes_after(prior), ("A1", "S1"), action, b"".join(kept),
+                            {"prior": prior})
+        what = ("leaves unanswered" if reading is None or reading.silent else
+                f"answers error {reading.answers[0].error or 0:04X} to" if reading.answers else "mishandles")
+        return Isolated(("after-prior", prior, what), T.after_prior(prior, what, action), ("A1",), action,
+                        b"".join(kept), {"prior": prior})
+
+
+def _what(exp: Experiment) -> str:
+    """What the box did to the first failing request isolated (its first exchange)."""
+    for ex in exp.exchanges:
+        for r in ex.readings:
+            if r.answers:
+                a = r.answers[0]
+                return f"answers {a.action if a.action is not None else 0:02X} with error {a.error or 0:04X}"
+            if r.closed:
+                return "closes the connection"
+    return "leaves it unanswered"
+
+
+def _values(members: list[CaseResult], name: str, p: Prober) -> list[str]:
+    """The values of header field ``name`` in the single-frame requests of ``members`` that differ from the
+    nearest valid request there (what else the catalogue saw answered the same way)."""
+    out: list[str] = []
+    for case in members:
+        try:
+            frames = split_frames(bytes.fromhex(case.sent_hex), p.codec)
+        except ValueError:
+            continue
+        passing = nearest_valid(frames[0], p.codec) if len(frames) == 1 else None
+        if passing is not None and field_bytes(frames[0], name) != field_bytes(passing, name):
+            value = field_bytes(frames[0], name).hex(" ")
+            if value not in out:
+                out.append(value)
+    return out
+
+
+def _describe(frames: Sequence[bytes]) -> str:
+    """Earlier frames as a title names them: their actions when each is a request, else their first bytes."""
+    names = [name(f[5]) if len(f) >= HEADER_LEN and f[:2] == b"\xfe\xfe" else f[:12].hex(" ") for f in frames]
+    return ", ".join(names[-3:]) if len(names) <= 3 else f"{len(names)} frames ending {', '.join(names[-2:])}"

@@ -1,0 +1,105 @@
+"""Titles built from an isolated difference (:mod:`.isolate`): the field, byte or threshold, what the box does
+there, the clause, and after a dash the direction of the fix. Every string is in the message catalogue."""
+
+from __future__ import annotations
+
+from ..i18n import N_, gettext
+from ..i18n.ordinals import nth_block
+from .differences import POSE_PARTS
+from .titles import name
+
+#: a header field as a title names it, the clause that fixes it, and what that clause allows
+_FIELDS = {
+    "start_word": (N_("the start word"), "F1", "FE FE"),
+    "version": (N_("the version field"), "F2/A5", "00 01"),
+    "transfer_type": (N_("the transfer type"), "F3/A5", N_("01 on a request")),
+    "action": (N_("the action field"), "A5", N_("the actions PROTOCOL.md defines")),
+    "block_type": (N_("the block type"), "B5", N_("the block type the action carries")),
+    "block_count": (N_("the block count"), "B5", N_("the block count the action carries")),
+    "block_length": (N_("the block length"), "B5/F5", N_("25 for pose blocks, 5 for tolerance blocks, 0 without blocks")),
+    "error_code": (N_("the request's error field"), "A3", "00 00"),
+    "check": (N_("the check field"), "F6", N_("00 00 or the frame's CRC")),
+}
+
+
+def field_name(field: str) -> str:
+    return gettext(_FIELDS.get(field, (field,))[0])
+
+
+def unchecked(field: str, values: list[str], action: int | None) -> str:
+    what, clause, allowed = _FIELDS.get(field, (field, "R1", "its legal values"))
+    first, rest = values[0], values[1:]
+    more = gettext(" (and {values})").format(values=", ".join(rest)) if rest else ""
+    return gettext("Does not check {field}: answers 0000 to {action} with {field} {value}{more}; {clause} allow only "
+                   "{allowed} — refuse a frame whose {field} is wrong").format(
+        field=gettext(what), action=name(action), value=first, more=more, clause=clause, allowed=gettext(allowed))
+
+
+def one_byte(field: str, low: bool, value: str, action: int | None) -> str:
+    what, clause, allowed = _FIELDS.get(field, (field, "R1", "its legal values"))
+    if low:
+        return gettext("Reads only the low byte of {field}: answers 0000 to {action} with {field} {value} (its high "
+                       "byte ignored); {clause} allow only {allowed} — read and check both bytes").format(
+            field=gettext(what), action=name(action), value=value, clause=clause, allowed=gettext(allowed))
+    return gettext("Reads only the high byte of {field}: answers 0000 to {action} with {field} {value} (its low byte "
+                   "ignored); {clause} allow only {allowed} — read and check both bytes").format(
+        field=gettext(what), action=name(action), value=value, clause=clause, allowed=gettext(allowed))
+
+
+def length_from_type(value: str, action: int | None, right: int) -> str:
+    return gettext("Takes the block length from the block type, not the header: answers 0000 to {action} with block "
+                   "length {value} (blocks of {right} bytes); B5/F5 ask for L = {right} in the header — check the "
+                   "header's block length against the block type").format(action=name(action), value=value, right=right)
+
+
+def index_unchecked(block: int, value: int, right: int, first: int, action: int | None) -> str:
+    return gettext("Does not check block indexes: answers 0000 to {action} with index {value:02X} at the {block} "
+                   "(expected {right:02X}); B3 asks for indexes rising by one from {first:02X} — refuse a frame "
+                   "whose indexes do not").format(action=name(action), value=value, block=nth_block(block),
+                                                  right=right, first=first)
+
+
+def part_name(action: int | None, part: int) -> str:
+    if action in (0x23, 0x24) and part < len(POSE_PARTS):
+        return POSE_PARTS[part]
+    return gettext("the tolerance") if action == 0x25 else gettext("value {n}").format(n=part + 1)
+
+
+def value_accepted(kind: str, action: int | None, block: int, part: int) -> str:
+    return gettext("Accepts {kind} in {action} ({part} of the {block}): answers 0000 where B4 asks for a parse error "
+                   "(1001/1002) — refuse non-finite values").format(
+        kind=kind, action=name(action), part=part_name(action, part), block=nth_block(block))
+
+
+def value_refused(kind: str, action: int | None, block: int, part: int, what: str) -> str:
+    return gettext("Refuses a valid {action} whose {part} (the {block}) is {kind}: {what}; B1/B2/B4 allow any finite "
+                   "float32 — accept it").format(action=name(action), part=part_name(action, part),
+                                                  block=nth_block(block), kind=kind, what=what)
+
+
+def differs(field: str, value: str, action: int | None, what: str) -> str:
+    return gettext("Mishandles {action} when {field} is {value}: {what} (the same request with {field} as PROTOCOL.md "
+                   "writes it is answered right) — handle that value as the clause asks").format(
+        action=name(action), field=field_name(field), value=value, what=what)
+
+
+def coalesced(answered: int, sent: int) -> str:
+    return gettext("Answers only {k} of {n} requests that arrive in one TCP segment (each is answered when sent "
+                   "alone): R4 asks for every frame of a segment answered — read every whole frame in the received "
+                   "bytes").format(k=answered, n=sent)
+
+
+def split(what: str) -> str:
+    return gettext("Mishandles a request split across TCP segments ({what}; sent in one write it is answered right): "
+                   "R3 asks for a split frame handled whole — buffer until the frame is complete").format(what=what)
+
+
+def after_prior(prior: str, what: str, last: int | None) -> str:
+    return gettext("After {prior} on the same connection the box {what} {action} (on a fresh connection it is "
+                   "answered right): A1 asks for every request answered on its own — do not let that request "
+                   "change how the connection is served").format(prior=prior, what=what, action=name(last))
+
+
+def closes_after(prior: str) -> str:
+    return gettext("Closes the connection after answering {prior}: the requests behind it on that connection are never "
+                   "answered (A1/S1 keep the connection open) — keep serving the connection").format(prior=prior)
