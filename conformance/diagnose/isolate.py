@@ -36,9 +36,9 @@ from .differences import (
 )
 from .experiments import Prober
 from .families import Found
-from .hypotheses import Experiment, Mechanism, Status
-from .reproduce import expect_of, reproduce, shows
-from .shrink import shrink, split_frames
+from .hypotheses import Exchange, Experiment, Mechanism, Status
+from .reproduce import expect_of, reproduce
+from .shrink import split_frames
 from .titles import name
 
 #: distinct failing requests isolated per root cause
@@ -231,48 +231,67 @@ class Isolator:
 
     # -- several frames ---------------------------------------------------------------------------------------
     def _sequence(self, exp: Experiment, case: CaseResult, frames: list[bytes], notes: list[str]) -> Isolated | None:
-        sig = case.signature
-        if sig is None:
-            return None
+        """Several frames: the first one mishandled when each is sent after the last was answered; the fewest
+        earlier frames that still spoil it (ddmin; none: a defect of that request alone, isolated as one); not
+        mishandled one at a time but in one write: segmentation (R4)."""
 
-        def seen(candidate: Sequence[bytes], together: bool = False) -> bool | None:
+        def broken_at(candidate: Sequence[bytes], together: bool = False) -> tuple[int | None, Exchange | None]:
             ex = self.p.exchange(list(candidate), quiet=[True] * (len(candidate) - 1) + [False], settle=False,
                                  together=together)
             if ex is None or not ex.reached:
-                return None
+                return None, None
             exp.exchanges.append(ex)
-            return shows(sig, ex)
+            if together:
+                heard = sum(len(r.answers) for r in ex.readings)
+                return (len(candidate) - 1 if heard < sum(expect_of(f, self.p).kind == "valid" for f in candidate)
+                        else -1), ex
+            bad = next((k for k, f in enumerate(candidate) if expect_of(f, self.p).broken_by(ex.reading(k))), -1)
+            return bad, ex
 
-        apart = seen(frames)
-        if apart is None:
+        at, ex = broken_at(frames)
+        if at is None or ex is None:
             return None
-        if not apart:
-            ex_count = len(exp.exchanges)
-            if not seen(frames, together=True):
+        if at < 0:
+            bad, ex = broken_at(frames, together=True)
+            if bad is None or bad < 0 or ex is None:
                 notes.append(f"{case.id}: not seen again, one frame at a time nor in one write")
                 return None
-            heard = sum(len(r.answers) for r in exp.exchanges[ex_count].readings)
+            heard = sum(len(r.answers) for r in ex.readings)
             return Isolated(("coalesced",), T.coalesced(min(heard, len(frames)), len(frames)), ("R4", "A1"),
                             frames[-1][5] if len(frames[-1]) > 5 else None, b"".join(frames), {"frames": len(frames)})
-        kept = shrink(frames, seen, max_tries=16)
-        if len(kept) == 1:
-            passing = nearest_valid(kept[0], self.p.codec)
-            if passing is not None and differing(kept[0], passing):
-                return self._request(exp, kept[0], passing, notes, [case])
-            notes.append(f"{case.id}: the last frame alone shows it, and no valid request of its length differs")
+        last, earlier = frames[at], frames[:at]
+
+        def spoils(prefix: list[bytes]) -> bool | None:
+            k, _ = broken_at([*prefix, last])
+            return None if k is None else k == len(prefix)
+
+        alone = spoils([])
+        if alone is None:
             return None
-        last = exp.exchanges[-1] if exp.exchanges else None
-        prior = _describe(kept[:-1])
-        action = kept[-1][5] if len(kept[-1]) > 5 else None
-        reading = last.readings[-1] if last is not None and last.readings else None
-        closed_before = last is not None and any(r.closed for r in last.readings[:-1])
-        if closed_before or (reading is not None and reading.closed and not reading.answers):
-            return Isolated(("closes-after", prior), T.closes_after(prior), ("A1", "S1"), action, b"".join(kept),
-                            {"prior": prior})
+        if alone or not earlier:
+            passing = nearest_valid(last, self.p.codec)
+            if passing is not None and differing(last, passing):
+                return self._request(exp, last, passing, notes, [case])
+            notes.append(f"{case.id}: frame {at + 1} alone shows it, and no valid request of its length differs")
+            return None
+        kept = ddmin(earlier, spoils, max_tests=12)
+        _, ex = broken_at([*kept, last])  # what the box does there, shown once more
+        return self._after(ex, kept, last)
+
+    def _after(self, ex: Exchange | None, prior: list[bytes], last: bytes) -> Isolated:
+        """``last`` mishandled after the ``prior`` frames on the same connection, answered right alone."""
+        described = _describe(prior)
+        action = last[5] if len(last) > 5 else None
+        frames = b"".join([*prior, last])
+        closed = ex is not None and any(ex.reading(k).closed for k in range(len(ex.frames) - 1))
+        reading = ex.reading(len(ex.frames) - 1) if ex is not None else None
+        if closed or (reading is not None and reading.closed and not reading.answers):
+            return Isolated(("closes-after", described), T.closes_after(described), ("A1", "S1"), action, frames,
+                            {"prior": described})
         what = ("leaves unanswered" if reading is None or reading.silent else
                 f"answers error {reading.answers[0].error or 0:04X} to" if reading.answers else "mishandles")
-        return Isolated(("after-prior", prior, what), T.after_prior(prior, what, action), ("A1",), action,
-                        b"".join(kept), {"prior": prior})
+        return Isolated(("after-prior", described, what), T.after_prior(described, what, action), ("A1",), action,
+                        frames, {"prior": described})
 
 
 def _what(exp: Experiment) -> str:

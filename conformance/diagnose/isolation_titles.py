@@ -30,6 +30,10 @@ def unchecked(field: str, values: list[str], action: int | None) -> str:
     what, clause, allowed = _FIELDS.get(field, (field, "R1", "its legal values"))
     first, rest = values[0], values[1:]
     more = gettext(" (and {values})").format(values=", ".join(rest)) if rest else ""
+    if field == "action":
+        return gettext("Answers 0000 to action {value}{more}, which PROTOCOL.md does not define: A5 asks that a frame "
+                       "that is not a request is never answered 0000 — refuse unknown actions").format(
+            value=first, more=more)
     return gettext("Does not check {field}: answers 0000 to {action} with {field} {value}{more}; {clause} allow only "
                    "{allowed} — refuse a frame whose {field} is wrong").format(
         field=gettext(what), action=name(action), value=first, more=more, clause=clause, allowed=gettext(allowed))
@@ -53,7 +57,7 @@ def length_from_type(value: str, action: int | None, right: int) -> str:
 
 
 def index_unchecked(block: int, value: int, right: int, first: int, action: int | None) -> str:
-    return gettext("Does not check block indexes: answers 0000 to {action} with index {value:02X} at the {block} "
+    return gettext("Does not check block indexes: answers 0000 to {action} with index {value:02X} at {block} "
                    "(expected {right:02X}); B3 asks for indexes rising by one from {first:02X} — refuse a frame "
                    "whose indexes do not").format(action=name(action), value=value, block=nth_block(block),
                                                   right=right, first=first)
@@ -66,13 +70,13 @@ def part_name(action: int | None, part: int) -> str:
 
 
 def value_accepted(kind: str, action: int | None, block: int, part: int) -> str:
-    return gettext("Accepts {kind} in {action} ({part} of the {block}): answers 0000 where B4 asks for a parse error "
+    return gettext("Accepts {kind} in {action} ({part} of {block}): answers 0000 where B4 asks for a parse error "
                    "(1001/1002) — refuse non-finite values").format(
         kind=kind, action=name(action), part=part_name(action, part), block=nth_block(block))
 
 
 def value_refused(kind: str, action: int | None, block: int, part: int, what: str) -> str:
-    return gettext("Refuses a valid {action} whose {part} (the {block}) is {kind}: {what}; B1/B2/B4 allow any finite "
+    return gettext("Refuses a valid {action} whose {part} ({block}) is {kind}: {what}; B1/B2/B4 allow any finite "
                    "float32 — accept it").format(action=name(action), part=part_name(action, part),
                                                   block=nth_block(block), kind=kind, what=what)
 
