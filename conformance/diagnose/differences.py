@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypeVar
 
 from ..protocol import Codec
@@ -156,3 +156,15 @@ def low_high(name: str, byte_order: str) -> tuple[int, int] | None:
         return None
     at = _WIDE[name]
     return (at + 1, at) if byte_order == "big" else (at, at + 1)
+
+
+@dataclass
+class Isolated:
+    """What isolation pinned for one failing request."""
+
+    key: tuple[object, ...]  # the same key: the same mechanism (root causes it explains become one)
+    title: str
+    clauses: tuple[str, ...]
+    action: int | None
+    repro: bytes  # the passing request with only the isolated difference
+    detail: dict[str, object] = field(default_factory=dict)

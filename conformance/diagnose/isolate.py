@@ -16,13 +16,14 @@ what was tried (this experiment's exchanges and finding).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol.constants import HEADER_LEN
+from . import dimensions
 from . import isolation_titles as T
 from .differences import (
     REQUESTS,
+    Isolated,
     Place,
     applied,
     ddmin,
@@ -34,7 +35,7 @@ from .differences import (
     place,
     units,
 )
-from .experiments import Prober
+from .experiments import BLOCK_ACTIONS, Prober, block_request
 from .families import Found
 from .hypotheses import Exchange, Experiment, Mechanism, Status
 from .reproduce import expect_of, reproduce
@@ -52,24 +53,13 @@ _CLAUSES = {"start_word": ("F1",), "version": ("F2", "A5"), "transfer_type": ("F
             "check": ("F6",), "index": ("B3",), "value": ("B4",)}
 
 
-@dataclass
-class Isolated:
-    """What isolation pinned for one failing request."""
-
-    key: tuple[object, ...]  # the same key: the same mechanism (root causes it explains become one)
-    title: str
-    clauses: tuple[str, ...]
-    action: int | None
-    repro: bytes  # the passing request with only the isolated difference
-    detail: dict[str, object] = field(default_factory=dict)
-
-
 class Isolator:
     """Isolation for the root causes of one diagnose phase; one mechanism per isolated difference."""
 
     def __init__(self, p: Prober) -> None:
         self.p = p
         self.mechanisms: dict[tuple[object, ...], Mechanism] = {}
+        self._exp = Experiment("isolate", "")
 
     def diagnose(self, cause: RootCause, cases: Sequence[CaseResult]) -> Found:
         """Isolation for ``cause``; when it pins nothing, the case sent again (:func:`.reproduce.reproduce`),
@@ -78,10 +68,11 @@ class Isolator:
                                     "field by field and byte by byte (ddmin), each candidate on a fresh connection; "
                                     "several frames: one write vs one at a time, and the fewest earlier frames")
         found = Found(exp)
+        self._exp = exp
         by_id = {c.id: c for c in cases}
         members = [by_id[i] for i in cause.cases if i in by_id and by_id[i].sent_hex and "…" not in by_id[i].sent_hex]
         notes: list[str] = []
-        got = self._isolate(exp, members, notes)
+        got = self._whole_box(exp, cause) or self._isolate(exp, members, notes)
         exp.finding = got.title if got is not None else "; ".join(notes) or "no case quotes a whole request"
         if got is not None:
             mech = self.mechanisms.get(got.key)
@@ -107,6 +98,15 @@ class Isolator:
                                                                           "found no difference that explains it")
         return found
 
+    def _whole_box(self, exp: Experiment, cause: RootCause) -> Isolated | None:
+        """What every answer shows (the check field of TCP answers), and what grows with the requests on a
+        connection (the latency): dimensions of the box, not of one request."""
+        if "F6" in cause.clauses and self.p.left() > MIN_LEFT_S:
+            return dimensions.answer_check(self.p, exp)
+        if "T2" in cause.clauses and self.p.left() > MIN_LEFT_S:
+            return dimensions.latency_growth(self.p, exp)
+        return None
+
     # -- requests ----------------------------------------------------------------------------------------
     def _isolate(self, exp: Experiment, members: list[CaseResult], notes: list[str]) -> Isolated | None:
         done: set[tuple[object, ...]] = set()
@@ -122,6 +122,14 @@ class Isolator:
                 got = self._sequence(exp, case, frames, notes)
                 if got is not None:
                     return got
+                continue
+            if expect_of(frames[0], self.p).kind == "valid":
+                key = ("valid", frames[0][5])
+                if key not in done:
+                    done.add(key)
+                    got = self._valid(exp, frames[0], notes, case)
+                    if got is not None:
+                        return got
                 continue
             passing = nearest_valid(frames[0], self.p.codec)
             diff = differing(frames[0], passing) if passing is not None else []
@@ -146,9 +154,28 @@ class Isolator:
         exp.exchanges.append(ex)
         return bool(expect.broken_by(ex.reading(0)))
 
+    def _valid(self, exp: Experiment, frame: bytes, notes: list[str], case: CaseResult) -> Isolated | None:
+        """A valid request the box mishandled: vs the same request with the values every probe sends (which
+        value); alone and whole vs split (R3); unanswered while a NONE behind it is answered."""
+        first = self._fails(exp, frame)
+        if first is None:
+            return None
+        if not first:
+            got = dimensions.split(self.p, exp, frame)
+            if got is None:
+                notes.append(f"{case.id}: answered right alone on a fresh connection, whole and split")
+            return got
+        passing = _standard(self.p, frame)
+        if passing is not None and differing(frame, passing):
+            return self._request(exp, frame, passing, notes, [case], checked=True)
+        got = dimensions.unanswered(self.p, exp, frame)
+        if got is None:
+            notes.append(f"{case.id}: the request alone fails, with the values every probe sends")
+        return got
+
     def _request(self, exp: Experiment, failing: bytes, passing: bytes, notes: list[str],
-                 members: list[CaseResult]) -> Isolated | None:
-        first = self._fails(exp, failing)
+                 members: list[CaseResult], checked: bool = False) -> Isolated | None:
+        first = True if checked else self._fails(exp, failing)
         if not first:
             notes.append(f"{failing.hex()}: " + ("out of time" if first is None else "answered right alone on a fresh "
                                                  "connection"))
@@ -180,14 +207,7 @@ class Isolator:
             title = T.index_unchecked(where.block, failing[at], passing[at], self.p.profile.first_index, action)
             return Isolated(("index",), title, clauses, action, repro, {"block": where.block, "value": failing[at]})
         if where.field == "value":
-            at = HEADER_LEN + (where.block - 1) * REQUESTS[passing[5]][0] + 1 + 4 * where.part
-            kind = float_class(failing[at:at + 4], self.p.profile.float_byte_order) or failing[at:at + 4].hex(" ")
-            if expect_of(failing, self.p).kind == "invalid":
-                return Isolated(("value-accepted", kind), T.value_accepted(kind, action, where.block, where.part),
-                                clauses, action, repro, {"class": kind})
-            return Isolated(("value-refused", kind, action), T.value_refused(kind, action, where.block, where.part,
-                                                                             _what(exp)), ("B1", "B4"), action, repro,
-                            {"class": kind})
+            return self._value(exp, failing, passing, where, action, repro)
         if where.field == "check":
             title = T.differs("check", failing[-2:].hex(" "), action, _what(exp))
             return Isolated(("check",), title, clauses, action, repro, {})
@@ -205,6 +225,39 @@ class Isolator:
             title = T.unchecked(where.field, values[:3], action)
         return Isolated((how, where.field), title, clauses, action, repro, {"field": where.field, "values": values[:6],
                                                                               "bytes": how})
+
+    def _value(self, exp: Experiment, failing: bytes, passing: bytes, where: Place, action: int | None,
+               repro: bytes) -> Isolated:
+        """A float value isolated: the byte order the box reads, a bound between the passing and failing values,
+        or the value's class."""
+        at = HEADER_LEN + (where.block - 1) * REQUESTS[passing[5]][0] + 1 + 4 * where.part
+        order = self.p.profile.float_byte_order
+        raw = failing[at:at + 4]
+        kind = float_class(raw, order) or f"{dimensions.as_float(raw, order):g}"
+        invalid = expect_of(failing, self.p).kind == "invalid"
+        what = _what(exp)
+        found = dimensions.float_value(self.p, passing, failing, at, lambda f: self._accepts(exp, f))
+        if found is not None and found[0] == "byte-order":
+            return Isolated(("float-order", found[1]), T.float_order(found[1], kind, action, invalid), ("B4", "F4"),
+                            action, repro, {"order": found[1]})
+        if found is not None and found[0] == "threshold":
+            above = dimensions.as_float(raw, order) > dimensions.as_float(passing[at:at + 4], order)
+            part = T.part_name(action, where.part)
+            return Isolated(("value-bound", action, part, found[1]), T.value_bound(action, part, found[1], above, what),
+                            ("B1", "B2", "B4"), action, repro, {"bound": found[1], "above": above})
+        if invalid:
+            return Isolated(("value-accepted", kind), T.value_accepted(kind, action, where.block, where.part),
+                            ("B4",), action, repro, {"class": kind})
+        return Isolated(("value-refused", kind, action), T.value_refused(kind, action, where.block, where.part, what),
+                        ("B1", "B4"), action, repro, {"class": kind})
+
+    def _accepts(self, exp: Experiment, frame: bytes) -> bool | None:
+        """Whether the box answers ``frame`` 0000 with its action (alone, on a fresh connection)."""
+        ex = self.p.exchange([frame], quiet=[expect_of(frame, self.p).kind == "invalid"], settle=False)
+        if ex is None or not ex.reached:
+            return None
+        exp.exchanges.append(ex)
+        return any(a.action == frame[5] and a.error == 0 for a in ex.reading(0).answers)
 
     def _bytes(self, exp: Experiment, passing: bytes, failing: bytes, name: str, order: str) -> str:
         """Which bytes of a 16-bit field the box reads: "low" (only the low byte), "high", "from-type" (the block
@@ -279,7 +332,12 @@ class Isolator:
         return self._after(ex, kept, last)
 
     def _after(self, ex: Exchange | None, prior: list[bytes], last: bytes) -> Isolated:
-        """``last`` mishandled after the ``prior`` frames on the same connection, answered right alone."""
+        """``last`` mishandled after the ``prior`` frames on the same connection, answered right alone (after a
+        CycleOn: on that connection only, or on every connection?)."""
+        if any(len(f) > 5 and f[5] == 0x01 for f in prior) and len(last) > 5 and last[5] in (0x23, 0x24, 0x25):
+            held = dimensions.connection_held(self.p, self._exp, last)
+            if held is not None:
+                return held
         described = _describe(prior)
         action = last[5] if len(last) > 5 else None
         frames = b"".join([*prior, last])
@@ -327,3 +385,11 @@ def _describe(frames: Sequence[bytes]) -> str:
     """Earlier frames as a title names them: their actions when each is a request, else their first bytes."""
     names = [name(f[5]) if len(f) >= HEADER_LEN and f[:2] == b"\xfe\xfe" else f[:12].hex(" ") for f in frames]
     return ", ".join(names[-3:]) if len(names) <= 3 else f"{len(names)} frames ending {', '.join(names[-2:])}"
+
+
+def _standard(p: Prober, frame: bytes) -> bytes | None:
+    """The request of ``frame``'s action and block count with the values every probe sends."""
+    action, count = frame[5], frame[7]
+    if action in BLOCK_ACTIONS:
+        return block_request(p, action, count) if count else None
+    return p.valid_request(action) if action in REQUESTS else None

@@ -66,7 +66,7 @@ def index_unchecked(block: int, value: int, right: int, first: int, action: int 
 def part_name(action: int | None, part: int) -> str:
     if action in (0x23, 0x24) and part < len(POSE_PARTS):
         return POSE_PARTS[part]
-    return gettext("the tolerance") if action == 0x25 else gettext("value {n}").format(n=part + 1)
+    return gettext("tolerance") if action == 0x25 else gettext("value {n}").format(n=part + 1)
 
 
 def value_accepted(kind: str, action: int | None, block: int, part: int) -> str:
@@ -88,9 +88,9 @@ def differs(field: str, value: str, action: int | None, what: str) -> str:
 
 
 def coalesced(answered: int, sent: int) -> str:
-    return gettext("Answers only {k} of {n} requests that arrive in one TCP segment (each is answered when sent "
-                   "alone): R4 asks for every frame of a segment answered — read every whole frame in the received "
-                   "bytes").format(k=answered, n=sent)
+    return gettext("Answers only {k} of {n} requests when several frames arrive in one TCP segment (each is answered "
+                   "when sent alone): R4 asks for every frame of a segment answered — read every whole frame in the "
+                   "received bytes").format(k=answered, n=sent)
 
 
 def split(what: str) -> str:
@@ -107,3 +107,66 @@ def after_prior(prior: str, what: str, last: int | None) -> str:
 def closes_after(prior: str) -> str:
     return gettext("Closes the connection after answering {prior}: the requests behind it on that connection are never "
                    "answered (A1/S1 keep the connection open) — keep serving the connection").format(prior=prior)
+
+
+def float_order(order: str, kind: str, action: int | None, accepted: bool) -> str:
+    what = (gettext("answers 0000 to {kind} written big-endian and refuses it written {order}-endian") if accepted
+            else gettext("refuses a valid value written big-endian ({kind}) and accepts it written {order}-endian"))
+    return gettext("Decodes the float32 block values {order}-endian (wrong byte order): {what} in {action}; B4 asks for "
+                   "big-endian floats (--float-byte-order) — decode them big-endian").format(
+        order=order, what=what.format(kind=kind, order=order), action=name(action))
+
+
+def value_bound(action: int | None, part: str, bound: str, above: bool, code: str) -> str:
+    side = gettext("above") if above else gettext("below")
+    return gettext("Refuses a valid {action} whose {part} is {side} {bound} ({code}); B1/B2/B4 allow any finite float32 "
+                   "— accept every finite value").format(action=name(action), part=part, side=side, bound=bound,
+                                                          code=code)
+
+
+def answer_crc(algorithm: str, order: str, check: str) -> str:
+    return gettext("Puts a {algorithm} CRC ({order}-endian, {check} in a NONE answer) in the check field of its TCP "
+                   "answers: F6 asks for 00 00 over TCP (the CRC is UDP's) — write 00 00 in TCP answers").format(
+        algorithm=algorithm, order=order, check=check)
+
+
+def answer_check(check: str) -> str:
+    return gettext("Writes {check} in the check field of its TCP answers (no CRC of the profile set): F6 asks for "
+                   "00 00 over TCP — write 00 00").format(check=check)
+
+
+def split_header() -> str:
+    return gettext("Loses a frame split inside its 12-byte header (split after byte 5 it is never answered; split "
+                   "after the header, or whole, it is): R3 asks for a split frame handled whole — buffer a partial "
+                   "header until its 12 bytes are there")
+
+
+def split_bytes() -> str:
+    return gettext("Loses a frame sent one byte at a time (split once, or whole, it is answered): R3 asks for a "
+                   "split frame handled whole — buffer until the frame is complete")
+
+
+def split_any() -> str:
+    return gettext("Loses a frame split across TCP segments (whole it is answered): R3 asks for a split frame "
+                   "handled whole — buffer until the frame is complete")
+
+
+def no_answer(action: int | None) -> str:
+    return gettext("Gives no answer to {action}, ever, while a NONE behind it is answered: A1/T1 ask for one "
+                   "answer within time_out — answer every {action}").format(action=name(action))
+
+
+def cycle_connection(action: int | None, what: str) -> str:
+    return gettext("While a cycle is on, {what} {action} on the connection that sent CycleOn (the command "
+                   "connection), though the same request on another connection is answered 0000: S3/S1 allow "
+                   "poses on the command connection — accept them on every connection").format(
+        what=what, action=name(action))
+
+
+def latency_grows(knee: int, first: float, last: float, n: int, per_connection: bool) -> str:
+    where = (gettext("a fresh connection starts fast again: a per-connection history?") if per_connection else
+             gettext("a fresh connection is slow too"))
+    return gettext("Answer latency grows with the number of requests on a connection, from about request {knee}: "
+                   "{first:.0f} ms at first, {last:.0f} ms at request {n} ({where}); T2 asks for a latency that does "
+                   "not grow — keep the work per request constant").format(
+        knee=knee, first=first, last=last, n=n, where=where)
