@@ -31,7 +31,7 @@ CRC_TITLES = {"modbus": "CRC-16/MODBUS", "crc-16": "CRC-16/ARC", "crc-ccitt-fals
               "xmodem": "CRC-16/XMODEM", "kermit": "CRC-16/KERMIT", "x-25": "CRC-16/X-25", "crc-16-usb": "CRC-16/USB",
               "crc-16-maxim": "CRC-16/MAXIM"}
 #: requests per connection, and the growth (ms) that counts as a latency that grows
-LATENCY_REQUESTS = 220
+LATENCY_REQUESTS = 180
 LATENCY_GROWTH_MS = 20.0
 #: bisection steps between a passing and a failing float value
 FLOAT_STEPS = 30

@@ -26,7 +26,7 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import deaths, families, match, titles
+from . import death_inputs, deaths, families, match, titles
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
 from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
@@ -78,6 +78,7 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
     if prober is not None and probed and not still_dead:
         _run(prober, lab, probed, facts_by, cases, own)
     out = _assign(causes, facts_by, lab, own, dead)
+    death_inputs.name(out.causes, cases)  # a death named with the input it followed (issue 34)
     elapsed = round(time.monotonic() - start, 3)
     for cause in out.causes:
         if cause.diagnosis is not None:

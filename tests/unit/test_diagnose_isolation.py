@@ -131,3 +131,21 @@ def test_titles_name_the_field_what_the_box_does_and_the_fix() -> None:
     assert "several frames" in T.coalesced(1, 2) and "CycleOff (02)" in T.closes_after("CycleOff (02)")
     assert "result request (27)" in T.no_answer(0x27)
     assert "little-endian" in T.float_order("little", "NaN", 0x23, True)
+
+
+def test_a_death_is_named_with_the_input_it_followed() -> None:
+    from conformance.diagnose import death_inputs
+    from conformance.model.verdicts import CaseResult, Level, RootCause, Verdict
+
+    head = bytes.fromhex("fefe000101230 1ffffff0000".replace(" ", ""))
+    assert death_inputs.oversize(b"\x00\x01" + head) == (255, 0xFFFF)
+    assert death_inputs.oversize(pose(0)) is None
+    killer = CaseResult("R5-02", "oversize", ("R5",), Level.MUST, Verdict.FAIL, sent_hex=head.hex(" "))
+    leak = RootCause("RC1", ("S5", "R2"), "The box stops accepting connections after the suite has opened 9",
+                     "evidence", ["R5-02"], kind="connection-leak", confirmed=True)
+    unconfirmed = RootCause("RC2", ("R2",), "unconfirmed: …", "evidence", ["R5-02"], kind="dead-after-input",
+                            confirmed=False)
+    death_inputs.name([leak, unconfirmed], [killer])
+    assert leak.title.startswith("Stops accepting new connections after a header announcing 255 × 65535 block bytes")
+    assert "length beyond the largest legal frame" in leak.title and "still served" in leak.title
+    assert unconfirmed.title == "unconfirmed: …"  # only what the phase confirmed is retitled
