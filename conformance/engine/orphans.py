@@ -60,7 +60,7 @@ def own_cause(clause: str, members: list[CaseResult]) -> RootCause:
     """One root cause for FAILs of one clause that no signature groups: the first case's finding, and how many."""
     first = members[0]
     what = (first.message or first.observed or first.id).split(": expected")[0].strip()[:200]
-    title = gettext("{case}: {what}").format(case=first.id, what=what)
+    title = f"{first.id}: {what}"  # the case's own words, in the language of the run
     if len(members) > 1:
         title += gettext(" (and {n} more FAIL(s) of {clause})").format(n=len(members) - 1, clause=clause)
     kind = "fuzz" if first.signature is not None and first.signature.kind is Sig.FUZZ else "own"
