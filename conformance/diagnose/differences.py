@@ -166,5 +166,5 @@ class Isolated:
     title: str
     clauses: tuple[str, ...]
     action: int | None
-    repro: bytes  # the passing request with only the isolated difference
+    repro: tuple[bytes, ...]  # frames on one connection that show it (the passing request with only the difference)
     detail: dict[str, object] = field(default_factory=dict)

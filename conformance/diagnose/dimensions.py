@@ -60,7 +60,7 @@ def answer_check(p: Prober, exp: Experiment) -> Isolated | None:
     raw = answers[0].raw
     named = crc_of(raw[:-2], raw[-2:])
     title = T.answer_crc(named[0], named[1], raw[-2:].hex(" ")) if named else T.answer_check(raw[-2:].hex(" "))
-    return Isolated(("answer-check", named), title, ("F6",), 0, p.valid_request(0), {"check": raw[-2:].hex(),
+    return Isolated(("answer-check", named), title, ("F6",), 0, (p.valid_request(0),), {"check": raw[-2:].hex(),
                                                                                       "crc": named})
 
 
@@ -79,10 +79,10 @@ def split(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None:
         reading = in_pieces(p, exp, frame, list(range(1, len(frame))))
         if reading is None or _answered(frame, reading.answers):
             return None
-        return Isolated(("split", "bytes"), T.split_bytes(), ("R3",), frame[5], frame, {"cut": "every byte"})
+        return Isolated(("split", "bytes"), T.split_bytes(), ("R3",), frame[5], (frame,), {"cut": "every byte"})
     if seen.get("inside") and not seen.get("after"):
-        return Isolated(("split", "header"), T.split_header(), ("R3",), frame[5], frame, {"cut": 5})
-    return Isolated(("split", "frame"), T.split_any(), ("R3",), frame[5], frame, {"cut": sorted(seen)})
+        return Isolated(("split", "header"), T.split_header(), ("R3",), frame[5], (frame,), {"cut": 5})
+    return Isolated(("split", "frame"), T.split_any(), ("R3",), frame[5], (frame,), {"cut": sorted(seen)})
 
 
 def _answered(frame: bytes, answers: tuple[object, ...]) -> bool:
@@ -149,7 +149,7 @@ def unanswered(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None:
     first, after = ex.reading(0), ex.reading(1)
     if first.answers or first.closed or not any(a.action == 0 for a in after.answers):
         return None
-    return Isolated(("no-answer", frame[5]), T.no_answer(frame[5]), ("A1", "T1"), frame[5], frame, {})
+    return Isolated(("no-answer", frame[5]), T.no_answer(frame[5]), ("A1", "T1"), frame[5], (frame,), {})
 
 
 def connection_held(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None:
@@ -167,7 +167,7 @@ def connection_held(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None
     what = (f"answers error {same.answers[0].error or 0:04X} to" if same.answers else
             "closes the connection on" if same.closed else "leaves unanswered")
     return Isolated(("cycle-connection", frame[5]), T.cycle_connection(frame[5], what), ("S3", "S1"), frame[5],
-                    on + frame, {"what": what})
+                    (on, frame), {"what": what})
 
 
 def latency_growth(p: Prober, exp: Experiment) -> Isolated | None:
@@ -186,7 +186,7 @@ def latency_growth(p: Prober, exp: Experiment) -> Isolated | None:
     per_connection = bool(fresh) and sorted(fresh)[len(fresh) // 2] - head < LATENCY_GROWTH_MS / 2
     knee = max(1, _knee(times, head))
     return Isolated(("latency-grows", per_connection), T.latency_grows(knee, head, tail, len(times), per_connection),
-                    ("T2", "T1"), 0, p.valid_request(0), {"first_ms": round(head, 1), "last_ms": round(tail, 1),
+                    ("T2", "T1"), 0, (p.valid_request(0),), {"first_ms": round(head, 1), "last_ms": round(tail, 1),
                                                           "requests": len(times), "from": knee, "slow_from": start})
 
 

@@ -78,7 +78,8 @@ class Isolator:
             mech = self.mechanisms.get(got.key)
             if mech is None:
                 mech = Mechanism(f"isolated-{got.key[0]}", frozenset({got.action or 0}), exp.name, got.title,
-                                 got.clauses, ((got.repro, expect_of(got.repro, self.p)),), dict(got.detail))
+                                 got.clauses, tuple((f, expect_of(f, self.p)) for f in got.repro),
+                                 dict(got.detail))
                 self.mechanisms[got.key] = mech
             found.mechanisms.append(mech)
             found.stories["isolated"] = (Status.CONFIRMED, got.title)
@@ -199,7 +200,7 @@ class Isolator:
     def _name(self, exp: Experiment, failing: bytes, passing: bytes, where: Place, offsets: list[int],
               members: list[CaseResult]) -> Isolated:
         action = passing[5] if failing[5] in REQUESTS or where.field == "action" else failing[5]
-        repro = applied(passing, failing, offsets)
+        repro = (applied(passing, failing, offsets),)
         order = self.p.profile.byte_order
         clauses = _CLAUSES.get(where.field, ("R1",))
         if where.field == "index":
@@ -227,7 +228,7 @@ class Isolator:
                                                                               "bytes": how})
 
     def _value(self, exp: Experiment, failing: bytes, passing: bytes, where: Place, action: int | None,
-               repro: bytes) -> Isolated:
+               repro: tuple[bytes, ...]) -> Isolated:
         """A float value isolated: the byte order the box reads, a bound between the passing and failing values,
         or the value's class."""
         at = HEADER_LEN + (where.block - 1) * REQUESTS[passing[5]][0] + 1 + 4 * where.part
@@ -311,7 +312,8 @@ class Isolator:
                 return None
             heard = sum(len(r.answers) for r in ex.readings)
             return Isolated(("coalesced",), T.coalesced(min(heard, len(frames)), len(frames)), ("R4", "A1"),
-                            frames[-1][5] if len(frames[-1]) > 5 else None, b"".join(frames), {"frames": len(frames)})
+                            frames[-1][5] if len(frames[-1]) > 5 else None, tuple(frames),
+                            {"frames": len(frames), "one_write": True})
         last, earlier = frames[at], frames[:at]
 
         def spoils(prefix: list[bytes]) -> bool | None:
@@ -340,7 +342,7 @@ class Isolator:
                 return held
         described = _describe(prior)
         action = last[5] if len(last) > 5 else None
-        frames = b"".join([*prior, last])
+        frames = (*prior, last)
         closed = ex is not None and any(ex.reading(k).closed for k in range(len(ex.frames) - 1))
         reading = ex.reading(len(ex.frames) - 1) if ex is not None else None
         if closed or (reading is not None and reading.closed and not reading.answers):
