@@ -5,13 +5,38 @@ input?"). Pure: the session already proved the death on fresh connections, and t
 
 from __future__ import annotations
 
+import json
+import re
 from collections.abc import Sequence
+from pathlib import Path
 
 from ..i18n import gettext
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol.constants import HEADER_LEN, MAX_FRAME_LEN, START_BYTES
 
 DEATHS = ("connection-leak", "dead-after-input")
+#: a fuzz finding names its vector file: the whole sequence of inputs that preceded the death
+_VECTOR = re.compile(r"vector (\S+?\.json)")
+_MAX_VECTOR_BYTES = 4 << 20
+
+
+def inputs(case: CaseResult) -> list[bytes]:
+    """The inputs a case sent, as far as its verdict quotes them and its fuzz vector file (if any) holds them."""
+    out: list[bytes] = []
+    try:
+        out.append(bytes.fromhex(case.sent_hex.partition("…")[0]))
+    except ValueError:
+        pass
+    found = _VECTOR.search(case.message or "")
+    path = Path(found.group(1)) if found else None
+    if path is not None and path.is_file() and path.stat().st_size <= _MAX_VECTOR_BYTES:
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            out += [bytes.fromhex(t["hex"]) for g in doc.get("testGroups", []) for t in g.get("tests", [])
+                    if isinstance(t.get("hex"), str)]
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            pass
+    return [b for b in out if b]
 
 
 def oversize(data: bytes) -> tuple[int, int] | None:
@@ -34,12 +59,12 @@ def name(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> None:
         killer = next((by_id[i] for i in cause.cases if i in by_id and by_id[i].sent_hex), None)
         if killer is None:
             continue
-        try:
-            data = bytes.fromhex(killer.sent_hex.partition("…")[0])
-        except ValueError:
+        sent = inputs(killer)
+        if not sent:
             continue
+        data = sent[0]
         still = gettext(" (connections already open are still served)") if cause.kind == "connection-leak" else ""
-        big = oversize(data)
+        big = next((b for b in map(oversize, sent) if b is not None), None)
         if big is not None:
             cause.title = gettext(
                 "Stops accepting new connections after a header announcing {n} × {length} block bytes (case {case}), a "

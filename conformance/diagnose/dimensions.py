@@ -34,7 +34,7 @@ CRC_TITLES = {"modbus": "CRC-16/MODBUS", "crc-16": "CRC-16/ARC", "crc-ccitt-fals
 LATENCY_REQUESTS = 180
 LATENCY_GROWTH_MS = 20.0
 #: bisection steps between a passing and a failing float value
-FLOAT_STEPS = 30
+FLOAT_STEPS = 40
 
 
 def crc_of(body: bytes, check: bytes) -> tuple[str, str] | None:
@@ -117,7 +117,8 @@ def float_value(p: Prober, passing: bytes, failing: bytes, at: int,
     if not (math.isfinite(good) and math.isfinite(bad)) or good == bad:
         return None
     for _ in range(FLOAT_STEPS):
-        mid = (good + bad) / 2
+        geometric = good * bad > 0 and max(abs(good), abs(bad)) > 4 * min(abs(good), abs(bad))
+        mid = math.copysign(math.sqrt(good * bad), good) if geometric else (good + bad) / 2
         probe = bytearray(passing)
         probe[at:at + 4] = _pack(mid, order)
         verdict = judge(bytes(probe))

@@ -16,6 +16,7 @@ what was tried (this experiment's exchanges and finding).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol.constants import HEADER_LEN
@@ -110,8 +111,9 @@ class Isolator:
 
     # -- requests ----------------------------------------------------------------------------------------
     def _isolate(self, exp: Experiment, members: list[CaseResult], notes: list[str]) -> Isolated | None:
+        """The members nearest to a passing request first (the fewest differing fields; several frames last)."""
         done: set[tuple[object, ...]] = set()
-        for case in members:
+        for case in sorted(members, key=lambda c: _distance(self.p, c)):
             if len(done) >= MAX_REQUESTS or self.p.left() < MIN_LEFT_S:
                 notes.append("out of time")
                 break
@@ -190,9 +192,17 @@ class Isolator:
         def fails_with(offsets: list[int]) -> bool | None:
             return self._fails(exp, applied(passing, failing, offsets))
 
-        chosen = ddmin(groups, lambda gs: fails_with([o for g in gs for o in g]), max_tests=8)
+        chosen = ddmin(groups, lambda gs: fails_with([o for g in gs for o in g]),
+                       max_tests=8 + 4 * max(1, len(groups)).bit_length())
+        if len(chosen) > 1 and len({place(g[0], len(passing), size).field for g in chosen}) > 1:
+            notes.append(f"{failing.hex()}: {len(chosen)} differences still needed after narrowing")
         offsets = [o for g in chosen for o in g]
         where = place(offsets[0], len(passing), size)
+        if where.field == "value" and len(chosen) > 1:
+            offsets = chosen[0]
+            if not fails_with(offsets):  # one value alone does not show it: name nothing
+                notes.append(f"{failing.hex()}: no one value alone shows it")
+                return None
         if len(offsets) > 1 and where.field in ("version", "block_length", "start_word", "error_code"):
             offsets = ddmin(offsets, fails_with, 4)
         return self._name(exp, failing, passing, where, offsets, members)
@@ -395,3 +405,32 @@ def _standard(p: Prober, frame: bytes) -> bytes | None:
     if action in BLOCK_ACTIONS:
         return block_request(p, action, count) if count else None
     return p.valid_request(action) if action in REQUESTS else None
+
+
+def _distance(p: Prober, case: CaseResult) -> int:
+    """How far a case's request is from the nearest passing one: its differing fields (several frames: far)."""
+    try:
+        frames = split_frames(bytes.fromhex(case.sent_hex), p.codec)
+    except ValueError:
+        return 10_000
+    if len(frames) != 1:
+        return 1_000 + len(frames)
+    frame = frames[0]
+    passing = _standard(p, frame) if expect_of(frame, p).kind == "valid" else nearest_valid(frame, p.codec)
+    if passing is None or len(passing) != len(frame):
+        return 500
+    return len(units(differing(frame, passing), len(frame), REQUESTS.get(passing[5], (0, 0))[0]))
+
+
+def refine_cycle(p: Prober, mechanisms: list[Mechanism]) -> None:
+    """A pose refused while a cycle is on (the cycle family), put to the connection dimension: refused on the
+    connection that sent CycleOn only (the command connection), or on every connection? (in place)"""
+    for i, m in enumerate(mechanisms):
+        if m.kind != "cycle-dependent" or not m.detail.get("inside") or p.left() < MIN_LEFT_S:
+            continue
+        exp = Experiment("cycle-connection", "CycleOn on one connection; the same pose on a second connection, "
+                                             "then on the first")
+        held = dimensions.connection_held(p, exp, p.valid_request(0x23))
+        if held is not None:
+            mechanisms[i] = replace(m, title=held.title, clauses=held.clauses,
+                                    detail={**m.detail, "connection": "the one that sent CycleOn"})

@@ -30,7 +30,7 @@ from . import death_inputs, deaths, families, match, titles
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
 from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
-from .isolate import Isolator
+from .isolate import Isolator, refine_cycle
 from .repro import repro_entry
 
 #: the phase's bound in seconds (on top of the catalogue; inside the 120 s per box)
@@ -104,6 +104,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
 
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
+        refine_cycle(p, lab.mechanisms)  # ... on the connection holding the cycle only? (issue 34)
     if unexplained():
         lab.add(families.per_connection(p))
     isolator = Isolator(p)  # the failure-inducing difference isolated; else the case sent again (issue 34)
