@@ -12,6 +12,7 @@ from pathlib import Path
 
 from ..i18n import gettext
 from ..model.verdicts import CaseResult, RootCause
+from ..protocol import Profile, ProtocolError, codec_for
 from ..protocol.constants import HEADER_LEN, MAX_FRAME_LEN, START_BYTES
 
 DEATHS = ("connection-leak", "dead-after-input")
@@ -72,6 +73,18 @@ def name(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> None:
                 "— skip or refuse an oversize header without touching the listening socket").format(
                 n=big[0], length=big[1], case=killer.id, max=MAX_FRAME_LEN, still=still)
         else:
+            shown = data[:16].hex(" ") + (" …" if len(data) > 16 else "") + _problem(data)
             cause.title = gettext("Stops accepting new connections after the input of case {case} ({hex}){still}: R2 "
                                   "asks that no input stops the box — survive that input").format(
-                case=killer.id, hex=data[:16].hex(" ") + (" …" if len(data) > 16 else ""), still=still)
+                case=killer.id, hex=shown, still=still)
+
+
+def _problem(data: bytes) -> str:
+    """What is wrong with the input's first frame, as the codec says it ("" when it is a valid request)."""
+    try:
+        codec_for(Profile()).parse(data[:codec_for(Profile()).frame_length(data)] if len(data) >= HEADER_LEN else data)
+    except ProtocolError as exc:
+        return f": {str(exc).split(' (at offset')[0]}"
+    except (ValueError, IndexError):
+        return ""
+    return ""
