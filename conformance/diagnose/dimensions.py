@@ -7,7 +7,8 @@ pins one difference and returns it as an :class:`~.differences.Isolated` (None: 
   (bisection), and the byte order the box reads it in;
 * :func:`unanswered` — a valid request left unanswered alone while a NONE behind it is answered;
 * :func:`connection_held` — a request mishandled on the connection that holds the cycle, answered on another;
-* :func:`latency_growth` — the answer latency against the number of requests on a connection, and on a fresh one.
+* :func:`latency_growth` — the answer latency against the number of requests on a connection, and on a fresh one;
+* :func:`refine_cycle` — a family's "pose refused in a cycle" put to :func:`connection_held`.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Callable
+from dataclasses import replace
 
 import crcmod.predefined
 
@@ -23,7 +25,7 @@ from ..protocol.profile import crc16_names
 from . import isolation_titles as T
 from .differences import REQUESTS, Isolated
 from .experiments import Prober
-from .hypotheses import Experiment
+from .hypotheses import Experiment, Mechanism
 from .probes import beside, in_pieces, latencies
 
 #: the CRC-16 algorithms tried first (the profile set), as titles name them
@@ -206,3 +208,17 @@ def _knee(times: list[float], base: float) -> int:
 
 def block_len(frame: bytes) -> int:
     return REQUESTS.get(frame[5], (0, 0))[0]
+
+
+def refine_cycle(p: Prober, mechanisms: list[Mechanism]) -> None:
+    """A pose refused while a cycle is on (the cycle family), put to the connection dimension: refused on the
+    connection that sent CycleOn only (the command connection), or on every connection? (in place)"""
+    for i, m in enumerate(mechanisms):
+        if m.kind != "cycle-dependent" or not m.detail.get("inside") or p.left() < 1.0:
+            continue
+        exp = Experiment("cycle-connection", "CycleOn on one connection; the same pose on a second connection, "
+                                             "then on the first")
+        held = connection_held(p, exp, p.valid_request(0x23))
+        if held is not None:
+            mechanisms[i] = replace(m, title=held.title, clauses=held.clauses,
+                                    detail={**m.detail, "connection": "the one that sent CycleOn"})

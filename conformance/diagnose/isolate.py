@@ -16,7 +16,6 @@ what was tried (this experiment's exchanges and finding).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
 
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol.constants import HEADER_LEN
@@ -73,6 +72,9 @@ class Isolator:
         by_id = {c.id: c for c in cases}
         members = [by_id[i] for i in cause.cases if i in by_id and by_id[i].sent_hex and "…" not in by_id[i].sent_hex]
         notes: list[str] = []
+        if any(_udp(m) for m in members):  # datagrams are not put to TCP experiments
+            notes.append("UDP cases not isolated over TCP")
+            members = [m for m in members if not _udp(m)]
         got = self._whole_box(exp, cause) or self._isolate(exp, members, notes)
         exp.finding = got.title if got is not None else "; ".join(notes) or "no case quotes a whole request"
         if got is not None:
@@ -422,15 +424,5 @@ def _distance(p: Prober, case: CaseResult) -> int:
     return len(units(differing(frame, passing), len(frame), REQUESTS.get(passing[5], (0, 0))[0]))
 
 
-def refine_cycle(p: Prober, mechanisms: list[Mechanism]) -> None:
-    """A pose refused while a cycle is on (the cycle family), put to the connection dimension: refused on the
-    connection that sent CycleOn only (the command connection), or on every connection? (in place)"""
-    for i, m in enumerate(mechanisms):
-        if m.kind != "cycle-dependent" or not m.detail.get("inside") or p.left() < MIN_LEFT_S:
-            continue
-        exp = Experiment("cycle-connection", "CycleOn on one connection; the same pose on a second connection, "
-                                             "then on the first")
-        held = dimensions.connection_held(p, exp, p.valid_request(0x23))
-        if held is not None:
-            mechanisms[i] = replace(m, title=held.title, clauses=held.clauses,
-                                    detail={**m.detail, "connection": "the one that sent CycleOn"})
+def _udp(case: CaseResult) -> bool:
+    return bool({"F7", "R7"} & set(case.clauses))

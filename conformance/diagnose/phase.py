@@ -27,10 +27,11 @@ from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
 from . import death_inputs, deaths, families, match, titles
+from .dimensions import refine_cycle
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
 from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
-from .isolate import Isolator, refine_cycle
+from .isolate import Isolator
 from .repro import repro_entry
 
 #: the phase's bound in seconds (on top of the catalogue; inside the 120 s per box)
