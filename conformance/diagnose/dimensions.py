@@ -222,3 +222,22 @@ def refine_cycle(p: Prober, mechanisms: list[Mechanism]) -> None:
         if held is not None:
             mechanisms[i] = replace(m, title=held.title, clauses=held.clauses,
                                     detail={**m.detail, "connection": "the one that sent CycleOn"})
+
+
+def refine_refused(p: Prober, mechanisms: list[Mechanism]) -> None:
+    """Every valid block request of an action refused (the answers family), put to the byte order of the block
+    length: the same request with its two bytes swapped answered 0000 means the box reads it little-endian."""
+    for i, m in enumerate(mechanisms):
+        action = next(iter(m.actions), None)
+        if m.kind != "refuses-valid" or action not in REQUESTS or not REQUESTS[action][0] or p.left() < 1.0:
+            continue
+        exp = Experiment("block-length-order", "the refused request with its block length's two bytes swapped")
+        frame = bytearray(p.valid_request(action))
+        frame[8], frame[9] = frame[9], frame[8]
+        ex = p.exchange([bytes(frame)], quiet=[True], settle=False)
+        if ex is None or not ex.reached:
+            return
+        exp.exchanges.append(ex)
+        if any(a.action == action and a.error == 0 for a in ex.reading(0).answers):
+            title = T.length_order(action, bytes(frame[8:10]).hex(" "))
+            mechanisms[i] = replace(m, title=title, clauses=("F4", "B5"), detail={**m.detail, "order": "little"})

@@ -35,9 +35,10 @@ from .differences import (
     place,
     units,
 )
-from .experiments import BLOCK_ACTIONS, Prober, block_request
+from .experiments import Prober
 from .families import Found
 from .hypotheses import Exchange, Experiment, Mechanism, Status
+from .passing import standard, standards
 from .reproduce import expect_of, reproduce
 from .shrink import split_frames
 from .titles import name
@@ -170,9 +171,9 @@ class Isolator:
             if got is None:
                 notes.append(f"{case.id}: answered right alone on a fresh connection, whole and split")
             return got
-        passing = _standard(self.p, frame)
-        if passing is not None and differing(frame, passing):
-            return self._request(exp, frame, passing, notes, [case], checked=True)
+        for passing in standards(self.p, frame):  # the first the box answers right is the passing request
+            if differing(frame, passing) and self._fails(exp, passing) is False:
+                return self._request(exp, frame, passing, notes, [case], checked=True)
         got = dimensions.unanswered(self.p, exp, frame)
         if got is None:
             notes.append(f"{case.id}: the request alone fails, with the values every probe sends")
@@ -401,14 +402,6 @@ def _describe(frames: Sequence[bytes]) -> str:
     return ", ".join(names[-3:]) if len(names) <= 3 else f"{len(names)} frames ending {', '.join(names[-2:])}"
 
 
-def _standard(p: Prober, frame: bytes) -> bytes | None:
-    """The request of ``frame``'s action and block count with the values every probe sends."""
-    action, count = frame[5], frame[7]
-    if action in BLOCK_ACTIONS:
-        return block_request(p, action, count) if count else None
-    return p.valid_request(action) if action in REQUESTS else None
-
-
 def _distance(p: Prober, case: CaseResult) -> int:
     """How far a case's request is from the nearest passing one: its differing fields (several frames: far)."""
     try:
@@ -418,7 +411,7 @@ def _distance(p: Prober, case: CaseResult) -> int:
     if len(frames) != 1:
         return 1_000 + len(frames)
     frame = frames[0]
-    passing = _standard(p, frame) if expect_of(frame, p).kind == "valid" else nearest_valid(frame, p.codec)
+    passing = standard(p, frame) if expect_of(frame, p).kind == "valid" else nearest_valid(frame, p.codec)
     if passing is None or len(passing) != len(frame):
         return 500
     return len(units(differing(frame, passing), len(frame), REQUESTS.get(passing[5], (0, 0))[0]))

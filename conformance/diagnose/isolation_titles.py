@@ -152,8 +152,8 @@ def split_any() -> str:
 
 
 def no_answer(action: int | None) -> str:
-    return gettext("Gives no answer to {action}, ever, while a NONE behind it is answered: A1/T1 ask for one "
-                   "answer within time_out — answer every {action}").format(action=name(action))
+    return gettext("Gives no answer to {action} (none within time_out) while a NONE behind it is answered: A1/T1 ask "
+                   "for one answer within time_out — answer every {action}").format(action=name(action))
 
 
 def cycle_connection(action: int | None, what: str) -> str:
@@ -170,3 +170,9 @@ def latency_grows(knee: int, first: float, last: float, n: int, per_connection: 
                    "{first:.0f} ms at first, {last:.0f} ms at request {n} ({where}); T2 asks for a latency that does "
                    "not grow — keep the work per request constant").format(
         knee=knee, first=first, last=last, n=n, where=where)
+
+
+def length_order(action: int | None, swapped: str) -> str:
+    return gettext("Reads the block length little-endian (wrong byte order): refuses every valid {action} and answers "
+                   "0000 when its block length is written {swapped}; F4 asks for big-endian header fields — read the "
+                   "block length big-endian").format(action=name(action), swapped=swapped)

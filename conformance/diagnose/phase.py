@@ -27,7 +27,7 @@ from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
 from . import death_inputs, deaths, families, match, titles
-from .dimensions import refine_cycle
+from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
 from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
@@ -93,6 +93,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     involved = set().union(*(facts_by[c.id].asked for c in probed))
     p.exchange([p.valid_request(int(Action.CYCLE_OFF))], settle=False)  # the catalogue may have left a cycle on (S3: idle first)
     alone = lab.add(families.answers(p, [*CORE, *(a for a in CYCLES if a in involved)])).alone
+    refine_refused(p, lab.mechanisms)  # a valid request refused: its block length read little-endian? (issue 34)
     if p.unreachable:
         return
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]

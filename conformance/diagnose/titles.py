@@ -88,8 +88,8 @@ def echo_all(value: int | None, actions: str) -> str:
 
 
 def missing(action: int) -> str:
-    return gettext("Never answers {action}, and goes on serving the connection: A1/T1 ask for one answer within "
-                   "time_out — answer every {action}").format(action=name(action))
+    return gettext("Gives no answer to {action} (none within time_out), and goes on serving the connection: A1/T1 "
+                   "ask for one answer within time_out — answer every {action}").format(action=name(action))
 
 
 def refuses(action: int, code: int | None) -> str:
