@@ -225,11 +225,12 @@ def refine_cycle(p: Prober, mechanisms: list[Mechanism]) -> None:
 
 
 def refine_refused(p: Prober, mechanisms: list[Mechanism]) -> None:
-    """Every valid block request of an action refused (the answers family), put to the byte order of the block
+    """Every valid block request of an action refused or unanswered (the answers family), put to the byte order of the block
     length: the same request with its two bytes swapped answered 0000 means the box reads it little-endian."""
     for i, m in enumerate(mechanisms):
         action = next(iter(m.actions), None)
-        if m.kind != "refuses-valid" or action not in REQUESTS or not REQUESTS[action][0] or p.left() < 1.0:
+        if m.kind not in ("refuses-valid", "missing-answer") or action not in REQUESTS or not REQUESTS[action][0] \
+                or p.left() < 1.0:
             continue
         exp = Experiment("block-length-order", "the refused request with its block length's two bytes swapped")
         frame = bytearray(p.valid_request(action))
@@ -239,5 +240,5 @@ def refine_refused(p: Prober, mechanisms: list[Mechanism]) -> None:
             return
         exp.exchanges.append(ex)
         if any(a.action == action and a.error == 0 for a in ex.reading(0).answers):
-            title = T.length_order(action, bytes(frame[8:10]).hex(" "))
+            title = T.length_order(action, bytes(frame[8:10]).hex(" "), m.kind == "refuses-valid")
             mechanisms[i] = replace(m, title=title, clauses=("F4", "B5"), detail={**m.detail, "order": "little"})

@@ -172,7 +172,8 @@ def latency_grows(knee: int, first: float, last: float, n: int, per_connection: 
         knee=knee, first=first, last=last, n=n, where=where)
 
 
-def length_order(action: int | None, swapped: str) -> str:
-    return gettext("Reads the block length little-endian (wrong byte order): refuses every valid {action} and answers "
-                   "0000 when its block length is written {swapped}; F4 asks for big-endian header fields — read the "
-                   "block length big-endian").format(action=name(action), swapped=swapped)
+def length_order(action: int | None, swapped: str, refused: bool) -> str:
+    what = gettext("refuses every valid {action}") if refused else gettext("leaves every valid {action} unanswered")
+    return gettext("Reads the block length little-endian (wrong byte order): {what} and answers 0000 when its block "
+                   "length is written {swapped}; F4 asks for big-endian header fields — read the block length "
+                   "big-endian").format(what=what.format(action=name(action)), swapped=swapped)
