@@ -167,8 +167,7 @@ def connection_held(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None
     p.exchange([p.valid_request(0x02)], settle=False)  # leave the cycle off (S3: idle first)
     if not ok_other or ok_same:
         return None
-    what = (f"answers error {same.answers[0].error or 0:04X} to" if same.answers else
-            "closes the connection on" if same.closed else "leaves unanswered")
+    what = T.done_to(same.answers[0].error or 0 if same.answers else None, same.closed)
     return Isolated(("cycle-connection", frame[5]), T.cycle_connection(frame[5], what), ("S3", "S1"), frame[5],
                     (on, frame), {"what": what})
 

@@ -361,8 +361,8 @@ class Isolator:
         if closed or (reading is not None and reading.closed and not reading.answers):
             return Isolated(("closes-after", described), T.closes_after(described), ("A1", "S1"), action, frames,
                             {"prior": described})
-        what = ("leaves unanswered" if reading is None or reading.silent else
-                f"answers error {reading.answers[0].error or 0:04X} to" if reading.answers else "mishandles")
+        what = T.done_to(reading.answers[0].error or 0 if reading is not None and reading.answers else None,
+                         reading is not None and reading.closed)
         return Isolated(("after-prior", described, what), T.after_prior(described, what, action), ("A1",), action,
                         frames, {"prior": described})
 
@@ -373,10 +373,10 @@ def _what(exp: Experiment) -> str:
         for r in ex.readings:
             if r.answers:
                 a = r.answers[0]
-                return f"answers {a.action if a.action is not None else 0:02X} with error {a.error or 0:04X}"
+                return T.did(a.action, a.error or 0, False)
             if r.closed:
-                return "closes the connection"
-    return "leaves it unanswered"
+                return T.did(None, None, True)
+    return T.did(None, None, False)
 
 
 def _values(members: list[CaseResult], name: str, p: Prober) -> list[str]:

@@ -177,3 +177,17 @@ def length_order(action: int | None, swapped: str, refused: bool) -> str:
     return gettext("Reads the block length little-endian (wrong byte order): {what} and answers 0000 when its block "
                    "length is written {swapped}; F4 asks for big-endian header fields — read the block length "
                    "big-endian").format(what=what.format(action=name(action)), swapped=swapped)
+
+
+def done_to(error: int | None, closed: bool) -> str:
+    """What the box does to a request, as a verb phrase before it ("answers error 1001 to", ...)."""
+    if error is not None:
+        return gettext("answers error {code:04X} to").format(code=error)
+    return gettext("closes the connection on") if closed else gettext("leaves unanswered")
+
+
+def did(action: int | None, error: int | None, closed: bool) -> str:
+    """What the box did with a request, as a clause ("answers 23 with error 1001", ...)."""
+    if error is not None:
+        return gettext("answers {action:02X} with error {code:04X}").format(action=action or 0, code=error)
+    return gettext("closes the connection") if closed else gettext("leaves it unanswered")
