@@ -26,7 +26,7 @@ from . import isolation_titles as T
 from .differences import REQUESTS, Isolated
 from .experiments import Prober
 from .hypotheses import Experiment, Mechanism
-from .probes import beside, in_pieces, latencies
+from .probes import GAP_S, beside, in_pieces, latencies
 
 #: the CRC-16 algorithms tried first (the profile set), as titles name them
 CRC_TITLES = {"modbus": "CRC-16/MODBUS", "crc-16": "CRC-16/ARC", "crc-ccitt-false": "CRC-16/CCITT-FALSE",
@@ -37,6 +37,8 @@ LATENCY_REQUESTS = 180
 LATENCY_GROWTH_MS = 20.0
 #: bisection steps between a passing and a failing float value
 FLOAT_STEPS = 40
+#: the gap between a split frame's pieces that a box with an inter-byte timeout may not wait for
+SLOW_GAP_S = 0.6
 
 
 def crc_of(body: bytes, check: bytes) -> tuple[str, str] | None:
@@ -79,9 +81,15 @@ def split(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None:
         seen[where] = not _answered(frame, reading.answers)
     if not any(seen.values()):
         reading = in_pieces(p, exp, frame, list(range(1, len(frame))))
-        if reading is None or _answered(frame, reading.answers):
+        if reading is None:
             return None
-        return Isolated(("split", "bytes"), T.split_bytes(), ("R3",), frame[5], (frame,), {"cut": "every byte"})
+        if not _answered(frame, reading.answers):
+            return Isolated(("split", "bytes"), T.split_bytes(), ("R3",), frame[5], (frame,), {"cut": "every byte"})
+        slow = in_pieces(p, exp, frame, [HEADER_LEN], SLOW_GAP_S)  # the same cut, the pieces further apart
+        if slow is None or _answered(frame, slow.answers):
+            return None
+        return Isolated(("split", "slow"), T.split_slow(int(SLOW_GAP_S * 1000), int(GAP_S * 1000)), ("R3", "T1"),
+                        frame[5], (frame,), {"gap_ms": int(SLOW_GAP_S * 1000)})
     if seen.get("inside") and not seen.get("after"):
         return Isolated(("split", "header"), T.split_header(), ("R3",), frame[5], (frame,), {"cut": 5})
     return Isolated(("split", "frame"), T.split_any(), ("R3",), frame[5], (frame,), {"cut": sorted(seen)})

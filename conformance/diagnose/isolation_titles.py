@@ -191,3 +191,9 @@ def did(action: int | None, error: int | None, closed: bool) -> str:
     if error is not None:
         return gettext("answers {action:02X} with error {code:04X}").format(action=action or 0, code=error)
     return gettext("closes the connection") if closed else gettext("leaves it unanswered")
+
+
+def split_slow(slow_ms: int, fast_ms: int) -> str:
+    return gettext("Loses a frame whose pieces arrive {slow} ms apart (an inter-byte timeout?; {fast} ms apart, or "
+                   "whole, it is answered): R3 asks for a split frame handled whole whatever the pause — wait for the "
+                   "rest of the frame up to time_out").format(slow=slow_ms, fast=fast_ms)

@@ -40,15 +40,15 @@ def _one(p: Prober, conn: TcpConnection, wait_s: float | None = None) -> Reading
     return Reading((heard(outcome),))
 
 
-def in_pieces(p: Prober, exp: Experiment, frame: bytes, cuts: Sequence[int]) -> Reading | None:
-    """``frame`` cut at ``cuts`` and sent piece by piece :data:`GAP_S` apart, on a fresh connection."""
+def in_pieces(p: Prober, exp: Experiment, frame: bytes, cuts: Sequence[int], gap_s: float = GAP_S) -> Reading | None:
+    """``frame`` cut at ``cuts`` and sent piece by piece ``gap_s`` apart, on a fresh connection."""
     conn = _connect(p)
     if conn is None:
         return None
     try:
         bounds = [0, *cuts, len(frame)]
         pieces = [frame[a:b] for a, b in zip(bounds, bounds[1:]) if b > a]
-        reading = Reading((), True) if not conn.send_pieces(pieces, GAP_S, "diagnose") else _one(p, conn)
+        reading = Reading((), True) if not conn.send_pieces(pieces, gap_s, "diagnose") else _one(p, conn)
     finally:
         conn.close("diagnose")
     exp.exchanges.append(Exchange((frame,), (reading,)))
