@@ -153,12 +153,13 @@ def _round(good: float, bad: float) -> float:
 
 def unanswered(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None:
     """A valid request alone, a NONE behind it: the request unanswered while the NONE is answered."""
-    ex = p.exchange([frame, p.valid_request(0)], settle=False)
+    ex = p.exchange([frame, p.valid_request(0)], settle=True)  # a late answer to the request is read too
     if ex is None or not ex.reached:
         return None
     exp.exchanges.append(ex)
     first, after = ex.reading(0), ex.reading(1)
-    if first.answers or first.closed or not any(a.action == 0 for a in after.answers):
+    late = any(a.action == frame[5] for a in after.answers)  # answered after time_out: late (T1), not never
+    if first.answers or first.closed or late or not any(a.action == 0 for a in after.answers):
         return None
     return Isolated(("no-answer", frame[5]), T.no_answer(frame[5]), ("A1", "T1"), frame[5], (frame,), {})
 
