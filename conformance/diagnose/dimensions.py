@@ -26,7 +26,7 @@ from . import isolation_titles as T
 from .differences import REQUESTS, Isolated
 from .experiments import Prober
 from .hypotheses import Experiment, Mechanism
-from .probes import GAP_S, beside, in_pieces, latencies
+from .probes import GAP_S, beside, full_wait, in_pieces, latencies
 
 #: the CRC-16 algorithms tried first (the profile set), as titles name them
 CRC_TITLES = {"modbus": "CRC-16/MODBUS", "crc-16": "CRC-16/ARC", "crc-ccitt-false": "CRC-16/CCITT-FALSE",
@@ -153,6 +153,8 @@ def _round(good: float, bad: float) -> float:
 
 def unanswered(p: Prober, exp: Experiment, frame: bytes) -> Isolated | None:
     """A valid request alone, a NONE behind it: the request unanswered while the NONE is answered."""
+    if not full_wait(p, 2):
+        return None
     ex = p.exchange([frame, p.valid_request(0)], settle=True)  # a late answer to the request is read too
     if ex is None or not ex.reached:
         return None

@@ -39,6 +39,7 @@ from .experiments import Prober
 from .families import Found
 from .hypotheses import Exchange, Experiment, Mechanism, Status
 from .passing import standard, standards
+from .probes import full_wait
 from .reproduce import expect_of, reproduce
 from .shrink import split_frames
 from .titles import name
@@ -154,6 +155,8 @@ class Isolator:
     def _fails(self, exp: Experiment, frame: bytes) -> bool | None:
         """Whether the box's answer to ``frame`` alone, on a fresh connection, is outside its legal set."""
         expect = expect_of(frame, self.p)
+        if not full_wait(self.p):  # a silence cut short by the deadline would read as a failure
+            return None
         ex = self.p.exchange([frame], quiet=[expect.kind == "invalid"], settle=False)
         if ex is None or not ex.reached:
             return None
@@ -267,6 +270,8 @@ class Isolator:
 
     def _accepts(self, exp: Experiment, frame: bytes) -> bool | None:
         """Whether the box answers ``frame`` 0000 with its action (alone, on a fresh connection)."""
+        if not full_wait(self.p):
+            return None
         ex = self.p.exchange([frame], quiet=[expect_of(frame, self.p).kind == "invalid"], settle=False)
         if ex is None or not ex.reached:
             return None
@@ -303,6 +308,8 @@ class Isolator:
         mishandled one at a time but in one write: segmentation (R4)."""
 
         def broken_at(candidate: Sequence[bytes], together: bool = False) -> tuple[int | None, Exchange | None]:
+            if not full_wait(self.p, len(candidate)):
+                return None, None
             ex = self.p.exchange(list(candidate), quiet=[True] * (len(candidate) - 1) + [False], settle=False,
                                  together=together)
             if ex is None or not ex.reached:

@@ -10,11 +10,17 @@ from collections.abc import Sequence
 
 from ..harness.client import Answer, Closed, Malformed, Silence, TcpConnection
 from ..harness.target import Unreachable
-from .experiments import MIN_LEFT_S, Prober, heard
+from .experiments import MIN_LEFT_S, QUIET_S, Prober, heard
 from .hypotheses import Exchange, Experiment, Reading
 
 #: the gap between the pieces of a split frame (R3: pieces over time)
 GAP_S = 0.05
+
+
+def full_wait(p: Prober, frames: int = 1, gaps_s: float = 0.0) -> bool:
+    """Whether the deadline leaves room for ``frames`` frames (the last waited for a whole time_out, the others a
+    quiet wait) and ``gaps_s`` of pauses: a silence cut short by the deadline is no finding."""
+    return p.left() >= p.time_out_s + QUIET_S * (frames - 1) + gaps_s + MIN_LEFT_S
 
 
 def _connect(p: Prober) -> TcpConnection | None:
@@ -42,6 +48,8 @@ def _one(p: Prober, conn: TcpConnection, wait_s: float | None = None) -> Reading
 
 def in_pieces(p: Prober, exp: Experiment, frame: bytes, cuts: Sequence[int], gap_s: float = GAP_S) -> Reading | None:
     """``frame`` cut at ``cuts`` and sent piece by piece ``gap_s`` apart, on a fresh connection."""
+    if not full_wait(p, 1, gap_s * len(cuts)):
+        return None
     conn = _connect(p)
     if conn is None:
         return None
@@ -58,6 +66,8 @@ def in_pieces(p: Prober, exp: Experiment, frame: bytes, cuts: Sequence[int], gap
 def beside(p: Prober, exp: Experiment, first: Sequence[bytes], frame: bytes) -> tuple[Reading, Reading] | None:
     """``first`` on connection A (each answered), then ``frame`` on a second connection B while A is open, then
     ``frame`` on A: (B's reading, A's reading)."""
+    if not full_wait(p, 3):
+        return None
     a = _connect(p)
     if a is None:
         return None
