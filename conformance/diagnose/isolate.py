@@ -219,6 +219,8 @@ class Isolator:
         repro = (applied(passing, failing, offsets),)
         order = self.p.profile.byte_order
         clauses = _CLAUSES.get(where.field, ("R1",))
+        if expect_of(failing, self.p).kind == "invalid":  # a parse error answered 0000 breaks R1 (and A3) too
+            clauses = tuple(dict.fromkeys((*clauses, "R1", *(("A3",) if REQUESTS.get(action or 0, (0,))[0] else ()))))
         if where.field == "index":
             at = HEADER_LEN + (where.block - 1) * REQUESTS[passing[5]][0]
             title = T.index_unchecked(where.block, failing[at], passing[at], self.p.profile.first_index, action)
@@ -370,7 +372,9 @@ class Isolator:
                             {"prior": described})
         what = T.done_to(reading.answers[0].error or 0 if reading is not None and reading.answers else None,
                          reading is not None and reading.closed)
-        return Isolated(("after-prior", described, what), T.after_prior(described, what, action), ("A1",), action,
+        garbage = any(expect_of(f, self.p).kind == "invalid" for f in prior)  # after bytes that are no request: R6
+        return Isolated(("after-prior", described, what), T.after_prior(described, what, action),
+                        ("R6", "A1") if garbage else ("A1",), action,
                         frames, {"prior": described})
 
 
