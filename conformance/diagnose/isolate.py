@@ -39,7 +39,7 @@ from .experiments import Prober
 from .families import Found
 from .hypotheses import Exchange, Experiment, Mechanism, Status
 from .passing import standard, standards
-from .probes import full_wait
+from .probes import cut_short, full_wait
 from .reproduce import expect_of, reproduce
 from .shrink import split_frames
 from .titles import name
@@ -310,11 +310,11 @@ class Isolator:
         mishandled one at a time but in one write: segmentation (R4)."""
 
         def broken_at(candidate: Sequence[bytes], together: bool = False) -> tuple[int | None, Exchange | None]:
-            if not full_wait(self.p, len(candidate)):
+            if not full_wait(self.p):
                 return None, None
             ex = self.p.exchange(list(candidate), quiet=[True] * (len(candidate) - 1) + [False], settle=False,
                                  together=together)
-            if ex is None or not ex.reached:
+            if ex is None or not ex.reached or cut_short(self.p):
                 return None, None
             exp.exchanges.append(ex)
             if together:

@@ -15,12 +15,19 @@ from .hypotheses import Exchange, Experiment, Reading
 
 #: the gap between the pieces of a split frame (R3: pieces over time)
 GAP_S = 0.05
+#: an exchange that ended this close to the deadline may have had a wait cut short by it
+CUT_S = 0.05
 
 
 def full_wait(p: Prober, frames: int = 1, gaps_s: float = 0.0) -> bool:
     """Whether the deadline leaves room for ``frames`` frames (the last waited for a whole time_out, the others a
     quiet wait) and ``gaps_s`` of pauses: a silence cut short by the deadline is no finding."""
     return p.left() >= p.time_out_s + QUIET_S * (frames - 1) + gaps_s + MIN_LEFT_S
+
+
+def cut_short(p: Prober) -> bool:
+    """After an exchange: whether a wait may have been cut by the deadline (a cut wait ends at it)."""
+    return p.left() < CUT_S
 
 
 def _connect(p: Prober) -> TcpConnection | None:
