@@ -26,12 +26,13 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import deaths, families, match, titles
+from . import death_inputs, deaths, families, match, titles
+from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
 from .hypotheses import Expect, Experiment, Hypothesis, Mechanism, Status
+from .isolate import Isolator
 from .repro import repro_entry
-from .reproduce import reproduce
 
 #: the phase's bound in seconds (on top of the catalogue; inside the 120 s per box)
 BUDGET_S = 20.0
@@ -78,6 +79,7 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
     if prober is not None and probed and not still_dead:
         _run(prober, lab, probed, facts_by, cases, own)
     out = _assign(causes, facts_by, lab, own, dead)
+    death_inputs.name(out.causes, cases)  # a death named with the input it followed (issue 34)
     elapsed = round(time.monotonic() - start, 3)
     for cause in out.causes:
         if cause.diagnosis is not None:
@@ -91,6 +93,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     involved = set().union(*(facts_by[c.id].asked for c in probed))
     p.exchange([p.valid_request(int(Action.CYCLE_OFF))], settle=False)  # the catalogue may have left a cycle on (S3: idle first)
     alone = lab.add(families.answers(p, [*CORE, *(a for a in CYCLES if a in involved)])).alone
+    refine_refused(p, lab.mechanisms)  # a valid request refused: its block length read little-endian? (issue 34)
     if p.unreachable:
         return
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
@@ -103,14 +106,13 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
 
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
+        refine_cycle(p, lab.mechanisms)  # ... on the connection holding the cycle only? (issue 34)
     if unexplained():
         lab.add(families.per_connection(p))
-    by_id = {c.id: c for c in cases}
+    isolator = Isolator(p)  # the failure-inducing difference isolated; else the case sent again (issue 34)
     for cause in unexplained():
-        member = next((by_id[i] for i in cause.cases if i in by_id and by_id[i].sent_hex
-                       and "…" not in by_id[i].sent_hex and by_id[i].signature is not None), None)
-        if member is not None and p.left() > 1.0:
-            own[cause.id] = reproduce(p, member, cause.title)
+        if p.left() > 1.0:
+            own[cause.id] = isolator.diagnose(cause, cases)
 
 
 def _session_diagnosis(cause: RootCause) -> dict[str, Any]:

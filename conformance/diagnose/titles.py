@@ -17,7 +17,8 @@ from ..protocol import Action
 #: largest legal frame: 255 pose blocks (F5, B1)
 MAX_FRAME = 12 + 255 * 25 + 2
 _NAMES = {Action.NONE: "NONE", Action.CYCLE_ON: "CycleOn", Action.CYCLE_OFF: "CycleOff", Action.POSE: "pose",
-          Action.REGISTER_POSE: "register pose", Action.TOLERANCE: "tolerance"}
+          Action.REGISTER_POSE: "register pose", Action.TOLERANCE: "tolerance", Action.PROG_IDX: "ProgIdx",
+          Action.VISION_RESULT: "result request"}
 _BITS = {0x0F: 4, 0x1F: 5, 0x3F: 6, 0x7F: 7}
 
 
@@ -34,12 +35,13 @@ def name(action: int | None) -> str:
 def count_limit(n: int, per_action: int | None = None) -> str:
     if per_action is not None:
         return gettext("Refuses {action} requests of {n} or more blocks (other requests are accepted up to 255): "
-                       "B1/B2/B5 allow 1–255 — accept every count up to 255").format(action=name(per_action), n=n)
+                       "B1/B2/B5 allow a block count of 1–255 — accept every count up to 255").format(
+            action=name(per_action), n=n)
     if n == 128:
-        return gettext("Refuses every request of 128 or more blocks (count read as signed?): B1/B5 allow 1–255 — "
-                       "read the block count as an unsigned byte")
-    return gettext("Refuses every request of {n} or more blocks (a limit of {m}?): B1/B5 allow 1–255 — accept every "
-                   "count up to 255").format(n=n, m=n - 1)
+        return gettext("Refuses every request of 128 or more blocks (count read as signed?): B1/B5 allow a block "
+                       "count of 1–255 — read the block count as an unsigned byte")
+    return gettext("Refuses every request of {n} or more blocks (a limit of {m}?): B1/B5 allow a block count of "
+                   "1–255 — accept every count up to 255").format(n=n, m=n - 1)
 
 
 #: buffer sizes a firmware is likely to have: named when one lies between the largest accepted and smallest refused frame
@@ -86,8 +88,8 @@ def echo_all(value: int | None, actions: str) -> str:
 
 
 def missing(action: int) -> str:
-    return gettext("Never answers {action}, and goes on serving the connection: A1/T1 ask for one answer within "
-                   "time_out — answer every {action}").format(action=name(action))
+    return gettext("Gives no answer to {action} (none within time_out), and goes on serving the connection: A1/T1 "
+                   "ask for one answer within time_out — answer every {action}").format(action=name(action))
 
 
 def refuses(action: int, code: int | None) -> str:

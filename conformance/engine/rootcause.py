@@ -17,10 +17,10 @@ Sources, in this order:
    code whatever the action (A3/A4);
 3. acceptance that changes at a block position (:mod:`.patterns`, B3): the position named;
 4. verdict *signatures* (what the defect looked like, set by the judging routine):
-   every group of at least :data:`MIN_GROUP` non-PASS cases with the same signature.
+   every group of at least :data:`MIN_GROUP` non-PASS cases with the same signature;
+5. every FAIL still unexplained (:mod:`.orphans`): no FAIL stands without a root cause.
 
 A root cause's level is that of what it explains: MUST when it explains a FAIL, else SHOULD.
-A FAIL no root cause explains stands on its own (its own verdict names its clause).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from typing import Any
 from ..i18n import gettext  # titles in the language of the run (the .format placeholders are named)
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import CaseResult, Level, RootCause, Verdict
+from .orphans import orphan_causes
 from .patterns import Claim, block_position_cause, evidence_of, field_causes
 
 #: A signature shared by at least this many non-PASS cases is reported as a root cause.
@@ -94,6 +95,8 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
     for signature, members in groups.items():
         if len(members) >= MIN_GROUP and signature.groups:
             claim(_from_signature(signature, members), members)
+    for cause, members in orphan_causes([c for c in cases if id(c) not in taken], _from_signature):
+        claim(cause, members)  # no FAIL without a root cause (issue 34)
     found = [(_levelled(cause, members), members) for cause, members in found]
     # a broken MUST first; at a level, what every answer shows, then the most cases; on a tie, a defect the
     # catalogue's cases name before what fuzzing found (a fuzz group names only the oracle's clause)

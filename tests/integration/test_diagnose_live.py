@@ -125,7 +125,9 @@ def test_a_defect_that_shows_only_when_frames_arrive_together_is_replayed_in_one
         done = diagnose([cause], [member], SessionFacts(), Target("127.0.0.1", box.port), profile, 1.5)
     first = done.causes[0]
     assert first.confirmed is True and first.diagnosis is not None, first.diagnosis
-    assert first.diagnosis["repro"]["one_write"] is True and first.title == cause.title
+    assert first.diagnosis["repro"]["one_write"] is True
+    # isolation names the difference: one write vs one frame at a time (issue 34), not the catalogue's silence
+    assert first.title.startswith("Answers only 1 of 3 requests when several frames arrive in one TCP segment")
     [path] = repro.write_repros(tmp_path, done.causes[:1], profile)
     with serving(choices) as box:
         assert repro.judge(path, Target("127.0.0.1", box.port), profile, 1.5).status == "still present"
@@ -152,3 +154,43 @@ def test_a_death_is_confirmed_while_the_box_stays_silent_and_not_when_it_answers
         done = diagnose([RootCause("RC1", ("A4", "T1"), "never answers NONE", "e", [], kind="unresponsive")], [],
                         SessionFacts(unresponsive="silent"), Target("127.0.0.1", box.port), profile, 1.0, budget_s=5)
     assert done.causes[0].confirmed is True and done.exchanges == 1
+
+
+def _wrong_index_cause(profile: Profile) -> tuple[RootCause, CaseResult]:
+    from conformance.protocol import PoseBlock, codec_for, request
+    first = profile.first_index
+    frame = codec_for(profile).encode(request(Action.POSE, [PoseBlock(first, (1.0,) * 6), PoseBlock(first + 2, (2.0,) * 6)]))
+    member = CaseResult("B3-02[gap-pose]", "B3-02", ("B3", "A3"), Level.MUST, Verdict.FAIL, "0000 to a gap",
+                        sent_hex=frame.hex(" "))
+    member.signature = Signature(Sig.CODE, "POSE", value="0000", reply=Reply(Action.POSE, Action.POSE, 0, 0x10))
+    cause = RootCause("RC1", ("A3",), "The box answers POSE with error 0x0000 where the cases expect another code",
+                      "e", [member.id], kind="wrong-code")
+    return cause, member
+
+
+def test_isolation_names_the_field_a_box_does_not_check() -> None:
+    """A box answering 0000 to malformed poses: the failing request (indexes 00, 02) against the nearest valid one
+    (00, 01) isolates the index of the 2nd block, and the title says so (issue 34), not "answers POSE with 0000"."""
+    choices = random_choices(9, fixed=FIXED | FAST).with_defect("zero-to-malformed")
+    profile = Profile().replace(first_index=int(choices.first_index), time_out_ms=1500)
+    cause, member = _wrong_index_cause(profile)
+    with serving(choices) as box:
+        done = diagnose([cause], [member], SessionFacts(), Target("127.0.0.1", box.port), profile, 1.5)
+    first = done.causes[0]
+    assert first.confirmed is True and first.kind == "isolated-index", first.diagnosis
+    assert first.title.startswith("Does not check block indexes: answers 0000 to pose (23) with index "
+                                  f"{profile.first_index + 2:02X} at the 2nd block"), first.title
+    assert first.diagnosis is not None and first.diagnosis["repro"]["frames"]
+
+
+def test_on_a_box_that_checks_it_isolation_fails_and_the_report_says_what_was_tried() -> None:
+    choices = random_choices(9, fixed=FIXED | FAST)
+    profile = Profile().replace(first_index=int(choices.first_index), time_out_ms=1500)
+    cause, member = _wrong_index_cause(profile)
+    with serving(choices) as box:
+        done = diagnose([cause], [member], SessionFacts(), Target("127.0.0.1", box.port), profile, 1.5)
+    first = done.causes[0]
+    assert first.confirmed is False and first.title.startswith("unconfirmed: The box answers POSE with error 0x0000")
+    assert first.diagnosis is not None
+    [tried] = [e for e in first.diagnosis["experiments"] if e["name"] == "isolate"]
+    assert "answered right alone on a fresh connection" in tried["finding"] and tried["exchanges"]

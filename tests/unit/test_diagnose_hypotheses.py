@@ -200,7 +200,7 @@ def test_the_more_specific_mechanism_wins() -> None:
 @pytest.mark.parametrize("n, text", [(128, "count read as signed?"), (101, "of 101 or more blocks (a limit of 100?)")])
 def test_a_count_limit_title_names_the_threshold_clause_and_fix(n: int, text: str) -> None:
     title = titles.count_limit(n)
-    assert text in title and "B1/B5 allow 1–255" in title and "—" in title
+    assert text in title and "B1/B5 allow a block count of 1–255" in title and "—" in title
 
 
 def test_an_index_title_uses_a_right_ordinal_and_guesses_the_counter() -> None:

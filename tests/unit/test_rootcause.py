@@ -118,10 +118,11 @@ def verdict_of(name: str, cases: list[CaseResult], causes: list[RootCause], tmp_
 
 
 # -- no root cause -----------------------------------------------------------------------------------
-def test_a_conforming_run_and_findings_that_share_nothing_have_no_root_cause() -> None:
+def test_a_conforming_run_has_no_root_cause_and_findings_that_share_nothing_each_get_one() -> None:
     clean = [passed("A4-01", "A4"), passed("S4-01", "S4 T1", max_open=2), passed("B3-01", "B3"),
              raised("E2-01", "E2 E1", CaseVerdict(Verdict.SKIP, "extension E not implemented"))]
     assert find_root_causes(clean, SessionFacts()) == [] and find_root_causes([]) == []
+    assert all(c.root_cause is None for c in clean)
     cases = [
         judged("S3-01", "S3", reply(POSE, 0x0001), ok(POSE, "S3: poses before CycleOn are answered 0000")),
         raised("R4-01", "R4 A1", fail(Level.MUST, "R4: each frame of a segment is answered", "ten answers", "one")),
@@ -130,8 +131,14 @@ def test_a_conforming_run_and_findings_that_share_nothing_have_no_root_cause() -
         unreachable("R3-01[none]", "R2-02"), unreachable("R3-01[pose]", "R2-02"),
     ]
     assert {str(c.signature) for c in cases[1:3]} == {"case:R4-01", "case:S5-02"}  # a case's own finding
-    assert find_root_causes(cases, SessionFacts()) == []
-    assert all(c.root_cause is None for c in clean + cases)
+    causes = find_root_causes(cases, SessionFacts())
+    # no orphan FAIL (issue 34): each FAIL that shares nothing is a root cause of its own, of its clause
+    assert sorted((c.clauses[0], tuple(c.cases)) for c in causes) == [
+        ("R4", ("R4-01",)), ("S3", ("S3-01",)), ("S5", ("S5-02",))]
+    assert next(c for c in causes if c.cases == ["R4-01"]).title.startswith("R4-01: R4: each frame of a segment")
+    assert all(c.level is Level.MUST for c in causes)
+    assert [c.root_cause for c in cases[3:]] == [None, None]  # INCONCLUSIVE, and no death to blame
+    marked(cases, causes)
 
 
 # -- malformed answers: one defect behind dozens of FAILs ----------------------------------------------
@@ -200,8 +207,9 @@ def test_a_fuzz_finding_joins_only_an_unambiguous_malformation(tmp_path: Path) -
     two = [type_01("F3-01", 0x01), type_01("A4-01", 0x01), type_01("A2-01[none]", 0x00),
            type_01("T1-00", 0x00), fuzz("FUZZ-01")]
     causes = find_root_causes(two)
-    assert [c.cases for c in causes] == [["F3-01", "A4-01"], ["A2-01[none]", "T1-00"]]
-    assert two[-1].root_cause is None  # which of the two it found is not known
+    assert [c.cases for c in causes[:2]] == [["F3-01", "A4-01"], ["A2-01[none]", "T1-00"]]
+    # which of the two it found is not known: the finding is a root cause of its own (no orphan FAIL)
+    assert [(c.kind, c.cases) for c in causes[2:]] == [("fuzz", ["FUZZ-01"])]
     marked(two, causes)
 
 
@@ -291,12 +299,14 @@ def test_a_box_serving_one_connection_at_a_time_is_blamed_on_s4(tmp_path: Path) 
     [rc] = causes
     assert (rc.clauses, rc.level, rc.kind, rc.evidence) == (("S4",), Level.MUST, "one-connection", ONE_AT_A_TIME)
     assert rc.cases == ["S4-01", "S4-02", "R5-01", "SEQ-S4", "FUZZ-02"]
-    assert cases[-1].root_cause is None and cases[1].root_cause is None
+    assert cases[-1].root_cause is None and cases[1].root_cause is None  # a NON-STRICT of its own; a PASS
     marked(cases, causes)
     assert verdict_of("one-at-a-time", cases, causes, tmp_path) == "ok"
     # without the preflight's fact the same silences are only silences (SEQ-S4 waited for a POSE answer)
-    causes = find_root_causes(one_at_a_time_run(), SessionFacts())
-    assert [(c.kind, c.clauses, c.cases) for c in causes] == [("unanswered", ("T1", "S4"), ["S4-01", "S4-02", "R5-01"])]
+    cases = one_at_a_time_run()
+    causes = find_root_causes(cases, SessionFacts())
+    assert [(c.kind, c.clauses, c.cases) for c in causes][0] == ("unanswered", ("T1", "S4"), ["S4-01", "S4-02", "R5-01"])
+    assert all(c.root_cause for c in cases if c.verdict is Verdict.FAIL)  # SEQ-S4 and FUZZ-02: causes of their own
 
 
 def test_a_second_connection_refused_is_explained_by_s4_too() -> None:
@@ -430,7 +440,8 @@ def test_fuzz_findings_that_repeat_are_one_root_cause() -> None:
         return raised(case_id, "R1 A5", fail(level, words, "no failure", "fuzz failure", signature=signature))
 
     alone = [finding("FUZZ-01", Level.MUST, "R1")]
-    assert find_root_causes(alone) == [] and alone[0].root_cause is None
+    [own] = find_root_causes(alone)  # alone, it is still a root cause: no orphan FAIL
+    assert (own.kind, own.cases, alone[0].root_cause) == ("fuzz", ["FUZZ-01"], "RC1")
     both = [finding("FUZZ-01", Level.MUST, "R1"), finding("FUZZ-02", Level.MUST, "R1")]
     causes = find_root_causes(both)
     assert [(c.kind, c.title, c.clauses, c.level, c.cases) for c in causes] == [
