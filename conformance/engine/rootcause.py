@@ -33,6 +33,7 @@ from ..i18n import gettext  # titles in the language of the run (the .format pla
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import CaseResult, Level, RootCause, Verdict
 from .patterns import Claim, block_position_cause, evidence_of, field_causes
+from .transport_causes import transport_causes
 
 #: A signature shared by at least this many non-PASS cases is reported as a root cause.
 MIN_GROUP = 2
@@ -81,6 +82,8 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
             found.append((cause, members))
 
     for cause, members in _session_causes(cases, facts):
+        claim(cause, members)
+    for cause, members in transport_causes([c for c in cases if id(c) not in taken]):  # F6, F7, R7
         claim(cause, members)
     for cause, members in field_causes([c for c in cases if id(c) not in taken]):
         claim(cause, members)

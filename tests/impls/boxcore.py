@@ -24,6 +24,7 @@ from collections.abc import Callable
 from .framers import Framer
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
 from .systematic import ConnState
+from .udp_defects import reply_port
 
 POLL = 0.2
 WRITE_BOUND = 10.0  # seconds a peer may leave an answer unread before the box gives up on it
@@ -37,6 +38,8 @@ DROP_EVERY = 7  # drops-frames: every 7th answer on a connection is never writte
 QUIET_AFTER = 150  # quiet-after-n: after this many answers (the whole box) it answers nothing more
 SHORT_SNDBUF = 4096  # short-send-drops: its small send buffer (the kernel doubles it)
 GROW_S = 0.002  # latency-grows: each answer on a connection this much later than the one before
+STALL_AT = 1500  # stall-once: the box-wide frame (requests and bad bytes alike) at which it stalls
+STALL_S = 6.0  # ... and for how long every connection goes unanswered
 
 
 class ThreadBox:
@@ -68,6 +71,8 @@ class ThreadBox:
             self.udp_port = self.udp.getsockname()[1]
         self._main: list[threading.Thread] = []
         self.answers = 0  # answers written (quiet-after-n)
+        self.events = 0  # framer events taken, box-wide (stall-once)
+        self.stall_until = 0.0  # stall-once: no answer is written before this (time.monotonic())
         self._flood = os.urandom(1 << 16) if choices.defect == "flood-random" else FLOOD_HEADER * 4096
 
     # -- life cycle ---------------------------------------------------------------------------
@@ -203,6 +208,7 @@ class ThreadBox:
             framer.feed(data)
             answered = 0
             for event in framer.events():
+                self._count_event(arrived)
                 reply = decide(choices, event, cycle, remembers)
                 if reply.hang:
                     hung = True
@@ -221,7 +227,15 @@ class ThreadBox:
                 with self.lock:
                     self.answers += 1
                 grow = GROW_S * mangle.count if choices.defect == "latency-grows" else 0.0
-                answers.put((arrived + latency + grow + reply.delay, Reply(data, reply.delay)))
+                due = max(arrived + latency + grow + reply.delay, self.stall_until)
+                answers.put((due, Reply(data, reply.delay)))
+
+    def _count_event(self, arrived: float) -> None:
+        """stall-once: at the box's STALL_AT-th event its whole loop blocks for STALL_S (every connection)."""
+        with self.lock:
+            self.events += 1
+            if self.choices.defect == "stall-once" and self.events == STALL_AT:
+                self.stall_until = arrived + STALL_S
 
     def _write_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         """Answers in order, each at its due time; a close reply shuts the connection (the reader ends)."""
@@ -293,10 +307,12 @@ class ThreadBox:
                 continue
             except OSError:
                 return
-            out = decide_datagram(self.choices, data, self.cycle)
-            if out is not None:
+            self._count_event(time.monotonic())
+            if self.wait(max(0.0, self.stall_until - time.monotonic())):
+                return
+            for out in decide_datagram(self.choices, data, self.cycle):
                 with contextlib.suppress(OSError):
-                    udp.sendto(out, peer)
+                    udp.sendto(out, (peer[0], reply_port(self.choices.defect, peer[1])))
 
 
 class _Mangle:

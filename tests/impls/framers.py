@@ -56,7 +56,7 @@ class Framing:
     """One framer's choice per kind of bad field (the knobs framing_*)."""
 
     garbage: str = "scan"  # scan | close
-    version: str = "resume+1"  # resume+k | close
+    version: str = "resume+1"  # resume+k | close | frame (no knob: rejected once its announced frame is read)
     length: str = "resume+1"  # resume+k | close (more than 255 pose blocks announced)
     transfer: str = "trust"  # trust | resume+k | close
     action: str = "trust"  # trust | resume+k | close (an unknown action)
@@ -121,6 +121,13 @@ class Framer:
                 yield Rejected(h)
                 yield from self._close()
                 return
+            if choice == "frame":  # rejected, but its announced frame is read first (a short one takes what follows)
+                if len(self.buf) < h.frame_len:
+                    return
+                yield Rejected(h)
+                del self.buf[: h.frame_len]
+                yield Garbage(h.frame_len)
+                continue
             if choice != "trust":
                 skip = int(choice.removeprefix("resume+"))
                 yield Rejected(h)
