@@ -38,7 +38,7 @@ DROP_EVERY = 7  # drops-frames: every 7th answer on a connection is never writte
 QUIET_AFTER = 150  # quiet-after-n: after this many answers (the whole box) it answers nothing more
 SHORT_SNDBUF = 4096  # short-send-drops: its small send buffer (the kernel doubles it)
 GROW_S = 0.002  # latency-grows: each answer on a connection this much later than the one before
-STALL_AT = 1500  # stall-once: the box-wide frame (requests and bad bytes alike) at which it stalls
+STALL_AT = 300  # stall-once: the box-wide framer event (requests and bad bytes alike) at which it stalls
 STALL_S = 6.0  # ... and for how long every connection goes unanswered
 
 
