@@ -5,7 +5,7 @@ or a valid request left unanswered (T1). Two other stories fit the same silence,
 :func:`recheck` tells them apart before the verdict is kept:
 
 * **the whole box stalled** (T1, S4): a fresh connection opened right after the silence is not
-  answered promptly either, and both come back together. The stall (when it began: after which
+  answered promptly either, and both come back together (the probe in flight answered late too). The stall (when it began: after which
   bytes and how many writes of the campaign; how long it lasted; which connections it held) is
   recorded (:func:`take`) and reported once as its own root cause, never charged to the bytes
   in flight: their R6/T1 findings are dropped;
@@ -91,10 +91,9 @@ def recheck(executor: Executor, conn: FuzzConnection, result: Result, probe: byt
         return  # a death (or a close): the liveness check judges it (R2)
     held_s = fresh.latency_s
     late = [o for o in conn.drain(min(STALL_MIN_S, time_out)) if isinstance(o, (Answer, Malformed))]
-    if held_s >= min(STALL_MIN_S, time_out / 4):  # the fresh connection waited too: the whole box was silent
-        who = ("the connection in flight (its probe answered only after the silence)" if late else
-               "the connection in flight") + f" and a fresh connection opened during the silence (answered after " \
-              f"{held_s * 1000:.0f} ms)"
+    if late and held_s >= min(STALL_MIN_S, time_out / 4):  # both came back together: the whole box was silent
+        who = ("the connection in flight (its probe answered only after the silence) and a fresh connection opened "
+               f"during the silence (answered after {held_s * 1000:.0f} ms)")
         _record((executor.target.host, executor.target.port), BoxStall(
             result.case.wire[:16].hex(" ") + (" …" if len(result.case.wire) > 16 else ""),
             executor.stats.cases, _writes(executor), fresh_at + held_s - sent_at, who))

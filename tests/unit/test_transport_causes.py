@@ -74,3 +74,16 @@ def test_titles_name_the_mechanism_and_the_flag() -> None:
     assert "bytes 0..11 only" in title
     title = udp_titles.of("tcp-check-field", {"check": "a3 f5", "matches": [("modbus", "big")]})
     assert "a3 f5" in title and "F6" in title
+
+
+def test_a_box_stall_is_its_own_root_cause_and_comes_first() -> None:
+    from conformance.engine.box_events import stall_causes
+
+    stall = {"after": "fe fe 00 00 …", "example": 121, "writes": 138, "lasted_s": 6.02,
+             "affected": "the connection in flight and a fresh connection"}
+    fuzz = result("FUZZ-01", box_stall=[stall])
+    causes = find_root_causes([fuzz, result("F7-01")])
+    assert causes[0].kind == "box-stall" and causes[0].clauses == ("T1", "S4") and causes[0].cases == ["FUZZ-01"]
+    assert "stalled for about 6.0 s" in causes[0].title and "write 138" in causes[0].title
+    assert fuzz.root_cause == causes[0].id
+    assert stall_causes([result("FUZZ-01", Verdict.PASS, box_stall=[stall])]) == []
