@@ -36,7 +36,7 @@ def of(kind: str, d: dict[str, Any]) -> str:
         return gettext("{what} UDP frames with {crc}, not {profile}: rerun with `--crc {name}` to test the "
                        "rest (F7)").format(what=what, crc=crc_name(d["crc"]), profile=crc_name(d["profile"]),
                                            name=d["crc"]) + (
-            gettext(" `--crc-byte-order {order}`").format(order=d["order"]) if d.get("order_differs") else "")
+            f" `--crc-byte-order {d['order']}`" if d.get("order_differs") else "")  # a flag: the same in every language
     if kind == "udp-crc-byte-order":
         return gettext("Writes the UDP CRC ({crc}) {order}-endian: rerun with `--crc-byte-order {order}` to test the "
                        "rest (F7)").format(crc=crc_name(d["crc"]), order=d["order"])
