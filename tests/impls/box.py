@@ -76,9 +76,9 @@ _CONFORMING = [
     Variant("nan-1001", _preset("trust", extension="absent"),
             "B4: NaN/inf answered 1001/1002; no extension E (26/27 are unknown actions: silence)"),
     Variant("completes-short", replace(_preset("fine"), short_frames=True),
-            "R6(b): a header with another version is rejected once the frame it announces is read: 12 bytes "
-            "announcing no blocks take the next request's first two bytes as their check field (that request is "
-            "lost; the next one is answered)"),
+            "R6(b): a header with another version that announces no blocks is rejected once its check field is "
+            "read: 12 bytes take the next request's first two bytes as their check field (that request is lost; "
+            "the next one is answered)"),
     Variant("late-inside-timeout", replace(_preset("trust"), late=0.02),
             "T1: every answer a fiftieth of time_out late (100 ms at the default), inside it"),
 ]

@@ -119,8 +119,8 @@ class Choices:
     defect: str | None = None
     time_out: float = 5.0  # the time_out the box assumes (cycle_on_latency is a fraction of it)
     late: float = 0.0  # every answer this fraction of time_out late as well (no knob: legal below 1)
-    #: no knob: a header with another version is rejected only once the frame it announces is read (12 bytes
-    #: with no blocks take the next two bytes as their check field; R6 b resumes after it)
+    #: no knob: a header with another version that announces no blocks is rejected only once its check field is
+    #: read (12 bytes take the next two bytes as their check field; R6 b resumes after them)
     short_frames: bool = False
 
     def __post_init__(self) -> None:
