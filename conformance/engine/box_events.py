@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from ..i18n import gettext
+from ..model.signature import Sig
 from ..model.verdicts import CaseResult, RootCause, Verdict
 from .patterns import Claim
 
@@ -19,11 +20,24 @@ from .patterns import Claim
 BOX_STALL = "box-stall"
 
 
+def _stalled(case: CaseResult) -> bool:
+    sig = case.signature
+    return bool(case.details.get("box_stall")) or (sig is not None and sig.kind is Sig.CASE and sig.subject == "box-stall")
+
+
 def stall_causes(cases: Sequence[CaseResult]) -> list[Claim]:
+    """A root cause per case that found the box stalled (the fuzz campaign's, with its numbers; a catalogue case's
+    from the session's second fresh connection, :mod:`conformance.runtime.box_stall`)."""
     out: list[Claim] = []
     for case in cases:
+        if case.verdict is not Verdict.FAIL or not _stalled(case):
+            continue
         stalls = case.details.get("box_stall") or []
-        if not stalls or case.verdict is not Verdict.FAIL:
+        if not stalls:
+            title = gettext("The whole box stalled during case {case}, once, and came back: {what}. T1/S4 ask for every "
+                            "connection answered within time_out — do not block the box's loop").format(
+                case=case.id, what=case.observed)
+            out.append((RootCause("", ("T1", "S4"), title, f"{case.id}: {case.observed}"[:300], kind=BOX_STALL), [case]))
             continue
         first = stalls[0]
         title = gettext("The whole box stalled for about {s} s, once: it began after {case}'s write {writes} ({after}); "

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..runtime.box_stall import STALL
 from ..suite import CaseContext, Level, Requirement, Signature
 from . import second_look
 from .campaign import Campaign, CampaignConfig, CampaignResult
@@ -42,7 +43,7 @@ def judge_campaign(isight: CaseContext, result: CampaignResult) -> None:
         isight.details["box_stall"] = [s.to_dict() for s in stalls]
     if stalls and not failures:
         raise isight.broken("failure", expected="every connection answered within time_out", observed=stalls[0].describe(),
-                            sent=b"", signature=Signature.fuzz("T1"), finding=f"T1/S4: {stalls[0].describe()}",
+                            sent=b"", signature=STALL, finding=f"T1/S4: {stalls[0].describe()}",
                             clauses=("T1", "S4"))
     if failures:
         first = failures[0]

@@ -217,7 +217,8 @@ class Executor:
         result = self.exchange(conn, case, note)
         result.fresh = fresh
         if isinstance(result.end, Silence) and result.probe is not None:  # a stall, another framing, or a hang?
-            second_look.recheck(self, conn, result, self._probes[Transport.TCP][result.probe], sent_at)
+            where = second_look.Where(self.transcript, self.target, self.profile, self.time_out_s, self.stats.cases)
+            second_look.recheck(where, conn, result, self._probes[Transport.TCP][result.probe], sent_at)
         if result.conn < 0:  # the box closed or hung: a new connection for the next case
             self._conn = None
             result.conn = conn.conn_id

@@ -24,14 +24,33 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import Protocol
 
-from ..harness.client import Answer, Closed, Malformed, Silence
+from ..harness.client import Answer, Closed, Malformed, Silence, TcpConnection
 from ..harness.liveness import check_alive, responsive
-from ..harness.transcript import Kind
+from ..harness.target import Target
+from ..harness.transcript import Kind, Transcript
+from ..protocol import Profile
+from .oracle import Judgement
+from .strategies import FuzzCase
 
-if TYPE_CHECKING:
-    from .executor import Executor, FuzzConnection, Result
+
+class Result(Protocol):
+    """What :func:`recheck` reads of the executor's result of one case."""
+
+    case: FuzzCase
+    judgement: Judgement
+
+
+@dataclass(frozen=True)
+class Where:
+    """The box and the campaign so far: whom a fresh connection asks, and the example's number."""
+
+    transcript: Transcript
+    target: Target
+    profile: Profile
+    time_out_s: float
+    example: int
 
 #: a fresh connection answered this late (seconds; at most a quarter of time_out) was held by the stall too
 STALL_MIN_S = 0.5
@@ -72,19 +91,19 @@ def _record(target: tuple[str, int], stall: BoxStall) -> None:
         _STALLS.setdefault(target, []).append(stall)
 
 
-def _writes(executor: Executor) -> int:
-    return sum(1 for e in executor.transcript.events if e.kind == Kind.SEND)
+def _writes(transcript: Transcript) -> int:
+    return sum(1 for e in transcript.events if e.kind == Kind.SEND)
 
 
-def recheck(executor: Executor, conn: FuzzConnection, result: Result, probe: bytes, sent_at: float) -> None:
+def recheck(where: Where, conn: TcpConnection, result: Result, probe: bytes, sent_at: float) -> None:
     """The probe behind ``result``'s bytes went unanswered (``result.end`` is a Silence): a fresh connection, then
     (when that is answered promptly) a second probe on ``conn``; ``result``'s findings kept, dropped or annotated."""
     keys = [f for f in result.judgement.findings if f.key in SILENCE_KEYS]
     if not keys:
         return
-    time_out = executor.time_out_s
+    time_out = where.time_out_s
     fresh_at = time.monotonic()
-    fresh = check_alive(executor.transcript, executor.target, executor.profile, time_out_s=time_out,
+    fresh = check_alive(where.transcript, where.target, where.profile, time_out_s=time_out,
                         label="fuzz: fresh connection during the silence", note="a NONE on a fresh connection: is "
                         "the whole box silent?")
     if isinstance(fresh, Silence) or not responsive(fresh):
@@ -94,9 +113,9 @@ def recheck(executor: Executor, conn: FuzzConnection, result: Result, probe: byt
     if late and held_s >= min(STALL_MIN_S, time_out / 4):  # both came back together: the whole box was silent
         who = ("the connection in flight (its probe answered only after the silence) and a fresh connection opened "
                f"during the silence (answered after {held_s * 1000:.0f} ms)")
-        _record((executor.target.host, executor.target.port), BoxStall(
+        _record((where.target.host, where.target.port), BoxStall(
             result.case.wire[:16].hex(" ") + (" …" if len(result.case.wire) > 16 else ""),
-            executor.stats.cases, _writes(executor), fresh_at + held_s - sent_at, who))
+            where.example, _writes(where.transcript), fresh_at + held_s - sent_at, who))
         _drop(result)
         return
     if late:  # the probe's own answer came late while a fresh connection was answered at once: not a stall

@@ -45,6 +45,7 @@ from ..model.case_verdicts import CaseVerdict, Inconclusive
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import Verdict
 from ..protocol import Action, Profile
+from . import box_stall
 from .settings import SuiteSettings
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
@@ -84,6 +85,7 @@ class SessionState:
     embedded: Any = None  # the bundled box, when the session started it
     opened: int = 0
     closed: int = 0
+    writes: int = 0  # writes made to the box by the cases so far (a box stall names the one it began after)
     #: action name -> ids of the cases that found it unanswered within time_out
     late: dict[str, list[str]] = field(default_factory=dict)
     #: actions the box has answered within the wait at least once this session
@@ -278,6 +280,9 @@ class SessionState:
         self._count(transcript)
         if responsive(alive):
             return error
+        stall = box_stall.look_again(transcript, self.target(), self.profile, case_id, last_sent, self.writes)
+        if stall is not None:  # the box came back: it stalled as a whole (T1, S4), the case's input not blamed
+            return box_stall.verdict(stall, last_sent)
         kind, detail = self._diagnose(alive, transcript)
         self.deaths.append(Death(case_id, kind, detail, self.opened, self.closed))
         self._mark_dead(case_id, f"a fresh connection {alive.describe()}")
@@ -320,6 +325,7 @@ class SessionState:
         ends = {e.conn for e in transcript.events if e.kind in (Kind.CLOSE, Kind.ABORT)}
         self.opened += len(tcp - failed)
         self.closed += len((tcp - failed) & ends)
+        self.writes += sum(1 for e in transcript.events if e.kind == Kind.SEND)
 
     # -- extension E ----------------------------------------------------------------------
     def detect_extension(self, transcript: Transcript) -> bool:
