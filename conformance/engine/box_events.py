@@ -34,9 +34,8 @@ def stall_causes(cases: Sequence[CaseResult]) -> list[Claim]:
             continue
         stalls = case.details.get("box_stall") or []
         if not stalls:
-            title = gettext("The whole box stalled during case {case}, once, and came back: {what}. T1/S4 ask for every "
-                            "connection answered within time_out — do not block the box's loop").format(
-                case=case.id, what=case.observed)
+            title = gettext("{what}. T1/S4 ask for every connection answered within time_out — do not block the box's "
+                            "loop").format(what=case.observed)
             out.append((RootCause("", ("T1", "S4"), title, f"{case.id}: {case.observed}"[:300], kind=BOX_STALL), [case]))
             continue
         first = stalls[0]

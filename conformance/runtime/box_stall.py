@@ -39,7 +39,7 @@ class Stall:
     affected: str
 
     def describe(self) -> str:
-        return (f"the whole box stalled for at most {self.lasted_s:.1f} s, once: it began during case {self.case_id} "
+        return (f"The whole box stalled for at most {self.lasted_s:.1f} s, once: it began during case {self.case_id} "
                 f"(after {self.after}; the session's write {self.writes}); {self.affected}")
 
     def to_dict(self) -> dict[str, object]:
@@ -58,6 +58,7 @@ def look_again(transcript: Transcript, target: Target, profile: Profile, case_id
                writes: int) -> Stall | None:
     """Another fresh connection, given COME_BACK time_outs: answered, the stall it was; None: still silent."""
     time_out = profile.time_out_ms / 1000
+    began = _began(transcript)  # before the fresh connection's own answer is recorded
     outcome = check_alive(transcript, target, profile, time_out_s=COME_BACK * time_out, label="stall or death?",
                           note="a NONE on another fresh connection: does the box come back (a stall) or not (a death)?")
     if not responsive(outcome) or not isinstance(outcome, (Answer, Malformed)):
@@ -65,7 +66,7 @@ def look_again(transcript: Transcript, target: Target, profile: Profile, case_id
     after = last_sent[:16].hex(" ") + (" …" if len(last_sent) > 16 else "") if last_sent else "its first bytes"
     held = (f"the case's connection and a fresh connection (unanswered for {time_out:.1f} s) were held; another "
             f"fresh connection was answered after {outcome.latency_s * 1000:.0f} ms")
-    return Stall(case_id, after, writes, time.time() - _began(transcript), held)
+    return Stall(case_id, after, writes, time.time() - began, held)
 
 
 def verdict(stall: Stall, last_sent: bytes) -> CaseVerdict:

@@ -87,3 +87,16 @@ def test_a_box_stall_is_its_own_root_cause_and_comes_first() -> None:
     assert "stalled for about 6.0 s" in causes[0].title and "write 138" in causes[0].title
     assert fuzz.root_cause == causes[0].id
     assert stall_causes([result("FUZZ-01", Verdict.PASS, box_stall=[stall])]) == []
+
+
+def test_a_catalogue_case_that_met_a_stall_is_explained_by_it_not_by_its_input() -> None:
+    from conformance.runtime.box_stall import STALL, Stall, verdict
+
+    stall = Stall("B5-01", "fe fe 00 01", 197, 5.9, "the case's connection and a fresh connection were held")
+    raised = verdict(stall, b"\xfe\xfe")
+    case = result("B5-01")
+    case.signature, case.observed, case.judged = raised.signature, raised.observed, raised.judged
+    [cause] = find_root_causes([case])
+    assert raised.signature == STALL and cause.kind == "box-stall" and cause.clauses == ("T1", "S4")
+    assert cause.title.startswith("The whole box stalled for at most 5.9 s, once: it began during case B5-01")
+    assert "write 197" in cause.title and case.root_cause == cause.id
