@@ -70,13 +70,15 @@ class BoxStall:
     writes: int  # writes the campaign had made to the box by then
     lasted_s: float  # from the write of those bytes to the first answer after the silence (at most this)
     affected: str  # who was held: the connection in flight, and a fresh one
+    at_least: bool = False  # lasted_s is a lower bound (met by a liveness check: when it began is not known)
 
     def to_dict(self) -> dict[str, object]:
         return {"after": self.after, "example": self.example, "writes": self.writes,
                 "lasted_s": round(self.lasted_s, 2), "affected": self.affected}
 
     def describe(self) -> str:
-        return (f"the whole box stalled for about {self.lasted_s:.1f} s, once: it began after the campaign's write "
+        how = "at least" if self.at_least else "about"
+        return (f"the whole box stalled for {how} {self.lasted_s:.1f} s, once: it began after the campaign's write "
                 f"{self.writes} (example {self.example}: {self.after}); {self.affected}")
 
 
@@ -130,8 +132,21 @@ def recheck(where: Where, conn: TcpConnection, result: Result, probe: bytes, sen
                 "fresh connection was answered") if f.key == "end/hang" else f for f in result.judgement.findings]
 
 
+def stall_not_death(where: Where, restarted: bool, confirmed: bool, back: bool, last: bytes) -> bool:
+    """A liveness check met the silence first: the campaign's death search ended with the box back on its own
+    (no restart) and no case stopping it again. Then the whole box stalled: recorded (True), no death reported."""
+    if restarted or confirmed or not back:
+        return False
+    after = last[:16].hex(" ") + (" …" if len(last) > 16 else "") if last else "the campaign's start"
+    _record((where.target.host, where.target.port), BoxStall(
+        after, where.example, _writes(where.transcript), where.time_out_s,
+        "a fresh connection (the liveness check) went unanswered for time_out; the box then answered again "
+        "without a restart, and no case replayed stopped it again", at_least=True))
+    return True
+
+
 def _drop(result: Result, keys: tuple[str, ...] = SILENCE_KEYS) -> None:
     result.judgement.findings[:] = [f for f in result.judgement.findings if f.key not in keys]
 
 
-__all__ = ["BoxStall", "recheck", "take"]
+__all__ = ["BoxStall", "recheck", "stall_not_death", "take"]

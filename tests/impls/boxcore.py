@@ -38,7 +38,9 @@ DROP_EVERY = 7  # drops-frames: every 7th answer on a connection is never writte
 QUIET_AFTER = 150  # quiet-after-n: after this many answers (the whole box) it answers nothing more
 SHORT_SNDBUF = 4096  # short-send-drops: its small send buffer (the kernel doubles it)
 GROW_S = 0.002  # latency-grows: each answer on a connection this much later than the one before
-STALL_AT = 300  # stall-once: the box-wide framer event (requests and bad bytes alike) at which it stalls
+STALL_AT = 40  # stall-once: from the box-wide framer event (requests and bad bytes alike) it stalls ...
+STALL_ON_CONN = 10  # ... at the first event that is at least this one on its connection (a connection in use, not a
+#                     fresh one that asks once)
 STALL_S = 6.0  # ... and for how long every connection goes unanswered
 
 
@@ -73,6 +75,7 @@ class ThreadBox:
         self.answers = 0  # answers written (quiet-after-n)
         self.events = 0  # framer events taken, box-wide (stall-once)
         self.stall_until = 0.0  # stall-once: no answer is written before this (time.monotonic())
+        self.stalled = False
         self._flood = os.urandom(1 << 16) if choices.defect == "flood-random" else FLOOD_HEADER * 4096
 
     # -- life cycle ---------------------------------------------------------------------------
@@ -195,6 +198,7 @@ class ThreadBox:
         hung = choices.defect == "dead"
         remembers = ConnState()
         mangle = _Mangle(choices.defect)
+        taken = 0  # framer events on this connection (stall-once)
         while not self.stop_event.is_set():
             try:
                 data = conn.recv(65536)
@@ -208,7 +212,8 @@ class ThreadBox:
             framer.feed(data)
             answered = 0
             for event in framer.events():
-                self._count_event(arrived)
+                taken += 1
+                self._count_event(arrived, taken)
                 reply = decide(choices, event, cycle, remembers)
                 if reply.hang:
                     hung = True
@@ -230,11 +235,13 @@ class ThreadBox:
                 due = max(arrived + latency + grow + reply.delay, self.stall_until)
                 answers.put((due, Reply(data, reply.delay)))
 
-    def _count_event(self, arrived: float) -> None:
-        """stall-once: at the box's STALL_AT-th event its whole loop blocks for STALL_S (every connection)."""
+    def _count_event(self, arrived: float, on_conn: int = 0) -> None:
+        """stall-once: once, past the box's STALL_AT-th event, its whole loop blocks for STALL_S (every connection)."""
         with self.lock:
             self.events += 1
-            if self.choices.defect == "stall-once" and self.events == STALL_AT:
+            if (self.choices.defect == "stall-once" and not self.stalled and self.events >= STALL_AT
+                    and on_conn >= STALL_ON_CONN):
+                self.stalled = True
                 self.stall_until = arrived + STALL_S
 
     def _write_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:

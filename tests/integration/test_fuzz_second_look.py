@@ -58,6 +58,7 @@ def test_a_box_that_hangs_after_bad_bytes_is_still_non_strict_r6_with_both_probe
 
 def test_a_box_whose_whole_loop_stalls_is_a_stall_not_a_verdict_on_the_bytes(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(boxcore, "STALL_AT", 1)
+    monkeypatch.setattr(boxcore, "STALL_ON_CONN", 1)
     monkeypatch.setattr(boxcore, "STALL_S", 1.6)  # past the 1 s time_out, and a fresh connection held as well
     with serving("stall-once") as (box, ex):
         result = ex.run(S.case("t", "", SHORT, "12 bytes, version 0000"))
