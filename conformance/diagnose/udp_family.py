@@ -38,10 +38,11 @@ KINDS = (UDP, TCP_CHECK)
 #: mechanism kinds, the one that titles a root cause first
 ORDER = ("udp-answer-port", "udp-answer-source", "udp-silent", "udp-crc-algorithm", "udp-crc-byte-order",
          "udp-crc-unchecked", "udp-crc-coverage", "udp-several-frames", "udp-trailing", "udp-answer-frames",
-         "udp-answer-crc", "tcp-check-field")
+         "udp-answer-crc", "tcp-check-field", "tcp-crc-refused")
+TCP_KINDS = ("tcp-check-field", "tcp-crc-refused")
 _CLAUSES = {"udp-answer-port": ("F7", "A1"), "udp-answer-source": ("F7", "A1"), "udp-silent": ("F7", "A1"),
             "udp-crc-unchecked": ("R7", "F7"), "udp-several-frames": ("F7", "R7"), "udp-trailing": ("F7", "R7"),
-            "tcp-check-field": ("F6",)}
+            "tcp-check-field": ("F6",), "tcp-crc-refused": ("F6",)}
 #: tried first when the profile's CRC is not answered (then every other crcmod 16-bit algorithm)
 COMMON_CRCS = ("modbus", "crc-ccitt-false", "xmodem", "kermit", "x-25", "crc-16", "crc-16-usb", "crc-16-maxim")
 SCAN_WAIT_S = 0.1
@@ -232,6 +233,26 @@ def tcp_check(p: Prober, lab: Lab) -> None:
     check = raw[end:end + CHECK_LEN]
     if len(check) == CHECK_LEN and check != b"\0\0":
         lab.found("tcp-check-field", check=check.hex(" "), matches=crc_matches(raw[:end], check))
+    crc_refused(p, lab)
+
+
+def _pose_zero(p: Prober, data: bytes) -> bool | None:
+    """A pose then a NONE on a fresh connection: the pose answered 0000 (None: nothing heard)."""
+    ex = p.exchange([data, p.valid_request(int(Action.NONE))], quiet=[True, False], settle=False)
+    if ex is None or not ex.reached:
+        return None
+    lab_answers = ex.reading(0).answers
+    if not lab_answers and not ex.reading(1).answers:
+        return None
+    return bool(lab_answers) and lab_answers[0].action == Action.POSE and lab_answers[0].error == 0
+
+
+def crc_refused(p: Prober, lab: Lab) -> None:
+    """F6 (SHOULD): a pose with 00 00 accepted, the same pose with its CRC in the check field refused?"""
+    plain = p.valid_request(int(Action.POSE))
+    signed = plain[:-2] + p.profile.check_bytes(plain[:-2])
+    if _pose_zero(p, plain) and _pose_zero(p, signed) is False:
+        lab.found("tcp-crc-refused", check=signed[-2:].hex(" "))
 
 
 def run(p: Prober, udp_target: Target | None, causes: Sequence[RootCause]) -> Lab:
@@ -282,7 +303,7 @@ def run(p: Prober, udp_target: Target | None, causes: Sequence[RootCause]) -> La
 
 def assign(cause: RootCause, lab: Lab) -> None:
     """The cause titled by its family's first mechanism (or "unconfirmed"), with its diagnosis."""
-    wanted = ("tcp-check-field",) if cause.kind == TCP_CHECK else ORDER[:-1]
+    wanted = TCP_KINDS if cause.kind == TCP_CHECK else tuple(k for k in ORDER if k not in TCP_KINDS)
     mine = sorted((m for m in lab.mechanisms if m.kind in wanted), key=lambda m: ORDER.index(m.kind))
     chosen = mine[0] if mine else None
     original = cause.title

@@ -74,4 +74,8 @@ def of(kind: str, d: dict[str, Any]) -> str:
         what = gettext(" (the {crc} of the frame: a UDP habit)").format(crc=seen) if seen else ""
         return gettext("Writes {check} in the check field of its TCP answers{what}: F6 asks for 00 00 over TCP — "
                        "write 00 00").format(check=d["check"], what=what)
+    if kind == "tcp-crc-refused":
+        return gettext("Refuses a TCP request whose check field holds its CRC ({check}) and accepts it with 00 00: "
+                       "F6 asks a TCP receiver to ignore the check field (SHOULD) — accept any check field over "
+                       "TCP").format(check=d["check"])
     return str(d.get("title", kind))

@@ -116,6 +116,7 @@ _BROKEN: dict[str, tuple[str, str]] = {
     "udp-answer-port": ("trust-header", "sends each UDP answer to the request's source port + 1"),
     "udp-two-frames": ("trust-header", "takes every frame of a UDP datagram and answers each"),
     "tcp-check-crc": ("trust-header", "writes the CRC-16/MODBUS of each TCP answer in its check field"),
+    "tcp-crc-refused": ("trust-header", "refuses a TCP request whose check field holds its CRC (accepts only 00 00)"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
 _BASE_FIXED: dict[str, dict[str, str]] = {

@@ -79,6 +79,7 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
     _bad("udp-answer-port", ("F7", "A1")),
     _bad("udp-two-frames", ("F7", "R7")),
     _bad("tcp-check-crc", ("F6",)),
+    _bad("tcp-crc-refused", ("F6",), "NON-STRICT"),
     # robots, conforming
     _ok("canonical", "robot"),
     _ok("karel-calls", "robot", note="poses (23/24) on the command connection are legal: PROTOCOL.md, robot side"),

@@ -242,7 +242,7 @@ def _decide(choices: Choices, event: Event, cycle: Cycle) -> Reply:
     if isinstance(event, Rejected):  # a request header the framer would not take: B5 / implausible length
         return _malformed(choices, header)
     assert isinstance(event, Frame)
-    if wire.request_ok(event.data, header, choices.check):
+    if wire.request_ok(event.data, header, choices.check) and not udp_defects.refuses_check(choices.defect, event.data):
         return _well_formed(choices, header, event.data, cycle)
     if choices.defect == "zero-to-malformed" and header.action in (wire.POSE, wire.REG_POSE):
         return Reply(answer(choices, header.action))

@@ -9,7 +9,8 @@ takes exactly one frame per datagram, answers to the port the request came from 
 * ``udp-crc-header``: checks and signs the CRC over the 12-byte header only (the blocks are not covered);
 * ``udp-answer-port``: answers to the request's source port + 1;
 * ``udp-two-frames``: takes every frame of a datagram and answers each (F7: one frame per datagram);
-* ``tcp-check-crc``: writes the CRC-16/MODBUS of the answer in the TCP check field (F6: 00 00).
+* ``tcp-check-crc``: writes the CRC-16/MODBUS of the answer in the TCP check field (F6: 00 00);
+* ``tcp-crc-refused``: refuses a TCP request whose check field is not 00 00 (F6 SHOULD: ignore it).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from . import wire_format as wire
 
 UDP_DEFECTS = {"udp-crc-ccitt": "F7", "udp-no-crc-check": "R7", "udp-crc-header": "F7", "udp-answer-port": "F7",
                "udp-two-frames": "F7"}
-CHECK_DEFECTS = {"tcp-check-crc": "F6"}
+CHECK_DEFECTS = {"tcp-check-crc": "F6", "tcp-crc-refused": "F6"}
 
 
 def crc16_ccitt_false(data: bytes) -> int:
@@ -77,3 +78,8 @@ def tcp_check(defect: str | None, answer: bytes) -> bytes:
     if defect == "tcp-check-crc" and len(answer) >= wire.HEADER_LEN + wire.CHECK_LEN:
         return answer[:-2] + wire.crc16_modbus(answer[:-2]).to_bytes(2, "big")
     return answer
+
+
+def refuses_check(defect: str | None, frame: bytes) -> bool:
+    """tcp-crc-refused: a TCP request whose check field is not 00 00 is a parse error to this box."""
+    return defect == "tcp-crc-refused" and frame[-2:] != b"\0\0"

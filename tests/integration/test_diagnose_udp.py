@@ -51,6 +51,7 @@ def diagnosed(choices: Choices, kind: str) -> RootCause:
     ("udp-answer-port", "udp", "udp-answer-port", "to the request's source port +1"),
     ("udp-two-frames", "udp", "udp-several-frames", "Takes 2 frames from one datagram"),
     ("tcp-check-crc", "tcp-check", "tcp-check-field", "in the check field of its TCP answers (the CRC-16/MODBUS"),
+    ("tcp-crc-refused", "tcp-check", "tcp-crc-refused", "Refuses a TCP request whose check field holds its CRC"),
 ])
 def test_the_title_names_the_planted_mechanism(defect: str, kind: str, mechanism: str, words: str) -> None:
     cause = diagnosed(random_choices(7, fixed=FAST).with_defect(defect), kind)
