@@ -219,7 +219,7 @@ def datagram_length(d: _Datagrams, lab: Lab, wait_s: float) -> None:
         lab.found("udp-trailing", n=2)
 
 
-def tcp_check(p: Prober, lab: Lab) -> None:
+def tcp_check(p: Prober, lab: Lab, found: tuple[str, str] | None = None) -> None:
     ex = p.exchange([p.valid_request(int(Action.NONE))], settle=False)
     if ex is None or not ex.reached:
         return
@@ -233,7 +233,7 @@ def tcp_check(p: Prober, lab: Lab) -> None:
     check = raw[end:end + CHECK_LEN]
     if len(check) == CHECK_LEN and check != b"\0\0":
         lab.found("tcp-check-field", check=check.hex(" "), matches=crc_matches(raw[:end], check))
-    crc_refused(p, lab)
+    crc_refused(p, lab, found)
 
 
 def _pose_zero(p: Prober, data: bytes) -> bool | None:
@@ -247,12 +247,18 @@ def _pose_zero(p: Prober, data: bytes) -> bool | None:
     return bool(lab_answers) and lab_answers[0].action == Action.POSE and lab_answers[0].error == 0
 
 
-def crc_refused(p: Prober, lab: Lab) -> None:
-    """F6 (SHOULD): a pose with 00 00 accepted, the same pose with its CRC in the check field refused?"""
+def crc_refused(p: Prober, lab: Lab, found: tuple[str, str] | None) -> None:
+    """F6 (SHOULD): a pose with 00 00 accepted, the same pose with its CRC in the check field refused? Then, when
+    UDP showed the box's own CRC, is the pose with that one accepted (it checks the TCP check field with it)?"""
     plain = p.valid_request(int(Action.POSE))
     signed = plain[:-2] + p.profile.check_bytes(plain[:-2])
-    if _pose_zero(p, plain) and _pose_zero(p, signed) is False:
-        lab.found("tcp-crc-refused", check=signed[-2:].hex(" "))
+    if not (_pose_zero(p, plain) and _pose_zero(p, signed) is False):
+        return
+    own = None
+    if found is not None:
+        theirs = plain[:-2] + crc_function(found[0])(plain[:-2]).to_bytes(2, found[1])  # type: ignore[arg-type]
+        own = found[0] if _pose_zero(p, theirs) else None
+    lab.found("tcp-crc-refused", check=signed[-2:].hex(" "), crc=p.profile.crc, own=own)
 
 
 def run(p: Prober, udp_target: Target | None, causes: Sequence[RootCause]) -> Lab:
@@ -261,44 +267,46 @@ def run(p: Prober, udp_target: Target | None, causes: Sequence[RootCause]) -> La
                                 "answers go, which CRC is checked and signed, what it covers, frames per datagram; "
                                 "the TCP check field"))
     kinds = {c.kind for c in causes}
+    found = None
+    if UDP in kinds and udp_target is not None:
+        with UdpProbe(udp_target, p.transcript) as u:
+            found = _udp(p, lab, _Datagrams(p, u, time.monotonic() + max(MIN_LEFT_S, SHARE * p.left())))
     if TCP_CHECK in kinds:
-        tcp_check(p, lab)
-    if UDP not in kinds or udp_target is None:
-        return lab
-    deadline = time.monotonic() + max(MIN_LEFT_S, SHARE * p.left())
-    with UdpProbe(udp_target, p.transcript) as u:
-        d = _Datagrams(p, u, deadline)
-        wait = min(p.time_out_s, CONFIRM_WAIT_S * 2)
-        none = d.body(request(Action.NONE))
-        base = d.ask(lab, d.signed(none), wait, "NONE datagram, the profile's CRC")
-        if base is None:
-            return lab
-        where_answers_go(d, lab, base)
-        if lab.has("udp-answer-port", "udp-answer-source"):
-            return lab
-        if not d.zeros(base, Action.NONE):
-            found = scan_crc(d, lab, none)
-            if found is None:
-                alive = p.exchange([p.valid_request(int(Action.NONE))], settle=False)
-                if alive is not None and alive.reached and alive.reading(0).answers:
-                    lab.found("udp-silent", tried=len(candidates(d.crc, d.order)) + 1)
-                return lab
-            again = d.ask(lab, d.signed(none, *found), CONFIRM_WAIT_S, "NONE datagram under the CRC found")
-            signs = bool(again and again.heard and again.heard[0].data[-2:] ==
-                         d.signed(again.heard[0].data[:-2], *found)[-2:])
-            kind = "udp-crc-byte-order" if found[0] == d.crc else "udp-crc-algorithm"
-            lab.found(kind, crc=found[0], order=found[1], profile=d.crc, signs=signs,
-                      order_differs=found[1] != d.order)
-            d.crc, d.order = found
-            return lab
-        answer_shape(d, lab, base)
-        bad = d.ask(lab, none + _no_crc_value(none), wait, "NONE datagram, a check no CRC-16 computes")
-        if d.zeros(bad, Action.NONE):
-            lab.found("udp-crc-unchecked", check=_no_crc_value(none).hex(" "))
-        else:
-            coverage(d, lab, wait)
-        datagram_length(d, lab, wait)
+        tcp_check(p, lab, found)
     return lab
+
+
+def _udp(p: Prober, lab: Lab, d: _Datagrams) -> tuple[str, str] | None:
+    """The UDP experiments in order; the (CRC, byte order) found when it is not the profile's."""
+    wait = min(p.time_out_s, CONFIRM_WAIT_S * 2)
+    none = d.body(request(Action.NONE))
+    base = d.ask(lab, d.signed(none), wait, "NONE datagram, the profile's CRC")
+    if base is None:
+        return None
+    where_answers_go(d, lab, base)
+    if lab.has("udp-answer-port", "udp-answer-source"):
+        return None
+    if not d.zeros(base, Action.NONE):
+        found = scan_crc(d, lab, none)
+        if found is None:
+            alive = p.exchange([p.valid_request(int(Action.NONE))], settle=False)
+            if alive is not None and alive.reached and alive.reading(0).answers:
+                lab.found("udp-silent", tried=len(candidates(d.crc, d.order)) + 1)
+            return None
+        again = d.ask(lab, d.signed(none, *found), CONFIRM_WAIT_S, "NONE datagram under the CRC found")
+        signs = bool(again and again.heard and again.heard[0].data[-2:] ==
+                     d.signed(again.heard[0].data[:-2], *found)[-2:])
+        kind = "udp-crc-byte-order" if found[0] == d.crc else "udp-crc-algorithm"
+        lab.found(kind, crc=found[0], order=found[1], profile=d.crc, signs=signs, order_differs=found[1] != d.order)
+        return found
+    answer_shape(d, lab, base)
+    bad = d.ask(lab, none + _no_crc_value(none), wait, "NONE datagram, a check no CRC-16 computes")
+    if d.zeros(bad, Action.NONE):
+        lab.found("udp-crc-unchecked", check=_no_crc_value(none).hex(" "))
+    else:
+        coverage(d, lab, wait)
+    datagram_length(d, lab, wait)
+    return None
 
 
 def assign(cause: RootCause, lab: Lab) -> None:

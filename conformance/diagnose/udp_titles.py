@@ -12,9 +12,9 @@ from ..i18n import gettext
 
 
 def crc_name(name: str) -> str:
-    """A crcmod name as the CRC catalogue writes it: crc-ccitt-false → CRC-16/CCITT-FALSE, modbus → CRC-16/MODBUS."""
+    """A crcmod name as the CRC catalogue writes it: crc-ccitt-false → CRC-16/CCITT-FALSE, crc-16 → CRC-16/ARC."""
     bare = name.removeprefix("crc-16-").removeprefix("crc-")
-    return "CRC-16" if bare == "16" else f"CRC-16/{bare.upper()}"
+    return "CRC-16/ARC" if bare == "16" else f"CRC-16/{bare.upper()}"
 
 
 def _cover(detail: dict[str, Any]) -> str:
@@ -53,6 +53,10 @@ def of(kind: str, d: dict[str, Any]) -> str:
         return gettext("Computes the UDP CRC over {part} only, not over the whole frame before the check field: a "
                        "pose datagram is answered only when its CRC covers {part} (F7: bytes 0..12+N×L−1) — cover "
                        "the header and every block").format(part=_cover(d))
+    if kind == "udp-several-frames" and int(d["n"]) == 1:
+        return gettext("Answers 0000 to the first frame of a datagram holding two and ignores the rest: it checks only "
+                       "that a datagram is at least one frame long (F7/R7 ask for exactly one frame per datagram) — "
+                       "drop a datagram whose length is not 12+N×L+2")
     if kind == "udp-several-frames":
         return gettext("Takes {n} frames from one datagram (answers 0000 to a pose and a register pose sent in one "
                        "datagram): F7/R7 ask for exactly one frame per datagram — drop a datagram whose length is "
@@ -74,6 +78,11 @@ def of(kind: str, d: dict[str, Any]) -> str:
         what = gettext(" (the {crc} of the frame: a UDP habit)").format(crc=seen) if seen else ""
         return gettext("Writes {check} in the check field of its TCP answers{what}: F6 asks for 00 00 over TCP — "
                        "write 00 00").format(check=d["check"], what=what)
+    if kind == "tcp-crc-refused" and d.get("own"):
+        return gettext("Checks the TCP check field with {own}, as over UDP: refuses a request carrying its {crc} "
+                       "({check}), accepts 00 00 and its own CRC; F6 asks a TCP receiver to ignore the check field "
+                       "(SHOULD) — accept any check field over TCP").format(own=crc_name(d["own"]),
+                                                                            crc=crc_name(d["crc"]), check=d["check"])
     if kind == "tcp-crc-refused":
         return gettext("Refuses a TCP request whose check field holds its CRC ({check}) and accepts it with 00 00: "
                        "F6 asks a TCP receiver to ignore the check field (SHOULD) — accept any check field over "

@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..harness.client import Answer, Malformed
+from ..harness.client import Answer, Malformed, Outcome
 from ..harness.liveness import check_alive, responsive
 from ..harness.target import Target
 from ..harness.transcript import Kind, Transcript
@@ -35,38 +35,66 @@ class Stall:
     case_id: str
     after: str  # the last bytes the case sent (hex, cut short)
     writes: int  # writes the session had made to the box by then
-    lasted_s: float  # from the case's last answer (or first write) to the answer on the fresh connection: at most
+    lasted_s: float  # from the case's last answer (or first write) to the answer on the fresh connection
     affected: str
 
     def describe(self) -> str:
-        return (f"The whole box stalled for at most {self.lasted_s:.1f} s, once: it began during case {self.case_id} "
-                f"(after {self.after}; the session's write {self.writes}); {self.affected}")
+        return (f"The whole box stalled for about {self.lasted_s:.1f} s, once: case {self.case_id} met it (after "
+                f"{self.after}; the session's write {self.writes}); {self.affected}")
 
     def to_dict(self) -> dict[str, object]:
         return {"case": self.case_id, "after": self.after, "writes": self.writes, "lasted_s": round(self.lasted_s, 2),
                 "affected": self.affected, "example": None}
 
 
-def _began(transcript: Transcript) -> float:
-    """When the box was last heard in the case (its last answer), else the case's first write (time.time())."""
-    heard = [e.t for e in transcript.events if e.kind == Kind.RECV]
-    sent = [e.t for e in transcript.events if e.kind == Kind.SEND]
-    return max(heard) if heard else min(sent) if sent else time.time()
+def _began(transcript: Transcript, before: float) -> float:
+    """When the box was last heard in the case before ``before`` (its last answer), else the case's first write
+    (time.time() seconds)."""
+    heard = [e.t for e in transcript.events if e.kind == Kind.RECV and e.t < before]
+    sent = [e.t for e in transcript.events if e.kind == Kind.SEND and e.t < before]
+    return max(heard) if heard else min(sent) if sent else before
+
+
+def _after(transcript: Transcript, last_sent: bytes, before: float) -> str:
+    """The bytes the case last wrote before the silence (hex, cut short)."""
+    data = last_sent or next((e.data for e in reversed(transcript.events) if e.kind == Kind.SEND and e.t < before
+                              and e.data), b"")
+    return data[:16].hex(" ") + (" …" if len(data) > 16 else "") if data else "its first bytes"
 
 
 def look_again(transcript: Transcript, target: Target, profile: Profile, case_id: str, last_sent: bytes,
-               writes: int) -> Stall | None:
+               writes: int, ended: float) -> Stall | None:
     """Another fresh connection, given COME_BACK time_outs: answered, the stall it was; None: still silent."""
     time_out = profile.time_out_ms / 1000
-    began = _began(transcript)  # before the fresh connection's own answer is recorded
+    began = _began(transcript, ended)  # the case's own events, not the fresh connections'
     outcome = check_alive(transcript, target, profile, time_out_s=COME_BACK * time_out, label="stall or death?",
                           note="a NONE on another fresh connection: does the box come back (a stall) or not (a death)?")
     if not responsive(outcome) or not isinstance(outcome, (Answer, Malformed)):
         return None
-    after = last_sent[:16].hex(" ") + (" …" if len(last_sent) > 16 else "") if last_sent else "its first bytes"
+    after = _after(transcript, last_sent, ended)
     held = (f"the case's connection and a fresh connection (unanswered for {time_out:.1f} s) were held; another "
             f"fresh connection was answered after {outcome.latency_s * 1000:.0f} ms")
     return Stall(case_id, after, writes, time.time() - began, held)
+
+
+#: a fresh connection answered this late after a case's silence was held by the stall too (seconds; at least ten
+#: times the box's usual latency, at most half of time_out)
+HELD_S = 0.3
+
+
+def held(transcript: Transcript, fresh: Outcome, usual_s: float, time_out_s: float, case_id: str, last_sent: bytes,
+         writes: int, ended: float) -> Stall | None:
+    """The case went silent past time_out and the fresh connection asked right after it (``ended``: time.time()
+    then) was answered, but late: the whole box was still silent then (a stall that ended during that wait). None:
+    answered promptly."""
+    if not transcript.timeouts or not isinstance(fresh, (Answer, Malformed)):
+        return None
+    if fresh.latency_s < min(max(HELD_S, 10 * usual_s), time_out_s / 2):
+        return None
+    after, began = _after(transcript, last_sent, ended), _began(transcript, ended)
+    who = (f"the case's connection went unanswered for time_out, and a fresh connection asked right after was "
+           f"answered only after {fresh.latency_s * 1000:.0f} ms")
+    return Stall(case_id, after, writes, time.time() - began, who)
 
 
 def verdict(stall: Stall, last_sent: bytes) -> CaseVerdict:

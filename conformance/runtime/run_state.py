@@ -276,11 +276,17 @@ class SessionState:
                 or self.health.dead_since_case is not None):  # already known unreachable: nothing to learn
             self._count(transcript)
             return error
+        ended = time.time()
         alive = self.probe(transcript)
         self._count(transcript)
+        usual = self.baseline.latency_s if isinstance(self.baseline, Answer) else 0.0
+        late = box_stall.held(transcript, alive, usual, self.profile.time_out_ms / 1000, case_id, last_sent, self.writes,
+                              ended)
+        if late is not None:  # the fresh connection was held too: a stall of the whole box, not this case's input
+            return box_stall.verdict(late, last_sent)
         if responsive(alive):
             return error
-        stall = box_stall.look_again(transcript, self.target(), self.profile, case_id, last_sent, self.writes)
+        stall = box_stall.look_again(transcript, self.target(), self.profile, case_id, last_sent, self.writes, ended)
         if stall is not None:  # the box came back: it stalled as a whole (T1, S4), the case's input not blamed
             return box_stall.verdict(stall, last_sent)
         kind, detail = self._diagnose(alive, transcript)

@@ -48,7 +48,7 @@ def test_no_udp_failure_no_udp_root_cause() -> None:
 def test_crc_names_as_the_crc_catalogue_writes_them() -> None:
     assert udp_titles.crc_name("crc-ccitt-false") == "CRC-16/CCITT-FALSE"
     assert udp_titles.crc_name("modbus") == "CRC-16/MODBUS"
-    assert udp_titles.crc_name("crc-16") == "CRC-16"
+    assert udp_titles.crc_name("crc-16") == "CRC-16/ARC"
     assert udp_titles.crc_name("crc-16-maxim") == "CRC-16/MAXIM"
 
 
@@ -98,5 +98,5 @@ def test_a_catalogue_case_that_met_a_stall_is_explained_by_it_not_by_its_input()
     case.signature, case.observed, case.judged = raised.signature, raised.observed, raised.judged
     [cause] = find_root_causes([case])
     assert raised.signature == STALL and cause.kind == "box-stall" and cause.clauses == ("T1", "S4")
-    assert cause.title.startswith("The whole box stalled for at most 5.9 s, once: it began during case B5-01")
+    assert cause.title.startswith("The whole box stalled for about 5.9 s, once: case B5-01 met it")
     assert "write 197" in cause.title and case.root_cause == cause.id
