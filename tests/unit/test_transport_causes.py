@@ -100,3 +100,26 @@ def test_a_catalogue_case_that_met_a_stall_is_explained_by_it_not_by_its_input()
     assert raised.signature == STALL and cause.kind == "box-stall" and cause.clauses == ("T1", "S4")
     assert cause.title.startswith("The whole box stalled for about 5.9 s, once: case B5-01 met it")
     assert "write 197" in cause.title and case.root_cause == cause.id
+
+
+def test_a_fresh_connection_answered_late_right_after_a_silence_is_a_stall_and_a_prompt_one_is_not() -> None:
+    import time
+
+    from conformance.harness.client import Answer, Silence
+    from conformance.harness.transcript import Kind, Transcript
+    from conformance.protocol import Action, answer
+    from conformance.runtime.box_stall import held
+
+    tr = Transcript("A1-01")
+    tr.add(1, Kind.SEND, bytes.fromhex("fefe00010100000000000000" "0000"), "NONE")
+    ended = time.time()
+    tr.timeouts = 1
+    late, prompt = Answer(answer(Action.NONE), 1.0, b""), Answer(answer(Action.NONE), 0.002, b"")
+    stall = held(tr, late, 0.001, 5.0, "A1-01", b"", 16, ended)
+    assert stall is not None and stall.case_id == "A1-01" and stall.after.startswith("fe fe 00 01 01 00")
+    assert "answered only after 1000 ms" in stall.affected and stall.writes == 16
+    assert held(tr, prompt, 0.001, 5.0, "A1-01", b"", 16, ended) is None
+    assert held(tr, late, 0.2, 5.0, "A1-01", b"", 16, ended) is None  # a box this slow anyway: not held
+    assert held(tr, Silence(5.0), 0.001, 5.0, "A1-01", b"", 16, ended) is None  # silent: a death, judged elsewhere
+    tr.timeouts = 0
+    assert held(tr, late, 0.001, 5.0, "A1-01", b"", 16, ended) is None  # the case itself was answered in time
