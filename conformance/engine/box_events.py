@@ -39,10 +39,14 @@ def stall_causes(cases: Sequence[CaseResult]) -> list[Claim]:
             out.append((RootCause("", ("T1", "S4"), title, f"{case.id}: {case.observed}"[:300], kind=BOX_STALL), [case]))
             continue
         first = stalls[0]
-        title = gettext("The whole box stalled for about {s} s, once: it began after {case}'s write {writes} ({after}); "
+        text = (gettext("The whole box stalled for at least {s} s, once: it began after {case}'s write {writes} ({after}); "
                         "{affected}. T1/S4 ask for every connection answered within time_out — do not block the "
-                        "box's loop").format(s=f"{float(first['lasted_s']):.1f}", case=case.id, writes=first["writes"],
-                                             after=first["after"], affected=first["affected"])
+                        "box's loop") if first.get("at_least") else
+                gettext("The whole box stalled for about {s} s, once: it began after {case}'s write {writes} ({after}); "
+                        "{affected}. T1/S4 ask for every connection answered within time_out — do not block the "
+                        "box's loop"))
+        title = text.format(s=f"{float(first['lasted_s']):.1f}", case=case.id, writes=first["writes"],
+                            after=first["after"], affected=first["affected"])
         more = f"; {len(stalls) - 1} more stall(s)" if len(stalls) > 1 else ""
         evidence = f"{case.id}: example {first['example']}, bytes {first['after']}{more}"
         out.append((RootCause("", ("T1", "S4"), title, evidence, kind=BOX_STALL), [case]))

@@ -74,7 +74,7 @@ class BoxStall:
 
     def to_dict(self) -> dict[str, object]:
         return {"after": self.after, "example": self.example, "writes": self.writes,
-                "lasted_s": round(self.lasted_s, 2), "affected": self.affected}
+                "lasted_s": round(self.lasted_s, 2), "affected": self.affected, "at_least": self.at_least}
 
     def describe(self) -> str:
         how = "at least" if self.at_least else "about"
