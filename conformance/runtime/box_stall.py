@@ -79,7 +79,7 @@ def look_again(transcript: Transcript, target: Target, profile: Profile, case_id
 
 #: a fresh connection answered this late after a case's silence was held by the stall too (seconds; at least ten
 #: times the box's usual latency, at most half of time_out)
-HELD_S = 0.3
+HELD_S = 0.5
 
 
 def held(transcript: Transcript, fresh: Outcome, usual_s: float, time_out_s: float, case_id: str, last_sent: bytes,
