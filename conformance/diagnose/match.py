@@ -23,7 +23,7 @@ from .hypotheses import KINDS, Hypothesis, Mechanism, Status
 SAME_STORY = {"block-position": {"index"}, "action-not-echoed": {"echo-all"}, "constant-error": {"refuses-valid"},
               "unanswered": {"missing-answer"}}
 #: root causes found by the session's own live checks on fresh connections (already experiments)
-SESSION_KINDS = ("unresponsive", "one-connection", "dead-after-input", "connection-leak")
+SESSION_KINDS = ("unresponsive", "one-connection", "dead-after-input", "connection-leak", "box-stall")
 _NAMES = {"count-limit": "a limit on the block count", "byte-limit": "a limit on the frame's size in bytes",
           "index": "block indexes judged wrongly", "extra-answer": "an extra answer that shifts later answers",
           "echo-one": "the action echoed wrongly for one action", "echo-all": "the action echoed wrongly for every action",

@@ -26,7 +26,7 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import death_inputs, deaths, families, match, titles
+from . import death_inputs, deaths, families, match, titles, udp_family
 from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
@@ -63,7 +63,8 @@ class _Lab:
 
 
 def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: SessionFacts, target: Target | None,
-             profile: Profile, time_out_s: float, budget_s: float = BUDGET_S) -> Diagnosed:
+             profile: Profile, time_out_s: float, budget_s: float = BUDGET_S,
+             udp_target: Target | None = None) -> Diagnosed:
     """The root causes diagnosed (re-titled, re-ordered, merged), with their repros."""
     start = time.monotonic()
     causes = list(causes)
@@ -72,10 +73,15 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
     lab = _Lab()
     facts_by = {c.id: match.facts_of(c, cases) for c in causes}
     own: dict[str, Found] = {}
-    probed = [c for c in causes if c.kind not in match.SESSION_KINDS]
+    probed = [c for c in causes if c.kind not in match.SESSION_KINDS + udp_family.KINDS]
     prober = None if target is None else Prober(target, profile, time_out_s, start + budget_s)
     dead = {c.id: deaths.check(prober, c, cases) for c in causes if c.kind in deaths.DEATH_KINDS and prober is not None}
     still_dead = any(v.confirmed for v in dead.values()) or (prober is None and bool(facts.unresponsive or facts.deaths))
+    transport = [c for c in causes if c.kind in udp_family.KINDS]  # F6, F7, R7: their own family
+    if prober is not None and transport and not still_dead:
+        lab_udp = udp_family.run(prober, udp_target, transport)
+        for cause in transport:
+            udp_family.assign(cause, lab_udp)
     if prober is not None and probed and not still_dead:
         _run(prober, lab, probed, facts_by, cases, own)
     out = _assign(causes, facts_by, lab, own, dead)
@@ -136,6 +142,9 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
             cause.confirmed = verdict.confirmed
             if not verdict.confirmed:
                 cause.title = titles.unconfirmed(f"{cause.title} ({verdict.why})")
+            kept.append(cause)
+            continue
+        if cause.kind in udp_family.KINDS:  # diagnosed by the UDP family (or left as read when it could not run)
             kept.append(cause)
             continue
         if cause.kind in match.SESSION_KINDS:
@@ -214,6 +223,6 @@ def run_phase(state: SessionState, cases: Sequence[CaseResult], causes: Sequence
     target = state.settings.target
     if target is None or not causes:
         return list(causes)
-    done = diagnose(causes, cases, facts, target, state.profile, state.time_out_s)
+    done = diagnose(causes, cases, facts, target, state.profile, state.time_out_s, udp_target=state.udp_target())
     relink(done.causes, cases)
     return done.causes

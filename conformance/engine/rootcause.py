@@ -32,8 +32,10 @@ from typing import Any
 from ..i18n import gettext  # titles in the language of the run (the .format placeholders are named)
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import CaseResult, Level, RootCause, Verdict
+from .box_events import stall_causes
 from .orphans import orphan_causes
 from .patterns import Claim, block_position_cause, evidence_of, field_causes
+from .transport_causes import transport_causes
 
 #: A signature shared by at least this many non-PASS cases is reported as a root cause.
 MIN_GROUP = 2
@@ -82,6 +84,8 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
             found.append((cause, members))
 
     for cause, members in _session_causes(cases, facts):
+        claim(cause, members)
+    for cause, members in stall_causes(cases) + transport_causes([c for c in cases if id(c) not in taken]):  # T1/S4; F6, F7, R7
         claim(cause, members)
     for cause, members in field_causes([c for c in cases if id(c) not in taken]):
         claim(cause, members)

@@ -39,6 +39,7 @@ from ..harness.client import Silence
 from ..harness.transcript import Transcript
 from ..model.verdicts import Verdict
 from ..runtime.profile_options import profile_flags
+from . import second_look
 from .budget import Budget
 from .config import CampaignConfig, new_seed
 from .death import RESTART_HINT, STOPPED, Seen, death_key, find_killer
@@ -321,6 +322,12 @@ class Campaign:
         window, self.window = self.window, []
         self.history.clear()
         death = find_killer(self.config, window, self.executor, self.triage.next_number)
+        ex = self.executor
+        where = second_look.Where(ex.transcript, ex.target, ex.profile, ex.time_out_s, ex.stats.cases)
+        if second_look.stall_not_death(where, self.config.restart is not None, death.failure.confirmed, death.back,
+                                       window[-1].case.wire if window else b""):
+            self.config.log("fuzz: the whole box stalled and came back on its own (T1/S4): not a death")
+            return
         key = death_key(death.failure)
         if key in self.triage.known:
             self.config.log("fuzz: the box died again the way it did before (not reported twice)")

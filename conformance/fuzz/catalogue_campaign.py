@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from ..runtime.box_stall import STALL
 from ..suite import CaseContext, Level, Requirement, Signature
+from . import second_look
 from .campaign import Campaign, CampaignConfig, CampaignResult
 
 FRAMES_S = 2.0
@@ -36,6 +38,13 @@ FINDINGS = {"failure": Requirement((), "{finding}", judged_from="clauses"),
 
 def judge_campaign(isight: CaseContext, result: CampaignResult) -> None:
     failures = result.failures
+    stalls = second_look.take((isight.target.host, isight.target.port))  # box-wide: never the bytes' verdict
+    if stalls:
+        isight.details["box_stall"] = [s.to_dict() for s in stalls]
+    if stalls and not failures:
+        raise isight.broken("failure", expected="every connection answered within time_out", observed=stalls[0].describe(),
+                            sent=b"", signature=STALL, finding=f"T1/S4: {stalls[0].describe()}",
+                            clauses=("T1", "S4"))
     if failures:
         first = failures[0]
         more = f" (and {len(failures) - 1} more distinct failures)" if len(failures) > 1 else ""

@@ -49,6 +49,7 @@ from ..harness.transcript import Kind, Transcript
 from ..model.verdicts import Verdict
 from ..protocol import Action, Frame, Profile, Transport, codec_for
 from ..protocol.framings import End
+from . import second_look
 from .oracle import Finding, Judgement, judge
 from .strategies import FuzzCase
 
@@ -212,8 +213,12 @@ class Executor:
                 return Result(case, [], end, judge(case.expects, [], end, self.profile, Action.NONE), 0, True)
         conn = self._conn
         assert conn is not None
+        sent_at = time.monotonic()
         result = self.exchange(conn, case, note)
         result.fresh = fresh
+        if isinstance(result.end, Silence) and result.probe is not None:  # a stall, another framing, or a hang?
+            where = second_look.Where(self.transcript, self.target, self.profile, self.time_out_s, self.stats.cases)
+            second_look.recheck(where, conn, result, self._probes[Transport.TCP][result.probe], sent_at)
         if result.conn < 0:  # the box closed or hung: a new connection for the next case
             self._conn = None
             result.conn = conn.conn_id

@@ -45,6 +45,7 @@ from ..model.case_verdicts import CaseVerdict, Inconclusive
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import Verdict
 from ..protocol import Action, Profile
+from . import box_stall
 from .settings import SuiteSettings
 
 #: How often an unreachable box is re-probed (seconds); in between, cases end INCONCLUSIVE at once.
@@ -84,6 +85,7 @@ class SessionState:
     embedded: Any = None  # the bundled box, when the session started it
     opened: int = 0
     closed: int = 0
+    writes: int = 0  # writes made to the box by the cases so far (a box stall names the one it began after)
     #: action name -> ids of the cases that found it unanswered within time_out
     late: dict[str, list[str]] = field(default_factory=dict)
     #: actions the box has answered within the wait at least once this session
@@ -274,10 +276,19 @@ class SessionState:
                 or self.health.dead_since_case is not None):  # already known unreachable: nothing to learn
             self._count(transcript)
             return error
+        ended = time.time()
         alive = self.probe(transcript)
         self._count(transcript)
+        usual = self.baseline.latency_s if isinstance(self.baseline, Answer) else 0.0
+        late = box_stall.held(transcript, alive, usual, self.profile.time_out_ms / 1000, case_id, last_sent, self.writes,
+                              ended)
+        if late is not None:  # the fresh connection was held too: a stall of the whole box, not this case's input
+            return box_stall.verdict(late, last_sent)
         if responsive(alive):
             return error
+        stall = box_stall.look_again(transcript, self.target(), self.profile, case_id, last_sent, self.writes, ended)
+        if stall is not None:  # the box came back: it stalled as a whole (T1, S4), the case's input not blamed
+            return box_stall.verdict(stall, last_sent)
         kind, detail = self._diagnose(alive, transcript)
         self.deaths.append(Death(case_id, kind, detail, self.opened, self.closed))
         self._mark_dead(case_id, f"a fresh connection {alive.describe()}")
@@ -320,6 +331,7 @@ class SessionState:
         ends = {e.conn for e in transcript.events if e.kind in (Kind.CLOSE, Kind.ABORT)}
         self.opened += len(tcp - failed)
         self.closed += len((tcp - failed) & ends)
+        self.writes += sum(1 for e in transcript.events if e.kind == Kind.SEND)
 
     # -- extension E ----------------------------------------------------------------------
     def detect_extension(self, transcript: Transcript) -> bool:

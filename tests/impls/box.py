@@ -75,6 +75,10 @@ _CONFORMING = [
             "and error FFFF instead of silence"),
     Variant("nan-1001", _preset("trust", extension="absent"),
             "B4: NaN/inf answered 1001/1002; no extension E (26/27 are unknown actions: silence)"),
+    Variant("completes-short", replace(_preset("fine"), short_frames=True),
+            "R6(b): a header with another version that announces no blocks is rejected once its check field is "
+            "read: 12 bytes take the next request's first two bytes as their check field (that request is lost; "
+            "the next one is answered)"),
     Variant("late-inside-timeout", replace(_preset("trust"), late=0.02),
             "T1: every answer a fiftieth of time_out late (100 ms at the default), inside it"),
     Variant("slow-pieces", _preset("trust", latency="20ms", writer="pieces"),
@@ -116,6 +120,16 @@ _BROKEN: dict[str, tuple[str, str]] = {
                                            "read (answered or not: a frame that is not a request is consumed too)"),
     "split-header-lost": ("trust-header", "expects a frame's 12-byte header in one read: a read of fewer than 12 "
                                           "bytes at the start of a frame is discarded"),
+
+    "stall-once": ("trust-header", "once, past its 40th frame and on a connection in use, its whole loop blocks "
+                                   "for 6 s: no connection is answered, fresh ones included"),
+    "udp-crc-ccitt": ("trust-header", "signs and checks UDP frames with CRC-16/CCITT-FALSE, not MODBUS"),
+    "udp-no-crc-check": ("trust-header", "never checks the CRC of a UDP request (signs its answers right)"),
+    "udp-crc-header": ("trust-header", "the UDP CRC covers the 12-byte header only, not the blocks"),
+    "udp-answer-port": ("trust-header", "sends each UDP answer to the request's source port + 1"),
+    "udp-two-frames": ("trust-header", "takes every frame of a UDP datagram and answers each"),
+    "tcp-check-crc": ("trust-header", "writes the CRC-16/MODBUS of each TCP answer in its check field"),
+    "tcp-crc-refused": ("trust-header", "refuses a TCP request whose check field holds its CRC (accepts only 00 00)"),
 }
 #: knobs a random base keeps fixed under a defect, so that the defect stays what it is planted to be
 _BASE_FIXED: dict[str, dict[str, str]] = {
@@ -129,15 +143,18 @@ _BASE_FIXED: dict[str, dict[str, str]] = {
 }
 #: knobs every run of the suite (the matrix) can serve: TCP only, one port
 _BROKEN_FIXED = {"udp": "off", "stream_port": "same"}
+#: defects that are about UDP: their boxes serve it (the matrix passes --udp-target)
+_UDP = ("udp-crc-ccitt", "udp-no-crc-check", "udp-crc-header", "udp-answer-port", "udp-two-frames")
 
 
 def _broken(name: str, base_seed: int | None = None) -> Variant:
     """A broken box: the defect on its documented base, or (``base_seed``) on a random legal one."""
     base_name, what = _BROKEN[name]
+    udp = "on" if name in _UDP else "off"
     if base_seed is None:
-        choices = replace(_BASE[base_name].choices, udp="off").with_defect(name)
-        return Variant(name, choices, f"{what} (built on {base_name}, TCP only)")
-    fixed = _BROKEN_FIXED | _BASE_FIXED.get(name, {})
+        choices = replace(_BASE[base_name].choices, udp=udp).with_defect(name)
+        return Variant(name, choices, f"{what} (built on {base_name}, {'UDP too' if udp == 'on' else 'TCP only'})")
+    fixed = _BROKEN_FIXED | _BASE_FIXED.get(name, {}) | {"udp": udp}
     choices = random_choices(base_seed, fixed=fixed).with_defect(name)
     return Variant(name, choices, f"{what} (built on random base {base_seed}, TCP only)")
 

@@ -24,6 +24,7 @@ from collections.abc import Callable
 from .framers import Frame, Framer, LowByteLength
 from .policy import Choices, Cycle, Reply, decide, decide_datagram
 from .systematic import ConnState
+from .udp_defects import reply_port
 from .wire_format import HEADER_LEN
 
 POLL = 0.2
@@ -40,6 +41,10 @@ SHORT_SNDBUF = 4096  # short-send-drops: its small send buffer (the kernel doubl
 #: the defects that send each answer once, non-blocking, and drop what the kernel did not take (EAGAIN or a part)
 UNSENT_DROPPED = ("short-send-drops", "drops-unsendable")
 GROW_S = 0.002  # latency-grows: each answer on a connection this much later than the one before
+STALL_AT = 40  # stall-once: from the box-wide framer event (requests and bad bytes alike) it stalls ...
+STALL_ON_CONN = 10  # ... at the first event that is at least this one on its connection (a connection in use, not a
+#                     fresh one that asks once)
+STALL_S = 6.0  # ... and for how long every connection goes unanswered
 
 
 class ThreadBox:
@@ -71,6 +76,9 @@ class ThreadBox:
             self.udp_port = self.udp.getsockname()[1]
         self._main: list[threading.Thread] = []
         self.answers = 0  # answers written (quiet-after-n)
+        self.events = 0  # framer events taken, box-wide (stall-once)
+        self.stall_until = 0.0  # stall-once: no answer is written before this (time.monotonic())
+        self.stalled = False
         self._flood = os.urandom(1 << 16) if choices.defect == "flood-random" else FLOOD_HEADER * 4096
 
     # -- life cycle ---------------------------------------------------------------------------
@@ -193,6 +201,7 @@ class ThreadBox:
         hung = choices.defect == "dead"
         remembers = ConnState()
         mangle = _Mangle(choices.defect)
+        taken = 0  # framer events on this connection (stall-once)
         while not self.stop_event.is_set():
             try:
                 data = conn.recv(65536)
@@ -210,6 +219,8 @@ class ThreadBox:
             for event in framer.events():
                 if choices.defect == "drops-rest-of-read" and isinstance(event, Frame):
                     framer.buf.clear()  # one whole frame per read: the rest of the read is discarded
+                taken += 1
+                self._count_event(arrived, taken)
                 reply = decide(choices, event, cycle, remembers)
                 if reply.hang:
                     hung = True
@@ -228,7 +239,17 @@ class ThreadBox:
                 with self.lock:
                     self.answers += 1
                 grow = GROW_S * mangle.count if choices.defect == "latency-grows" else 0.0
-                answers.put((arrived + latency + grow + reply.delay, Reply(data, reply.delay)))
+                due = max(arrived + latency + grow + reply.delay, self.stall_until)
+                answers.put((due, Reply(data, reply.delay)))
+
+    def _count_event(self, arrived: float, on_conn: int = 0) -> None:
+        """stall-once: once, past the box's STALL_AT-th event, its whole loop blocks for STALL_S (every connection)."""
+        with self.lock:
+            self.events += 1
+            if (self.choices.defect == "stall-once" and not self.stalled and self.events >= STALL_AT
+                    and on_conn >= STALL_ON_CONN):
+                self.stalled = True
+                self.stall_until = arrived + STALL_S
 
     def _write_loop(self, conn: socket.socket, answers: queue.Queue[tuple[float, Reply] | None]) -> None:
         """Answers in order, each at its due time; a close reply shuts the connection (the reader ends)."""
@@ -300,10 +321,12 @@ class ThreadBox:
                 continue
             except OSError:
                 return
-            out = decide_datagram(self.choices, data, self.cycle)
-            if out is not None:
+            self._count_event(time.monotonic())
+            if self.wait(max(0.0, self.stall_until - time.monotonic())):
+                return
+            for out in decide_datagram(self.choices, data, self.cycle):
                 with contextlib.suppress(OSError):
-                    udp.sendto(out, peer)
+                    udp.sendto(out, (peer[0], reply_port(self.choices.defect, peer[1])))
 
 
 class _Mangle:

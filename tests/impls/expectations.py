@@ -81,6 +81,16 @@ EXPECTATIONS: dict[str, Expectation] = {e.name: e for e in [
     _bad("split-header-lost", ("R3", "A1", "T1", "R6")),
     _ok("slow-pieces", note="every answer 20 ms late, in two pieces with Nagle on: legal (T1)"),
     _ok("slow-cycle-on", note="CycleOn answered after 0.6 time_out: legal (T1)"),
+
+    _ok("completes-short", note="a short bad header takes the next request's first bytes: a second probe is answered"),
+    _bad("stall-once", ("T1", "S4"), note="a box-wide stall, never an R6 of the input in flight"),
+    _bad("udp-crc-ccitt", ("F7",)),
+    _bad("udp-no-crc-check", ("R7", "F7")),
+    _bad("udp-crc-header", ("F7",)),
+    _bad("udp-answer-port", ("F7", "A1")),
+    _bad("udp-two-frames", ("F7", "R7")),
+    _bad("tcp-check-crc", ("F6",)),
+    _bad("tcp-crc-refused", ("F6",), "NON-STRICT"),
     # robots, conforming
     _ok("canonical", "robot"),
     _ok("karel-calls", "robot", note="poses (23/24) on the command connection are legal: PROTOCOL.md, robot side"),

@@ -56,7 +56,7 @@ class Framing:
     """One framer's choice per kind of bad field (the knobs framing_*)."""
 
     garbage: str = "scan"  # scan | close
-    version: str = "resume+1"  # resume+k | close
+    version: str = "resume+1"  # resume+k | close | frame (no knob: with no blocks, rejected once 14 bytes are read)
     length: str = "resume+1"  # resume+k | close (more than 255 pose blocks announced)
     transfer: str = "trust"  # trust | resume+k | close
     action: str = "trust"  # trust | resume+k | close (an unknown action)
@@ -125,6 +125,15 @@ class Framer:
                 yield Rejected(h)
                 yield from self._close()
                 return
+            if choice == "frame" and h.frame_len > HEADER_LEN + 2:
+                choice = "resume+1"  # a header announcing blocks: rejected at once
+            if choice == "frame":  # no blocks announced: rejected once its check field is read (it takes what follows)
+                if len(self.buf) < h.frame_len:
+                    return
+                yield Rejected(h)
+                del self.buf[: h.frame_len]
+                yield Garbage(h.frame_len)
+                continue
             if choice != "trust":
                 skip = int(choice.removeprefix("resume+"))
                 yield Rejected(h)

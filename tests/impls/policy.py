@@ -14,7 +14,7 @@ import random
 import threading
 from dataclasses import dataclass, fields, replace
 
-from . import systematic
+from . import systematic, udp_defects
 from . import wire_format as wire
 from .framers import Close, Event, Frame, Framing, Garbage, Rejected
 from .wire_format import Check, Header
@@ -49,7 +49,8 @@ DEFECTS: dict[str, str] = {
     # bounded time on every box (issue 36): boxes of the kinds written outside this project took longest on
     "drops-rest-of-read": "R4",
     "split-header-lost": "R3",
-} | {name: planted.clause for name, planted in systematic.SYSTEMATIC.items()}  # the root-cause benchmark's
+    "stall-once": "T1",  # the whole box stops answering for 6 s, once (issue 34, item 3)
+} | udp_defects.UDP_DEFECTS | udp_defects.CHECK_DEFECTS | {name: planted.clause for name, planted in systematic.SYSTEMATIC.items()}  # the root-cause benchmark's
 
 _RESUME = ("resume+1", "resume+5", "resume+12")
 #: knob -> its legal alternatives (the first is the default); the names are the legal table's knobs.
@@ -125,6 +126,9 @@ class Choices:
     defect: str | None = None
     time_out: float = 5.0  # the time_out the box assumes (cycle_on_latency is a fraction of it)
     late: float = 0.0  # every answer this fraction of time_out late as well (no knob: legal below 1)
+    #: no knob: a header with another version that announces no blocks is rejected only once its check field is
+    #: read (12 bytes take the next two bytes as their check field; R6 b resumes after them)
+    short_frames: bool = False
 
     def __post_init__(self) -> None:
         if self.defect is not None and self.defect not in DEFECTS:
@@ -145,8 +149,8 @@ class Choices:
 
     @property
     def framing(self) -> Framing:
-        return Framing(self.framing_garbage, self.framing_version, self.framing_length, self.framing_transfer,
-                       self.framing_action, self.framing_shape)
+        return Framing(self.framing_garbage, "frame" if self.short_frames else self.framing_version,
+                       self.framing_length, self.framing_transfer, self.framing_action, self.framing_shape)
 
     def knobs(self) -> dict[str, str]:
         return {name: getattr(self, name) for name in KNOBS}
@@ -217,12 +221,12 @@ def answer(choices: Choices, action: int, error: int = wire.OK, value: int | Non
     defect = choices.defect
     if defect == "swapped-error":
         error = ((error & 0xFF) << 8) | (error >> 8)
-    return wire.encode(
+    return udp_defects.tcp_check(defect, wire.encode(
         action, error, value,
         version=0x0100 if defect == "swapped-version" else wire.VERSION,
         transfer=wire.ROBOT_TO_BOX if defect == "wrong-transfer-type" else wire.BOX_TO_ROBOT,
         first_index=int(choices.first_index),
-    )
+    ))
 
 
 def decide(choices: Choices, event: Event, cycle: Cycle, conn: systematic.ConnState | None = None) -> Reply:
@@ -245,7 +249,7 @@ def _decide(choices: Choices, event: Event, cycle: Cycle) -> Reply:
     if isinstance(event, Rejected):  # a request header the framer would not take: B5 / implausible length
         return _malformed(choices, header)
     assert isinstance(event, Frame)
-    if wire.request_ok(event.data, header, choices.check):
+    if wire.request_ok(event.data, header, choices.check) and not udp_defects.refuses_check(choices.defect, event.data):
         return _well_formed(choices, header, event.data, cycle)
     if choices.defect == "zero-to-malformed" and header.action in (wire.POSE, wire.REG_POSE):
         return Reply(answer(choices, header.action))
@@ -312,15 +316,14 @@ def _well_formed(choices: Choices, header: Header, frame: bytes, cycle: Cycle) -
     return Reply(answer(choices, action))
 
 
-def decide_datagram(choices: Choices, data: bytes, cycle: Cycle) -> bytes | None:
-    """R7/F7 over UDP: one frame per datagram with a CRC-16/MODBUS; bad datagrams are dropped."""
-    if len(data) < wire.HEADER_LEN + wire.CHECK_LEN:
-        return None
-    header = Header.parse(data)
-    if len(data) != header.frame_len or data[-2:] != wire.crc16_modbus(data[:-2]).to_bytes(2, "big"):
-        return None
-    tcp_like = data[:-2] + b"\0\0"
-    reply = decide(replace(choices, tcp_check="ignore"), Frame(tcp_like, header), cycle)
-    if not reply.data:
-        return None
-    return reply.data[:-2] + wire.crc16_modbus(reply.data[:-2]).to_bytes(2, "big")
+def decide_datagram(choices: Choices, data: bytes, cycle: Cycle) -> list[bytes]:
+    """R7/F7 over UDP: one frame per datagram with a CRC-16/MODBUS; bad datagrams are dropped (the answers, one
+    datagram each; the UDP defects of :mod:`.udp_defects` change what is checked, taken and signed)."""
+    out = []
+    for frame in udp_defects.frames_of(choices.defect, data):
+        header = Header.parse(frame)
+        tcp_like = frame[:-2] + b"\0\0"
+        reply = decide(replace(choices, tcp_check="ignore"), Frame(tcp_like, header), cycle)
+        if reply.data:
+            out.append(udp_defects.sign(choices.defect, reply.data))
+    return out
