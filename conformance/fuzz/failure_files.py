@@ -22,7 +22,7 @@ from ..evidence.pcap import write_transcript
 from ..evidence.vectors_file import frame_to_dict, write
 from ..harness.transcript import Transcript
 from ..protocol import Frame, Profile, ProtocolError, TransferType, Transport, parse_frame
-from ..suite.record import _CLAUSE
+from ..suite.record import CLAUSE_ID
 from .last_words import LastWords
 from .strategies import FuzzCase
 
@@ -75,7 +75,7 @@ def clauses_of(case: FuzzCase, extra: Sequence[str] = ()) -> list[str]:
     out: list[str] = []
     for c in (case.first_clause, case.clause, *(e.clause for e in case.expects), *extra):
         for part in c.split("/"):
-            if part and _CLAUSE.match(part) and part not in out:
+            if part and CLAUSE_ID.match(part) and part not in out:
                 out.append(part)
     return out or ["A1"]
 

@@ -31,7 +31,7 @@ from ..protocol.clauses import clause_ids
 F = TypeVar("F", bound=Callable[..., Any])
 MARKER = "isight_case"
 _ID = re.compile(r"^[A-Z][0-9]?-[0-9]{2}[a-z]?$|^[A-Z]+-[A-Za-z0-9-]+$")
-_CLAUSE = re.compile("^(" + "|".join(sorted(clause_ids())) + ")$")  # the clause registry's ids
+CLAUSE_ID = re.compile("^(" + "|".join(sorted(clause_ids())) + ")$")  # the clause registry's ids
 
 @dataclass(frozen=True)
 class Expect:
@@ -79,7 +79,7 @@ class Requirement:
     judged_from: str = ""  # the name of a value holding the clauses judged, when they are known only then
 
     def __post_init__(self) -> None:
-        bad = [c for c in (*self.clauses, *self.should_clauses) if not _CLAUSE.match(c)]
+        bad = [c for c in (*self.clauses, *self.should_clauses) if not CLAUSE_ID.match(c)]
         if bad:
             raise ValueError(f"requirement {self.text[:60]!r}: unknown clause IDs {bad}")
 
@@ -131,7 +131,7 @@ def record(id: str, clauses: list[str] | tuple[str, ...], level: Level | str, ti
     """A checked record: the ID's form and every clause ID against the registry."""
     if not _ID.match(id):
         raise ValueError(f"case id {id!r} must look like 'F1-01' or 'SEQ-S1'")
-    bad = [c for c in clauses if not _CLAUSE.match(c)]
+    bad = [c for c in clauses if not CLAUSE_ID.match(c)]
     if bad or not clauses:
         raise ValueError(f"case {id}: unknown clause IDs {bad or clauses}")
     return CaseRecord(id, tuple(clauses), Level(level), title, expect, tuple(needs), requirement,

@@ -20,7 +20,7 @@ from ..evidence.vectors_file import REPO_VECTORS
 from ..model.verdicts import Level
 from ..protocol import DEFAULT_PROFILE, HEADER_LEN, MAX_FRAME_LEN, Action, codec_for
 from .case_judge import CLOSED, NOT_OK, SILENCE, Expect
-from .record import _CLAUSE, CaseRecord, record
+from .record import CLAUSE_ID, CaseRecord, record
 
 FORMAT = "isight-sequence-1"
 SHIPPED_DIR = REPO_VECTORS / "sequences"
@@ -250,7 +250,7 @@ def load(path: str | Path) -> Sequence:
         _keys(doc, _HEADER, ("format", "id", "title", "clauses", "level", "steps"))
         if not _SEQ_ID.match(doc["id"]):
             raise ValueError(f"field 'id': {doc['id']!r} must look like 'SEQ-S1' (SEQ- then capitals, digits, dashes)")
-        bad = [c for c in doc["clauses"] if not _CLAUSE.match(c)]
+        bad = [c for c in doc["clauses"] if not CLAUSE_ID.match(c)]
         if bad:
             raise ValueError(f"field 'clauses': unknown clause IDs {bad}")
         opened: set[str] = set()

@@ -6,13 +6,13 @@ from conformance.certify.records import INJECTIONS
 from conformance.model.verdicts import Level
 from conformance.observed.robot_catalogue import APPLIES, FRAME_SPECS, INJECT_SPECS, catalogue
 from conformance.protocol import errors
-from conformance.suite.record import _CLAUSE, _ID
+from conformance.suite.record import _ID, CLAUSE_ID
 
 
 def test_ids_and_clauses_are_valid_and_unique():
     for spec in catalogue() + catalogue(extension=True):
         assert _ID.match(spec.id), spec.id
-        assert spec.clauses and all(_CLAUSE.match(c) for c in spec.clauses), spec.id
+        assert spec.clauses and all(CLAUSE_ID.match(c) for c in spec.clauses), spec.id
         assert spec.title and spec.requirement and spec.expect
     ids = [s.id for s in catalogue()]
     assert len(ids) == len(set(ids))

@@ -113,13 +113,13 @@ def test_worst_follows_verdict_order():
 
 
 def test_clause_catalogue_matches_the_suites_clause_ids():
-    from conformance.suite.record import _CLAUSE
+    from conformance.suite.record import CLAUSE_ID
 
     assert len(CLAUSES) == 37
-    assert all(_CLAUSE.match(c) for c in CLAUSES)
+    assert all(CLAUSE_ID.match(c) for c in CLAUSES)
     expected = [f"{f}{i}" for f, n in zip("FBASTRE", (7, 5, 5, 6, 2, 7, 5)) for i in range(1, n + 1)]
     assert list(CLAUSES) == expected
-    assert not _CLAUSE.match("Z9") and not _CLAUSE.match("F8") and not _CLAUSE.match("F1 ")
+    assert not CLAUSE_ID.match("Z9") and not CLAUSE_ID.match("F8") and not CLAUSE_ID.match("F1 ")
 
 
 def test_clause_table_is_a_view_of_the_registry():
