@@ -1,0 +1,175 @@
+"""From the windows (and what the player saw stop) to one verdict per clause the soak judges."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from ..model.verdicts import Verdict
+from ..report.summary import format_duration
+from .judge import (
+    LATENCY_FLOOR_MS,
+    MIN_WINDOWS,
+    RESOURCE_FLOORS,
+    RESOURCE_NAMES,
+    SoakVerdict,
+    Trend,
+    _clause_windows,
+    _coverage,
+    judge_series,
+)
+from .windows import WindowRow
+
+TITLES = {
+    "S1": "Canonical sessions keep completing with 0000",
+    "S4": "Command and stream connections served together, session after session",
+    "S5": "Connections freed: the box keeps accepting session after session",
+    "R5": "Resources bounded over the soak (and robots that vanish are served again)",
+    "T1": "Every answer within time_out, all along",
+    "T2": "Answer latency does not grow over the soak",
+}
+
+
+@dataclass
+class Stopped:
+    """The box stopped serving: every session from the ``after_sessions``-th on failed, to the end."""
+
+    after_sessions: int
+    at_s: float
+    kind: str  # a failure kind of windows.FAILURE_CLAUSE, or "died" (the box's process ended)
+    reason: str
+
+    @property
+    def clause(self) -> str:
+        return "S5" if self.kind in ("connect", "died") else "R5"
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"after_sessions": self.after_sessions, "at_s": round(self.at_s, 3), "kind": self.kind,
+                "reason": self.reason, "clause": self.clause}
+
+
+@dataclass
+class Judged:
+    verdicts: list[SoakVerdict]
+    latency: list[Trend]
+    resources: list[Trend]
+    findings: list[str]
+
+    @property
+    def failed(self) -> bool:
+        return any(v.verdict is Verdict.FAIL for v in self.verdicts)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"verdicts": [v.to_dict() for v in self.verdicts], "latency_trends": [t.to_dict() for t in self.latency],
+                "resource_trends": [t.to_dict() for t in self.resources], "findings": self.findings}
+
+
+def warmup(rows: Sequence[WindowRow]) -> int:
+    """Windows left out of the resource trends: the first tenth (at least one), a box warming up."""
+    return max(1, len(rows) // 10) if len(rows) > MIN_WINDOWS else 0
+
+
+def _latency(q: str) -> Callable[[WindowRow], float | None]:
+    def value(row: WindowRow) -> float | None:
+        v = row.latency.get(q)
+        return None if v is None else float(v)
+
+    return value
+
+
+def _resource(key: str) -> Callable[[WindowRow], float | None]:
+    def value(row: WindowRow) -> float | None:
+        return row.resources.get(key)
+
+    return value
+
+
+def latency_trends(rows: Sequence[WindowRow]) -> list[Trend]:
+    out = []
+    for q in ("p50", "p99"):
+        trend = judge_series(f"latency {q}", "ms", rows, _latency(q), LATENCY_FLOOR_MS, 0.5)
+        if trend is not None:
+            out.append(trend)
+    return out
+
+
+def resource_trends(rows: Sequence[WindowRow]) -> list[Trend]:
+    out = []
+    skip = warmup(rows)
+    for key, (unit, floor_abs, floor_rel) in RESOURCE_FLOORS.items():
+        if not any(r.resources.get(key) is not None for r in rows):
+            continue
+        trend = judge_series(key, unit, rows, _resource(key), floor_abs, floor_rel, skip)
+        if trend is not None:
+            out.append(trend)
+    return out
+
+
+def _t2(rows: Sequence[WindowRow], trends: list[Trend]) -> SoakVerdict:
+    cover = _coverage(rows)
+    if not trends:
+        return SoakVerdict("T2", TITLES["T2"], Verdict.INCONCLUSIVE,
+                           f"too few windows with answers to judge a trend ({len(rows)}; {MIN_WINDOWS} needed)")
+    growing = [t for t in trends if t.grows]
+    details = {"trends": [t.to_dict() for t in trends]}
+    if growing:
+        worst = growing[0]
+        return SoakVerdict("T2", TITLES["T2"], Verdict.FAIL,
+                           f"answer latency grows beyond noise: {worst.slope_text(worst.series)}; "
+                           f"growth {worst.growth:.3g} ms over the soak against noise {worst.noise:.3g} ms "
+                           f"({cover}); windows {_ranges(worst.windows)}", worst.windows, details)
+    return SoakVerdict("T2", TITLES["T2"], Verdict.PASS,
+                       f"latency flat over {cover}: " + "; ".join(t.slope_text(t.series) for t in trends), [], details)
+
+
+def _ranges(indexes: Sequence[int]) -> str:
+    """``[1, 2, 3, 7]`` → ``1–3, 7``."""
+    parts: list[str] = []
+    for i in indexes:
+        if parts and parts[-1].split("–")[-1] == str(i - 1):
+            parts[-1] = f"{parts[-1].split('–')[0]}–{i}"
+        else:
+            parts.append(str(i))
+    return ", ".join(parts) if parts else "none"
+
+
+def _failure_clause(clause: str, rows: Sequence[WindowRow], stopped: Stopped | None, extra: str = "") -> SoakVerdict:
+    count, windows, reasons = _clause_windows(rows, clause)
+    cover = _coverage(rows)
+    if stopped is not None and stopped.clause == clause:
+        return SoakVerdict(clause, TITLES[clause], Verdict.FAIL,
+                           f"the box stopped serving after {stopped.after_sessions:,} sessions "
+                           f"({format_duration(stopped.at_s)} into the soak): {stopped.reason}", windows,
+                           {"stopped": stopped.to_dict(), "failures": count})
+    if count:
+        return SoakVerdict(clause, TITLES[clause], Verdict.FAIL,
+                           f"{count} failure(s) in windows {_ranges(windows)} ({cover}): " + " | ".join(reasons),
+                           windows, {"failures": count})
+    return SoakVerdict(clause, TITLES[clause], Verdict.PASS, f"none in {cover}{extra}", [], {})
+
+
+def judge_soak(rows: Sequence[WindowRow], stopped: Stopped | None, half_open: dict[str, Any] | None = None) -> Judged:
+    """Every verdict of the soak, from its closed windows and what stopped."""
+    lat = latency_trends(rows)
+    res = resource_trends(rows)
+    findings = [t.slope_text(RESOURCE_NAMES.get(t.series, t.series)) for t in res if t.grows]
+    verdicts = [_failure_clause("S1", rows, stopped), _failure_clause("S4", rows, stopped),
+                _failure_clause("S5", rows, stopped), _failure_clause("T1", rows, stopped), _t2(rows, lat)]
+    r5 = _failure_clause("R5", rows, stopped)
+    r5.details["resource_trends"] = [t.to_dict() for t in res]
+    if half_open:
+        r5.details["half_open"] = half_open
+    if r5.verdict is Verdict.PASS and findings:
+        growing = [t for t in res if t.grows]
+        r5 = SoakVerdict("R5", TITLES["R5"], Verdict.INFORMATIONAL,
+                         "resources grow: " + "; ".join(findings) + f" ({_coverage(rows)})",
+                         sorted({i for t in growing for i in t.windows}), r5.details)
+    elif r5.verdict is Verdict.PASS and res:
+        r5.message += "; resources flat: " + "; ".join(t.slope_text(RESOURCE_NAMES.get(t.series, t.series))
+                                                      for t in res)
+    verdicts.insert(3, r5)
+    return Judged(verdicts, lat, res, findings)
+
+
+__all__ = ["TITLES", "Judged", "Stopped", "judge_soak", "latency_trends", "resource_trends", "warmup"]
