@@ -76,11 +76,12 @@ class Trend:
         if fit is None:
             return f"{name}: too few windows"
         per = "per 1,000 sessions" if self.per_k_sessions else "per hour"
-        text = f"{name} {fit.slope:+.3g} {self.unit} {per} (95 % CI {fit.low:.3g}–{fit.high:.3g})"
+        text = f"{name} {number(fit.slope, True)} {self.unit} {per} (95 % CI {number(fit.low)}–{number(fit.high)})"
         if self.per_hour is not None and self.per_k_sessions is not None:
-            text += f", {self.per_hour.slope:+.3g} {self.unit} per hour"
+            text += f", {number(self.per_hour.slope, True)} {self.unit} per hour"
         if self.test is not None:
-            text += f"; from {self.first:.4g} to {self.last:.4g} {self.unit} (Mann–Kendall p = {self.test['p_increasing']:.2g})"
+            text += (f"; from {number(self.first)} to {number(self.last)} {self.unit} "
+                     f"(Mann–Kendall p = {self.test['p_increasing']:.2g})")
         return text
 
 
@@ -96,6 +97,19 @@ class SoakVerdict:
     def to_dict(self) -> dict[str, Any]:
         return {"clause": self.clause, "title": self.title, "verdict": self.verdict.value, "message": self.message,
                 "windows": self.windows, "details": self.details}
+
+
+def number(value: float, sign: bool = False) -> str:
+    """``3.1``, ``0.0123``, ``529``, ``13,400``: three significant figures, no exponent."""
+    lead = "+" if sign and value > 0 else ""
+    size = abs(value)
+    if size >= 1000:
+        return f"{lead}{value:,.0f}"
+    if size >= 100 or value == 0:
+        return f"{lead}{value:.0f}"
+    if size >= 1:
+        return f"{lead}{value:.3g}"
+    return f"{lead}{value:.2g}"
 
 
 def _median(values: Sequence[float]) -> float:

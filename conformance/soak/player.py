@@ -53,6 +53,7 @@ class SoakPlayer:
         self.streak_at = 0.0
         self.streak_kind = ""
         self.streak_reason = ""
+        self.streak_half_open = 0
         self.box_gone: str | None = None
         self.box_gone_at = 0.0
         self.ended_by = "duration"
@@ -68,9 +69,10 @@ class SoakPlayer:
     def stopped(self) -> Stopped | None:
         """The box stopped serving (its process ended, or every session failed to the end), else None."""
         if self.box_gone is not None:
-            return Stopped(self.served, self.box_gone_at, "died", self.box_gone)
+            return Stopped(self.served, self.box_gone_at, "died", self.box_gone, self.streak_half_open)
         if self.streak >= max(STREAK_MIN, self.settings.robots) and (self.dead_windows or self.ended_by != "duration"):
-            return Stopped(self.streak_from, self.streak_at, self.streak_kind, self.streak_reason)
+            return Stopped(self.streak_from, self.streak_at, self.streak_kind, self.streak_reason,
+                           self.streak_half_open)
         return None
 
     # -- running ------------------------------------------------------------------------------------
@@ -153,6 +155,7 @@ class SoakPlayer:
             if not self.streak:
                 self.streak_from, self.streak_at = self.served, self.elapsed()
                 self.streak_kind, self.streak_reason = outcome.failure, outcome.reason
+                self.streak_half_open = len(self.ghosts.ring)
             self.streak += 1
 
     async def _ticker(self) -> None:
@@ -185,7 +188,7 @@ class SoakPlayer:
         self.judged = row.sessions_total
         self.rows.append(row)
         self.window = Window(window.index + 1, end - self.t0, self.settings.time_out_ms)
-        dead = row.sessions_ok == 0 and row.sessions_failed > 0 and self.streak > 0
+        dead = row.sessions_ok == 0 and self.streak > 0  # nothing served, and the last session failed
         self.dead_windows = self.dead_windows + 1 if dead else 0
         if self.box_gone is not None:
             self.ended_by = "box died"

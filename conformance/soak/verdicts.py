@@ -39,14 +39,17 @@ class Stopped:
     at_s: float
     kind: str  # a failure kind of windows.FAILURE_CLAUSE, or "died" (the box's process ended)
     reason: str
+    #: half-open connections of vanished robots the soak held open when the box stopped
+    half_open: int = 0
 
     @property
     def clause(self) -> str:
-        return "S5" if self.kind in ("connect", "died") else "R5"
+        """R5 when abandoned connections were outstanding (or the rebooted robot was refused), else S5."""
+        return "R5" if self.half_open or self.kind == "after-vanish" else "S5"
 
     def to_dict(self) -> dict[str, Any]:
         return {"after_sessions": self.after_sessions, "at_s": round(self.at_s, 3), "kind": self.kind,
-                "reason": self.reason, "clause": self.clause}
+                "reason": self.reason, "half_open": self.half_open, "clause": self.clause}
 
 
 @dataclass
@@ -110,7 +113,8 @@ def _t2(rows: Sequence[WindowRow], trends: list[Trend]) -> SoakVerdict:
     cover = _coverage(rows)
     if not trends:
         return SoakVerdict("T2", TITLES["T2"], Verdict.INCONCLUSIVE,
-                           f"too few windows with answers to judge a trend ({len(rows)}; {MIN_WINDOWS} needed)")
+                           f"too few windows with answers to judge a trend "
+                           f"({sum(1 for r in rows if r.latency.get('n'))} of {len(rows)}; {MIN_WINDOWS} needed)")
     growing = [t for t in trends if t.grows]
     details = {"trends": [t.to_dict() for t in trends]}
     if growing:
@@ -138,9 +142,11 @@ def _failure_clause(clause: str, rows: Sequence[WindowRow], stopped: Stopped | N
     count, windows, reasons = _clause_windows(rows, clause)
     cover = _coverage(rows)
     if stopped is not None and stopped.clause == clause:
+        held = (f", with {stopped.half_open} connections of vanished robots still open"
+                if stopped.half_open else "")
         return SoakVerdict(clause, TITLES[clause], Verdict.FAIL,
                            f"the box stopped serving after {stopped.after_sessions:,} sessions "
-                           f"({format_duration(stopped.at_s)} into the soak): {stopped.reason}", windows,
+                           f"({format_duration(stopped.at_s)} into the soak{held}): {stopped.reason}", windows,
                            {"stopped": stopped.to_dict(), "failures": count})
     if count:
         return SoakVerdict(clause, TITLES[clause], Verdict.FAIL,
