@@ -37,7 +37,7 @@ MIN_WINDOWS = 6
 LATENCY_FLOOR_MS = 2.0
 #: resource: (unit, absolute floor of growth over the soak, floor relative to its first level)
 RESOURCE_FLOORS: dict[str, tuple[str, float, float]] = {
-    "rss_mb": ("MB", 1.0, 0.05),
+    "rss_mb": ("MB", 1.0, 0.02),
     "fds": ("fds", 4.0, 0.0),
     "threads": ("threads", 2.0, 0.0),
     "cpu_percent": ("% CPU", 10.0, 0.0),
@@ -137,8 +137,7 @@ def judge_series(name: str, unit: str, rows: Sequence[WindowRow], value: Callabl
     third = max(1, len(ys) // 3)
     first, last = _median(ys[:third]), _median(ys[-third:])
     floor = max(floor_abs, floor_rel * abs(first))
-    grows = (test.p_increasing < ALPHA and per_hour.low > 0 and growth > max(floor, noise)
-             and last - first > floor)
+    grows = test.p_increasing < ALPHA and per_hour.low > 0 and growth > max(floor, noise)
     above = [r.index for r, v in points if v > first + floor] if grows else []
     return Trend(name, unit, per_hour, per_k, test.to_dict(), growth, noise, floor, grows, first, last, above)
 

@@ -53,7 +53,8 @@ def render(doc: dict[str, Any]) -> str:
         for key, (unit, _abs, _rel) in RESOURCE_FLOORS.items():
             if any(r["resources"].get(key) is not None for r in rows):
                 parts.append(f"<figure>{resource_plot(rows, key, 'Box: ' + RESOURCE_NAMES[key], unit, _trend(doc, 'resource_trends', key))}</figure>")
-        parts.append(f"<figure>{resource_plot(rows, 'soak_rss_mb', 'The soak itself: RSS', 'MB', None)}</figure>")
+        if any(r["resources"].get("soak_rss_mb") is not None for r in rows):
+            parts.append(f"<figure>{resource_plot(rows, 'soak_rss_mb', 'The soak itself: RSS', 'MB', None)}</figure>")
     half = doc.get("half_open") or {}
     parts.append(f"<h2>Robots that vanished</h2><p>{half.get('abandoned', 0)} connections abandoned without FIN or RST; "
                  f"the box closed {half.get('freed_by_box', 0)} of them itself"
