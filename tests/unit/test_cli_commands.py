@@ -9,7 +9,8 @@ import pytest
 
 from conformance.commands import COMMANDS, build_parser, main
 
-NAMES = ("decode", "serve", "robot", "certify-robot", "run", "fuzz", "replay", "clauses", "wireshark", "diff", "analyze", "monitor")
+NAMES = ("decode", "serve", "robot", "certify-robot", "run", "fuzz", "replay", "clauses", "wireshark", "diff", "analyze", "monitor",
+         "soak")
 
 
 def test_every_add_parser_registers_one_command_with_its_handler() -> None:
