@@ -48,6 +48,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                      "(its address from --target or its 'listening tcp HOST:PORT' line)"))
     g.add_argument("--report-dir", metavar="DIR", help=_("where soak.json, summary.json, junit.xml and report.html "
                    "go (default: reports/soak-<timestamp>)"))
+    g.add_argument("--pcap-ring", type=int, default=0, metavar="N",
+                   help=_("live pcaps of the newest N windows, and of every window with a finding, in DIR/pcaps "
+                          "(needs root or CAP_NET_RAW; default: 0, none)"))
+    g.add_argument("--pcap-interface", default="lo", metavar="IFACE",
+                   help=_("the interface the pcaps are captured on (default: lo)"))
     g.add_argument("--seed", type=int, default=0, help=_("seed of the event plan (default: 0)"))
     g.add_argument("--extension", choices=("auto", "on", "off"), default="auto",
                    help=_("extension E (E4 sessions): detect (auto, default), or force on/off"))
@@ -66,6 +71,7 @@ def settings_from(args: argparse.Namespace) -> SoakSettings:
         box_pid=args.box_pid, restart_cmd=args.restart_cmd,
         report_dir=Path(args.report_dir) if args.report_dir else None, seed=args.seed,
         profile=profile_from_options(args), extension=args.extension, quiet=args.quiet,
+        pcap_ring=args.pcap_ring, pcap_interface=args.pcap_interface,
     )
 
 

@@ -27,6 +27,7 @@ from .boxstart import bundled_command, start_box
 from .document import build_document
 from .evidence import EvidenceWriter
 from .page import write_page
+from .pcapring import PcapRing
 from .player import SoakPlayer
 from .progress import Progress
 from .resources import BoxProbe, describe
@@ -110,16 +111,26 @@ def _soak(settings: SoakSettings, box: Box, command: str) -> int:
     box_info = describe(box.probe)
     session = "E4 (extension)" if extension else "S1"
 
+    ring = None
+    if settings.pcap_ring:
+        ring = PcapRing(report_dir / "pcaps", box.target.port, settings.pcap_ring, settings.pcap_interface)
+        ring.start(0)
+        if ring.error:
+            print(f"isight-conformance soak: no pcaps: {ring.error}", file=sys.stderr)
+
     def build(final: bool) -> tuple[dict[str, Any], Judged]:
         doc, judged = build_document(player, target=box.label, box=box_info, extension=how, started=started,
                                      command=command, final=final)
         doc["session"] = session
+        doc["pcaps"] = ring.to_dict() if ring is not None else None
         return doc, judged
 
     writer = EvidenceWriter(report_dir, build, command, html=write_page)
 
     def on_window(row: Any) -> None:
         progress.window(row)
+        if ring is not None:
+            ring.rotate(row)
         writer.checkpoint()
 
     player.on_window = on_window
@@ -127,8 +138,12 @@ def _soak(settings: SoakSettings, box: Box, command: str) -> int:
         print(f"isight-conformance soak: {box.label}, {session} sessions, {settings.robots} robot(s), "
               f"windows of {settings.window_s:g} s, events {settings.events}; evidence in {report_dir}",
               file=sys.stderr)
-    with progress:
-        asyncio.run(_play(player))
+    try:
+        with progress:
+            asyncio.run(_play(player))
+    finally:
+        if ring is not None:
+            ring.close()
     doc = writer.write(final=True)
     return _finish(doc, report_dir, player)
 

@@ -61,6 +61,15 @@ def render(doc: dict[str, Any]) -> str:
                  + (f" (median after {half['freed_after_s_median']:.1f} s)" if half.get("freed_after_s_median") else "")
                  + f"; the rest were reset by the soak after {half.get('hold_s', 0):g} s, as a rebooted robot's "
                  "stack answers the box's next segment.</p>")
+    pcaps = doc.get("pcaps")
+    if pcaps:
+        if pcaps.get("error"):
+            parts.append(f"<p>No pcaps: {escape(pcaps['error'])}</p>")
+        else:
+            links = [f"<a href='pcaps/{escape(n)}'>{escape(n)}</a>" for n in [*pcaps["findings"], *pcaps["recent"]]]
+            parts.append(f"<h2>Pcaps</h2><p>{len(pcaps['findings'])} window(s) with findings kept, the newest "
+                         f"{pcaps['keep']} window(s) kept, {pcaps['deleted']} older ones deleted: "
+                         + (", ".join(links) or "none") + "</p>")
     parts.append(_window_table(rows))
     parts.append(f"<p><small>{escape(doc.get('command', ''))}</small></p></body></html>")
     return "".join(parts)

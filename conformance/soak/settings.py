@@ -87,6 +87,9 @@ class SoakSettings:
     profile: Profile = DEFAULT_PROFILE
     extension: str = "auto"
     quiet: bool = False
+    #: keep the live pcaps of the newest N windows (and of every window with a finding); 0: no pcaps
+    pcap_ring: int = 0
+    pcap_interface: str = "lo"
     #: stop early when every session failed for this many windows in a row (the box stopped serving)
     stop_after_dead_windows: int = 3
 
@@ -101,6 +104,8 @@ class SoakSettings:
             raise ValueError(f"--stall-s: 0 to 600 seconds, not {self.stall_s:g}")
         if not 1 <= self.burst_size <= 500:
             raise ValueError(f"--burst: 1 to 500 connections, not {self.burst_size}")
+        if not 0 <= self.pcap_ring <= 10_000:
+            raise ValueError(f"--pcap-ring: 0 to 10000 windows, not {self.pcap_ring}")
         if self.ghost_hold_s < 0:
             raise ValueError("--ghost-hold: not negative")
         if self.box_pid is not None and self.restart_cmd is not None:
