@@ -123,6 +123,13 @@ def _soak(settings: SoakSettings, box: Box, command: str) -> int:
                                      command=command, final=final)
         doc["session"] = session
         doc["pcaps"] = ring.to_dict() if ring is not None else None
+        if player.box_gone is not None and box.process is not None:
+            words = box.process.last_words(wait_s=0.5)  # what the box wrote before it ended
+            if words is not None:
+                doc["box_last_words"] = {"summary": words.summary(), "tail": words.shown_tail()}
+                last = next((line for line in reversed(words.tail.splitlines()) if line.strip()), "")
+                if doc["stopped"] and last:
+                    doc["stopped"]["reason"] += f"; its last line: {last.strip()[:200]}"
         return doc, judged
 
     writer = EvidenceWriter(report_dir, build, command, html=write_page)

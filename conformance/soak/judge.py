@@ -71,12 +71,14 @@ class Trend:
                 "per_1000_sessions": self.per_k_sessions.to_dict() if self.per_k_sessions else None,
                 "mann_kendall": self.test, "windows": self.windows}
 
-    def slope_text(self, name: str) -> str:
+    def slope_text(self, name: str, brief: bool = False) -> str:
         fit = self.per_k_sessions or self.per_hour
         if fit is None:
             return f"{name}: too few windows"
         per = "per 1,000 sessions" if self.per_k_sessions else "per hour"
         text = f"{name} {number(fit.slope, True)} {self.unit} {per} (95 % CI {number(fit.low)}–{number(fit.high)})"
+        if brief:
+            return text
         if self.per_hour is not None and self.per_k_sessions is not None:
             text += f", {number(self.per_hour.slope, True)} {self.unit} per hour"
         if self.test is not None:

@@ -31,6 +31,9 @@ TITLES = {
 }
 
 
+SHORT_NAMES = {"rss_mb": "RSS", "fds": "fds", "threads": "threads", "cpu_percent": "CPU", "connections": "connections"}
+
+
 @dataclass
 class Stopped:
     """The box stopped serving: every session from the ``after_sessions``-th on failed, to the end."""
@@ -172,7 +175,7 @@ def judge_soak(rows: Sequence[WindowRow], stopped: Stopped | None, half_open: di
                          "resources grow: " + "; ".join(findings) + f" ({_coverage(rows)})",
                          sorted({i for t in growing for i in t.windows}), r5.details)
     elif r5.verdict is Verdict.PASS and res:
-        r5.message += "; resources flat: " + "; ".join(t.slope_text(RESOURCE_NAMES.get(t.series, t.series))
+        r5.message += "; resources flat: " + "; ".join(t.slope_text(SHORT_NAMES.get(t.series, t.series), brief=True)
                                                       for t in res)
     verdicts.insert(3, r5)
     return Judged(verdicts, lat, res, findings)

@@ -136,6 +136,15 @@ def test_a_box_that_never_frees_abandoned_connections_fails_r5_with_n(tmp_path):
     assert "connections of vanished robots still open" in next(v for v in doc["verdicts"] if v["clause"] == "R5")["message"]
 
 
+@pytest.mark.impls(seconds=15)
+def test_a_box_whose_process_dies_fails_s5_with_n_and_its_last_words(tmp_path):
+    code, doc, out = soak(tmp_path, "--restart-cmd", python_box("dies-after"), "--duration", "40s", *compressed())
+    assert code == 1 and doc["ended_by"] == "box died" and doc["stopped"]["kind"] == "died", out
+    assert "fatal: session table full" in doc["stopped"]["reason"]
+    assert "exit status 70" in doc["box_last_words"]["summary"]
+    assert verdicts(doc)["S5"] == "FAIL" and 4 <= doc["stopped"]["after_sessions"] <= 10
+
+
 def test_sigint_ends_the_soak_and_keeps_its_evidence(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.Popen([sys.executable, "-m", "conformance", "soak", "--duration", "2h", "--window", "1s",

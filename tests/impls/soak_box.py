@@ -12,6 +12,7 @@ slow, as on a plant:
 * ``latency-creep``: every answer is 0.5 ms later per session served before it (T2);
 * ``fd-leak``: never closes a connection the robot closed (CLOSE_WAIT: descriptors grow, S5);
 * ``stop-after``: stops accepting after 12 sessions (S5 FAIL with N);
+* ``dies-after``: after 10 sessions it prints ``fatal: session table full`` and exits 70;
 * ``half-open-cap``: at most 6 connections, no idle time-out: a robot that vanishes holds its
   slots forever, and the box stops serving once the abandoned connections fill them (R5).
 """
@@ -20,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import os
 import signal
 import struct
 import sys
@@ -40,6 +42,7 @@ class Knobs:
     fd_leak: bool = False
     stop_after: int = 0
     max_conns: int = 0
+    die_after: int = 0
 
 
 BOXES: dict[str, Knobs] = {
@@ -51,6 +54,7 @@ BOXES: dict[str, Knobs] = {
     "fd-leak": Knobs(fd_leak=True),
     "stop-after": Knobs(stop_after=12),
     "half-open-cap": Knobs(max_conns=6),
+    "dies-after": Knobs(die_after=10),
 }
 LEGAL = ("flat", "slow", "stalling")
 
@@ -97,6 +101,9 @@ class SoakBox:
                     session = self.sessions
                     if header[3] != 0x23:
                         self.sessions += 1  # a command connection: one more session
+                        if knobs.die_after and self.sessions > knobs.die_after:
+                            print("fatal: session table full", file=sys.stderr, flush=True)
+                            os._exit(70)
                 poses += header[3] == 0x23
                 if knobs.stall_every and session % knobs.stall_every == knobs.stall_every - 1 and poses == 20:
                     await asyncio.sleep(knobs.stall_ms / 1000)  # one brief stall; the poses behind it queue
