@@ -44,6 +44,7 @@ def build_document(player: SoakPlayer, *, target: str, box: dict[str, Any] | Non
         "stopped": stopped.to_dict() if stopped else None,
         "half_open": player.ghosts.to_dict(),
         "soak_rss_mb": {"first": soak_rss[0], "last": soak_rss[-1], "max": max(soak_rss)} if soak_rss else None,
+        "notes": list(player.notes),
         "overall": overall(judged),
         **judged.to_dict(),
         "windows": [r.to_dict() for r in rows],

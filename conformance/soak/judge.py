@@ -7,6 +7,8 @@ Judged as a trend, not a snapshot:
   finds a rise (one-sided p < :data:`ALPHA`), the interval lies above zero, and the growth over
   the soak (slope × span) exceeds both :data:`LATENCY_FLOOR_MS` and three times the scatter of the
   windows around the fit. Then T2 FAILs, with the slope and the windows that show it.
+* Growth must be *sustained*: the slope over the later half of the windows is at least a third of the
+  whole soak's, so a box warming up (a climb that levels off) is not a trend.
 * **Resources** of a local box (RSS, file descriptors, threads, CPU, connections it holds), by the
   same rule with each resource's own floor (:data:`RESOURCE_FLOORS`): a growing one is a *finding*,
   "RSS +3.1 MB per 1,000 sessions (95 % CI 2.8–3.4)", reported under R5.
@@ -63,13 +65,14 @@ class Trend:
     first: float
     last: float
     windows: list[int] = field(default_factory=list)  # the windows above the first third's level
+    later_per_hour: float = 0.0  # the slope over the later half of the windows
 
     def to_dict(self) -> dict[str, Any]:
         return {"series": self.series, "unit": self.unit, "grows": self.grows, "growth": self.growth,
                 "noise": self.noise, "floor": self.floor, "first": self.first, "last": self.last,
                 "per_hour": self.per_hour.to_dict() if self.per_hour else None,
                 "per_1000_sessions": self.per_k_sessions.to_dict() if self.per_k_sessions else None,
-                "mann_kendall": self.test, "windows": self.windows}
+                "mann_kendall": self.test, "windows": self.windows, "later_half_per_hour": self.later_per_hour}
 
     def slope_text(self, name: str, brief: bool = False) -> str:
         fit = self.per_k_sessions or self.per_hour
@@ -139,9 +142,12 @@ def judge_series(name: str, unit: str, rows: Sequence[WindowRow], value: Callabl
     third = max(1, len(ys) // 3)
     first, last = _median(ys[:third]), _median(ys[-third:])
     floor = max(floor_abs, floor_rel * abs(first))
-    grows = test.p_increasing < ALPHA and per_hour.low > 0 and growth > max(floor, noise)
+    half = len(hx) // 2
+    later = theil_sen(hx[half:], hy[half:]).slope if len(set(hx[half:])) > 1 else per_hour.slope
+    sustained = later >= per_hour.slope / 3  # a warm-up climbs, then levels off: its later half is flat
+    grows = test.p_increasing < ALPHA and per_hour.low > 0 and growth > max(floor, noise) and sustained
     above = [r.index for r, v in points if v > first + floor] if grows else []
-    return Trend(name, unit, per_hour, per_k, test.to_dict(), growth, noise, floor, grows, first, last, above)
+    return Trend(name, unit, per_hour, per_k, test.to_dict(), growth, noise, floor, grows, first, last, above, later)
 
 
 def _coverage(rows: Sequence[WindowRow]) -> str:

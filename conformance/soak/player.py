@@ -25,6 +25,8 @@ from .windows import SessionOutcome, Window, WindowRow
 perf = time.perf_counter
 #: after a failed session a robot waits this long (at most) before the next: a dead box is not hammered
 BACKOFF_S = 1.0
+#: E4 sessions all answered ProgIdx 409 (not ready) before the soak falls back to S1 sessions
+FALLBACK_AFTER = 3
 #: a streak of failed sessions this long (or one per robot, if more) at the end is "stopped serving"
 STREAK_MIN = 3
 
@@ -61,6 +63,8 @@ class SoakPlayer:
         self.soak_rss: list[float] = []  # the soak's own RSS, one per window (bounded by the windows)
         self._done = asyncio.Event()
         self.closing = False  # the duration is over: robots start no new session
+        self.conflicts = 0  # E4 sessions whose ProgIdx was answered 409 (not ready) before any was served
+        self.notes: list[str] = []
 
     # -- what the reports read ------------------------------------------------------------------------
     def elapsed(self) -> float:
@@ -133,7 +137,7 @@ class SoakPlayer:
             session = SoakSession(
                 self.target, settings.profile, robot=robot, duration=settings.cycle_s, extension=self.extension,
                 event=event, event_at=self.plan.where(), stall_s=settings.stall_s, after_event=after,
-                ghosts=self.ghosts, result_wait=min(1.0, settings.cycle_s),
+                ghosts=self.ghosts, result_wait=min(1.0, settings.cycle_s), shared=settings.robots > 1,
             )
             await session.run()
             outcome = session.outcome(settings.time_out_ms)
@@ -145,6 +149,12 @@ class SoakPlayer:
 
     def _add(self, outcome: SessionOutcome) -> None:
         self.window.add(outcome)
+        if outcome.prog_idx_conflict and not self.served and self.extension:
+            self.conflicts += 1
+            if self.conflicts >= FALLBACK_AFTER:
+                self.extension = False  # the next sessions are S1: a soak of E4 sessions would judge nothing
+                self.notes.append(f"ProgIdx was answered 409 (not ready, E2) in the first {self.conflicts} E4 "
+                                  "sessions: the soak plays S1 sessions instead")
         if outcome.event in ("vanish", "reset"):
             return
         if outcome.ok:

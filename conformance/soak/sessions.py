@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import os
 import socket
 import struct
@@ -28,7 +29,8 @@ from typing import Any
 from ..endpoints.robot import RobotSession
 from ..endpoints.robot.robot_io import Link, Stop
 from ..endpoints.robot.robot_result import EXIT_CONNECTION, EXIT_MISBEHAVED, EXIT_NOT_READY, EXIT_OK, EXIT_TIMEOUT
-from ..protocol import Action, Frame, Profile, StreamDecoder, TransferType, codec_for, request
+from ..endpoints.robot.robot_steps import Judge, Judgement
+from ..protocol import Action, ErrorCode, Frame, Profile, ResultCode, StreamDecoder, TransferType, codec_for, request
 from .windows import SessionOutcome
 
 perf = time.perf_counter
@@ -125,8 +127,9 @@ class SoakSession(RobotSession):
 
     def __init__(self, target: tuple[str, int], profile: Profile, *, robot: int, duration: float, extension: bool,
                  event: str = "", event_at: float = 0.5, stall_s: float = 0.0, after_event: str = "",
-                 ghosts: Ghosts | None = None, result_wait: float = 1.0) -> None:
+                 ghosts: Ghosts | None = None, result_wait: float = 1.0, shared: bool = False) -> None:
         super().__init__(target, profile, duration=duration, extension=extension, result_wait=result_wait)
+        self.shared = shared  # other robots play on the same box at once: its cycle may be theirs (S3)
         self.robot = robot
         self.event = event
         self.event_at = event_at
@@ -155,6 +158,11 @@ class SoakSession(RobotSession):
             if stop.code == EXIT_TIMEOUT and stream is not None and not stream.eof and self.result.poses_answered:
                 self.phase = "command-starved"  # the stream was served, the command was not (S4)
             raise
+
+    async def _io_command(self, step: Any) -> None:
+        if self.shared and step.action is Action.CYCLE_OFF and step.judge is not None:
+            step = dataclasses.replace(step, judge=_shared_cycle_off(step.judge))
+        await super()._io_command(step)
 
     async def _io_trajectory(self, step: Any) -> None:
         if self.event not in ("vanish", "reset", "stall"):
@@ -197,7 +205,19 @@ class SoakSession(RobotSession):
             self.robot, not failure, failure, result.reason if failure else "", self.event, self.after_event,
             result.poses_sent, result.poses_answered, latencies, list(result.command_latencies_ms.values()),
             self.connect_ms, sum(1 for v in latencies if v > time_out_ms),
+            prog_idx_conflict=result.prog_idx_answer == ResultCode.CONFLICT,
         )
+
+
+def _shared_cycle_off(judge: Judge) -> Judge:
+    """CycleOff's judge when several robots share the box: 0002 is allowed, the box-wide cycle may have been
+    ended by another robot's CycleOff (S3: cycle state per box, CycleOff when idle answered 0000 or an error)."""
+    def shared(frame: Frame, program_index: int) -> Judgement:
+        if frame.error_code == ErrorCode.CYCLE_OFF_FAILED:
+            return Judgement(reason="CycleOff answered 0002: the box's cycle was ended by another robot (S3)")
+        return judge(frame, program_index)
+
+    return shared
 
 
 def classify(code: int, phase: str, after_event: str) -> str:

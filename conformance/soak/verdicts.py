@@ -158,8 +158,18 @@ def _failure_clause(clause: str, rows: Sequence[WindowRow], stopped: Stopped | N
     return SoakVerdict(clause, TITLES[clause], Verdict.PASS, f"none in {cover}{extra}", [], {})
 
 
+def _nothing_judged(rows: Sequence[WindowRow]) -> Judged:
+    not_ready = sum(r.sessions_not_ready for r in rows)
+    why = (f"no session could be judged: {not_ready} ended not ready (CycleOn 0001 or ProgIdx 409, S2/E2)"
+           if not_ready else "no session could be judged")
+    return Judged([SoakVerdict(c, TITLES[c], Verdict.INCONCLUSIVE, why) for c in ("S1", "S4", "S5", "R5", "T1", "T2")],
+                  [], [], [])
+
+
 def judge_soak(rows: Sequence[WindowRow], stopped: Stopped | None, half_open: dict[str, Any] | None = None) -> Judged:
     """Every verdict of the soak, from its closed windows and what stopped."""
+    if stopped is None and (not rows or not rows[-1].sessions_total):
+        return _nothing_judged(rows)
     lat = latency_trends(rows)
     res = resource_trends(rows)
     findings = [t.slope_text(RESOURCE_NAMES.get(t.series, t.series)) for t in res if t.grows]

@@ -48,6 +48,8 @@ class SessionOutcome:
     connect_ms: list[float] = field(default_factory=list)
     #: answers later than time_out (they came, too late: T1)
     late: int = 0
+    #: ProgIdx was answered 409, not ready (E2): the session was inconclusive
+    prog_idx_conflict: bool = False
 
 
 def _summary(sketch: LatencySketch) -> dict[str, float | int | None]:

@@ -127,3 +127,34 @@ def test_the_page_draws_every_plot_inline():
     page = render(doc)
     assert page.count("<svg") == 4 and "box &lt;1&gt;" in page and "RSS +3.1 MB per 1,000 sessions" in page
     assert "<script" not in page and "http://" not in page.replace("http://www.w3.org/2000/svg", "")
+
+
+def test_a_box_warming_up_is_not_a_finding():
+    # RSS climbs fast in the first windows, then levels off: significant, but not sustained
+    judged = judge_soak(rows(rss=lambda i, rng: 30 + 4 * (1 - 0.6 ** i) + rng.gauss(0, 0.01)), None)
+    rss = next(t for t in judged.resources if t.series == "rss_mb")
+    assert not rss.grows and rss.later_per_hour < (rss.per_hour.slope if rss.per_hour else 0) / 3
+    assert not judged.findings
+
+
+def test_a_soak_that_judged_no_session_is_inconclusive():
+    data = [Window(i, i * 60.0, 5000) for i in range(8)]
+    for window in data:
+        window.add(SessionOutcome(0, False, "not-ready", "ProgIdx answered 409"))
+    judged = judge_soak([w.close(w.start_s + 60, 0, {}, 0.0) for w in data], None)
+    assert {v.verdict for v in judged.verdicts} == {Verdict.INCONCLUSIVE}
+    assert "8 ended not ready" in judged.verdicts[0].message and overall(judged) == "INCONCLUSIVE"
+
+
+def test_several_robots_may_find_the_boxes_cycle_ended_by_another():
+    from conformance.endpoints.robot.robot_steps import STEP_TABLE
+    from conformance.protocol import Action, answer
+    from conformance.soak.sessions import _shared_cycle_off
+
+    judge = STEP_TABLE["cycle_off"].judge
+    assert judge is not None
+    idle = answer(Action.CYCLE_OFF, 0x0002)
+    assert judge(idle, 1).code != EXIT_OK  # one robot: CycleOff must be 0000 (S1)
+    shared = _shared_cycle_off(judge)(idle, 1)
+    assert shared.code == EXIT_OK and "another robot" in shared.reason
+    assert _shared_cycle_off(judge)(answer(Action.CYCLE_OFF, 0x1001), 1).code != EXIT_OK
