@@ -84,7 +84,19 @@ def decide_extension(mode: str, box: Box, settings: SoakSettings) -> tuple[bool,
         conn.close()
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt  # SIGTERM before the soak's loop runs: the box the soak started is stopped too
+
+
 def run_soak(settings: SoakSettings, command: str = "") -> int:
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        return _run_soak(settings, command)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run_soak(settings: SoakSettings, command: str) -> int:
     try:
         box = open_box(settings)
     except ValueError as exc:
@@ -167,6 +179,7 @@ async def _play(player: SoakPlayer) -> None:
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):
                 loop.remove_signal_handler(sig)
+        signal.signal(signal.SIGTERM, _interrupt)  # asyncio left SIG_DFL: the last write must still happen
 
 
 def _finish(doc: dict[str, Any] | None, report_dir: Path, player: SoakPlayer) -> int:
