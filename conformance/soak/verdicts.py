@@ -118,7 +118,8 @@ def _t2(rows: Sequence[WindowRow], trends: list[Trend]) -> SoakVerdict:
         return SoakVerdict("T2", TITLES["T2"], Verdict.INCONCLUSIVE,
                            f"too few windows with answers to judge a trend "
                            f"({sum(1 for r in rows if r.latency.get('n'))} of {len(rows)}; {MIN_WINDOWS} needed)")
-    growing = [t for t in trends if t.grows]
+    # a backlog moves the median: the p50 judges T2; a p99 that grows alone is the tail (often the host), a finding
+    growing = [t for t in trends if t.grows and t.series == "latency p50"]
     details = {"trends": [t.to_dict() for t in trends]}
     if growing:
         worst = growing[0]
@@ -126,6 +127,11 @@ def _t2(rows: Sequence[WindowRow], trends: list[Trend]) -> SoakVerdict:
                            f"answer latency grows beyond noise: {worst.slope_text(worst.series)}; "
                            f"growth {worst.growth:.3g} ms over the soak against noise {worst.noise:.3g} ms "
                            f"({cover}); windows {_ranges(worst.windows)}", worst.windows, details)
+    tail = [t for t in trends if t.grows]
+    if tail:
+        return SoakVerdict("T2", TITLES["T2"], Verdict.PASS,
+                           f"the median latency is flat over {cover}, the tail grows (a finding): "
+                           + "; ".join(t.slope_text(t.series) for t in trends), tail[0].windows, details)
     return SoakVerdict("T2", TITLES["T2"], Verdict.PASS,
                        f"latency flat over {cover}: " + "; ".join(t.slope_text(t.series) for t in trends), [], details)
 
@@ -172,23 +178,26 @@ def judge_soak(rows: Sequence[WindowRow], stopped: Stopped | None, half_open: di
         return _nothing_judged(rows)
     lat = latency_trends(rows)
     res = resource_trends(rows)
-    findings = [t.slope_text(RESOURCE_NAMES.get(t.series, t.series)) for t in res if t.grows]
+    grown = [t.slope_text(RESOURCE_NAMES.get(t.series, t.series)) for t in res if t.grows]
+    median_grows = any(t.grows for t in lat if t.series == "latency p50")
+    tail = [f"tail {t.slope_text(t.series)} (the median is flat)" for t in lat
+            if t.grows and t.series != "latency p50" and not median_grows]
     verdicts = [_failure_clause("S1", rows, stopped), _failure_clause("S4", rows, stopped),
                 _failure_clause("S5", rows, stopped), _failure_clause("T1", rows, stopped), _t2(rows, lat)]
     r5 = _failure_clause("R5", rows, stopped)
     r5.details["resource_trends"] = [t.to_dict() for t in res]
     if half_open:
         r5.details["half_open"] = half_open
-    if r5.verdict is Verdict.PASS and findings:
+    if r5.verdict is Verdict.PASS and grown:
         growing = [t for t in res if t.grows]
         r5 = SoakVerdict("R5", TITLES["R5"], Verdict.INFORMATIONAL,
-                         "resources grow: " + "; ".join(findings) + f" ({_coverage(rows)})",
+                         "resources grow: " + "; ".join(grown) + f" ({_coverage(rows)})",
                          sorted({i for t in growing for i in t.windows}), r5.details)
     elif r5.verdict is Verdict.PASS and res:
         r5.message += "; resources flat: " + "; ".join(t.slope_text(SHORT_NAMES.get(t.series, t.series), brief=True)
                                                       for t in res)
     verdicts.insert(3, r5)
-    return Judged(verdicts, lat, res, findings)
+    return Judged(verdicts, lat, res, grown + tail)
 
 
 __all__ = ["TITLES", "Judged", "Stopped", "judge_soak", "latency_trends", "resource_trends", "warmup"]

@@ -158,3 +158,17 @@ def test_several_robots_may_find_the_boxes_cycle_ended_by_another():
     shared = _shared_cycle_off(judge)(idle, 1)
     assert shared.code == EXIT_OK and "another robot" in shared.reason
     assert _shared_cycle_off(judge)(answer(Action.CYCLE_OFF, 0x1001), 1).code != EXIT_OK
+
+
+def test_a_tail_that_grows_alone_is_a_finding_not_a_t2_fail():
+    def tail(i: int, rng: random.Random) -> float:
+        return 0.4 + rng.gauss(0, 0.02)
+
+    data = rows(latency=tail)
+    for i, row in enumerate(data):  # the p99 climbs 1 ms a window, the median stays where it was
+        row.latency["p99"] = 2.0 + 1.0 * i
+    judged = judge_soak(data, None)
+    t2 = by_clause(judged)["T2"]
+    assert t2.verdict is Verdict.PASS and "the tail grows" in t2.message
+    assert any(f.startswith("tail latency p99 +") for f in judged.findings)
+    assert by_clause(judged)["R5"].verdict is Verdict.PASS  # a latency finding is not a resource's
