@@ -144,7 +144,7 @@ class SoakPlayer:
             del session
             self._add(outcome)
             after = event if event in ("vanish", "reset") else ""
-            if not outcome.ok and outcome.failure != "not-ready" and not self.closing:
+            if not outcome.ok and not self.closing:  # a robot told "not ready" waits before it tries again too
                 await asyncio.sleep(min(BACKOFF_S, settings.cycle_s))
 
     def _add(self, outcome: SessionOutcome) -> None:

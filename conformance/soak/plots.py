@@ -110,11 +110,14 @@ def _fit_points(fit: dict[str, Any] | None, x0: float, x1: float) -> list[tuple[
 def latency_plot(rows: Sequence[dict[str, Any]], trend: dict[str, Any] | None, time_out_ms: float) -> str:
     mids = [(r["start_s"] + r["end_s"]) / 2 for r in rows]
     x_end = rows[-1]["end_s"] if rows else 1.0
-    values = [r["latency"].get(q) for r in rows for q in ("p50", "p99", "max")]
-    finite = [v for v in values if v is not None]
-    top = max(finite, default=1.0)
-    top = _nice(min(top, time_out_ms * 1.1) if top > time_out_ms else top)
-    out, sx, sy = _frame("Answer latency per window (pose stream)", "ms", x_end, top)
+    p99s = sorted(r["latency"]["p99"] for r in rows if r["latency"].get("p99") is not None)
+    # the scale follows the p99s (their 90th percentile, with room): a max far above is drawn on the top edge
+    top = _nice(1.5 * p99s[int(0.9 * (len(p99s) - 1))]) if p99s else 1.0
+    top = min(top, _nice(time_out_ms * 1.1))
+    clipped = sum(1 for r in rows if (r["latency"].get("max") or 0) > top)
+    title = "Answer latency per window (pose stream)" + (f"; {clipped} max above the scale, on its top edge"
+                                                         if clipped else "")
+    out, sx, sy = _frame(title, "ms", x_end, top)
     out += _marks(rows, sx)
     for q in ("max", "p99", "p50"):
         out.append(_line([(x, r["latency"].get(q)) for x, r in zip(mids, rows)], sx, sy, COLOURS[q]))

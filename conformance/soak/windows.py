@@ -122,11 +122,12 @@ class Window:
         if outcome.event in ("vanish", "reset"):
             self.cut += 1  # its unanswered poses were abandoned on purpose
             return
+        if outcome.failure == "not-ready":
+            self.not_ready += 1  # ended by the box's "not ready" (S2/E2): its poses in flight were dropped
+            return
         self.missing += max(0, outcome.poses_sent - outcome.poses_answered)
         if outcome.ok:
             self.ok += 1
-        elif outcome.failure == "not-ready":
-            self.not_ready += 1
         else:
             self.failed += 1
             self.failures[outcome.failure] += 1
