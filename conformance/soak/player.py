@@ -126,6 +126,7 @@ class SoakPlayer:
     async def _robot(self, robot: int) -> None:
         settings = self.settings
         after = ""
+        clear = False
         while not self.closing:
             event = self.plan.next(self.elapsed())
             if event:
@@ -138,12 +139,14 @@ class SoakPlayer:
                 self.target, settings.profile, robot=robot, duration=settings.cycle_s, extension=self.extension,
                 event=event, event_at=self.plan.where(), stall_s=settings.stall_s, after_event=after,
                 ghosts=self.ghosts, result_wait=min(1.0, settings.cycle_s), shared=settings.robots > 1,
+                clear_cycle=clear,
             )
             await session.run()
             outcome = session.outcome(settings.time_out_ms)
             del session
             self._add(outcome)
             after = event if event in ("vanish", "reset") else ""
+            clear = bool(after) or outcome.failure == "not-ready"
             if not outcome.ok and not self.closing:  # a robot told "not ready" waits before it tries again too
                 await asyncio.sleep(min(BACKOFF_S, settings.cycle_s))
 

@@ -127,9 +127,12 @@ class SoakSession(RobotSession):
 
     def __init__(self, target: tuple[str, int], profile: Profile, *, robot: int, duration: float, extension: bool,
                  event: str = "", event_at: float = 0.5, stall_s: float = 0.0, after_event: str = "",
-                 ghosts: Ghosts | None = None, result_wait: float = 1.0, shared: bool = False) -> None:
+                 ghosts: Ghosts | None = None, result_wait: float = 1.0, shared: bool = False,
+                 clear_cycle: bool = False) -> None:
         super().__init__(target, profile, duration=duration, extension=extension, result_wait=result_wait)
         self.shared = shared  # other robots play on the same box at once: its cycle may be theirs (S3)
+        #: a CycleOff first: the robot's last cycle was left open (it vanished, was reset, or was told not ready)
+        self.clear_cycle = clear_cycle
         self.robot = robot
         self.event = event
         self.event_at = event_at
@@ -158,6 +161,11 @@ class SoakSession(RobotSession):
             if stop.code == EXIT_TIMEOUT and stream is not None and not stream.eof and self.result.poses_answered:
                 self.phase = "command-starved"  # the stream was served, the command was not (S4)
             raise
+
+    async def _io_connect(self, step: Any) -> None:
+        await super()._io_connect(step)
+        if self.clear_cycle:  # like a rebooted cell: end a cycle left open; 0000 or 0002 (idle) are both fine (S3)
+            await self._command(Action.CYCLE_OFF)
 
     async def _io_command(self, step: Any) -> None:
         if self.shared and step.action is Action.CYCLE_OFF and step.judge is not None:

@@ -87,6 +87,17 @@ def test_legal_slow_and_stalling_boxes_pass_clean(tmp_path, name):
 
 
 @pytest.mark.impls(seconds=30)
+def test_a_box_with_one_cycle_for_all_robots_passes_clean_when_robots_vanish_mid_cycle(tmp_path):
+    # two robots share the box's one cycle (S3: CycleOn while it runs 0001, CycleOff idle 0002, both legal),
+    # and a robot that vanishes mid-cycle leaves it running: the rebooted robot ends it first (a CycleOff)
+    code, doc, out = soak(tmp_path, "--restart-cmd", python_box("one-cycle"), "--duration", "24s",
+                          *compressed(events="0.25", event_kinds="vanish,reset"))
+    assert_clean(code, doc, out)
+    not_ready = sum(r["sessions_not_ready"] for r in doc["windows"])
+    assert doc["totals"]["served"] > not_ready, (doc["totals"], not_ready)  # the soak kept playing
+
+
+@pytest.mark.impls(seconds=30)
 def test_a_box_leaking_memory_per_connection_is_a_finding_with_its_slope(tmp_path):
     # 256 KiB kept per connection, two per session (no bursts here): 0.5 MiB per session = 524 MB per 1,000
     code, doc, out = soak(tmp_path, "--restart-cmd", python_box("leak-rss"), "--duration", "24s", *compressed(event_kinds="vanish,reset,stall"))

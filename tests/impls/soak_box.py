@@ -8,6 +8,8 @@ slow, as on a plant:
 * ``flat``: legal, answers at once;
 * ``slow``: legal, every answer 40 ms late (well inside time_out);
 * ``stalling``: legal, every 4th session's answers held 600 ms (inside time_out), then resumed;
+* ``one-cycle``: legal, one cycle for the whole box: CycleOn while it runs is 0001 (not ready), CycleOff
+  while none runs is 0002 (S3); a robot that vanishes mid-cycle leaves it running;
 * ``leak-rss``: keeps 256 KiB per connection it ever accepted (RSS grows per session);
 * ``latency-creep``: every answer is 0.5 ms later per session served before it (T2);
 * ``fd-leak``: never closes a connection the robot closed (CLOSE_WAIT: descriptors grow, S5);
@@ -27,7 +29,7 @@ import struct
 import sys
 from dataclasses import dataclass
 
-from .wire_format import BOX_TO_ROBOT, HEADER, HEADER_LEN, PROG_IDX, RESULT
+from .wire_format import BOX_TO_ROBOT, CYCLE_OFF, CYCLE_ON, HEADER, HEADER_LEN, PROG_IDX, RESULT
 
 CHECK = b"\x00\x00"
 
@@ -43,12 +45,14 @@ class Knobs:
     stop_after: int = 0
     max_conns: int = 0
     die_after: int = 0
+    one_cycle: bool = False
 
 
 BOXES: dict[str, Knobs] = {
     "flat": Knobs(),
     "slow": Knobs(delay_ms=40.0),
     "stalling": Knobs(stall_every=4, stall_ms=600.0),
+    "one-cycle": Knobs(one_cycle=True),
     "leak-rss": Knobs(leak_kib=256),
     "latency-creep": Knobs(creep_ms=0.5),
     "fd-leak": Knobs(fd_leak=True),
@@ -56,17 +60,17 @@ BOXES: dict[str, Knobs] = {
     "half-open-cap": Knobs(max_conns=6),
     "dies-after": Knobs(die_after=10),
 }
-LEGAL = ("flat", "slow", "stalling")
+LEGAL = ("flat", "slow", "stalling", "one-cycle")
 
 
-def answer_for(header: tuple[int, ...], body: bytes) -> bytes:
-    """The answer to one well-formed request (action echoed, 0000; 26 echoes its index, 27 answers OK)."""
+def answer_for(header: tuple[int, ...], body: bytes, error: int = 0) -> bytes:
+    """The answer to one well-formed request (action echoed, ``error``; 26 echoes its index, 27 answers OK)."""
     action = header[3]
     if action == PROG_IDX and len(body) >= 5:
         return HEADER.pack(0xFEFE, 1, BOX_TO_ROBOT, action, 3, 1, 5, 0) + body[:5] + CHECK
     if action == RESULT:
         return HEADER.pack(0xFEFE, 1, BOX_TO_ROBOT, action, 3, 1, 5, 0) + b"\x00" + struct.pack(">i", 1) + CHECK
-    return HEADER.pack(0xFEFE, 1, BOX_TO_ROBOT, action, 0, 0, 0, 0) + CHECK
+    return HEADER.pack(0xFEFE, 1, BOX_TO_ROBOT, action, 0, 0, 0, error) + CHECK
 
 
 class SoakBox:
@@ -77,6 +81,21 @@ class SoakBox:
         self.kept: list[bytearray] = []
         self.leaked: list[asyncio.StreamWriter] = []
         self.server: asyncio.AbstractServer | None = None
+        self.cycle = False  # one-cycle: a cycle runs on the box
+
+    def cycle_error(self, action: int) -> int:
+        """one-cycle: 0001 to CycleOn while a cycle runs, 0002 to CycleOff while none does; else 0000."""
+        if not self.knobs.one_cycle or action not in (CYCLE_ON, CYCLE_OFF):
+            return 0
+        if action == CYCLE_ON:
+            if self.cycle:
+                return 0x0001
+            self.cycle = True
+            return 0
+        if not self.cycle:
+            return 0x0002
+        self.cycle = False
+        return 0
 
     async def serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
         knobs = self.knobs
@@ -108,7 +127,7 @@ class SoakBox:
                 if knobs.stall_every and session % knobs.stall_every == knobs.stall_every - 1 and poses == 20:
                     await asyncio.sleep(knobs.stall_ms / 1000)  # one brief stall; the poses behind it queue
                 delay = knobs.delay_ms + knobs.creep_ms * session
-                data = answer_for(header, body)
+                data = answer_for(header, body, self.cycle_error(header[3]))
                 if delay:  # the same delay for every answer of a connection: their order is kept
                     loop.call_later(delay / 1000, _write, writer, data)
                 else:
