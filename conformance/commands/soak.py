@@ -18,7 +18,7 @@ from ..model.exit_codes import EXIT_USAGE
 from ..protocol import DEFAULT_PORT
 from ..runtime.profile_options import profile_from_options
 from ..soak.duration import parse_span
-from ..soak.settings import EVENT_KINDS, SoakSettings, parse_events, parse_kinds, parse_window
+from ..soak.settings import EVENT_KINDS, SoakSettings, default_window, parse_events, parse_kinds, parse_window
 from .options import add_profile_group
 from .registry import Command
 
@@ -27,7 +27,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("soak")
     g.add_argument("--target", metavar="HOST:PORT", help=_("the AI Box (default: start the bundled reference box)"))
     g.add_argument("--duration", required=True, metavar="SPAN", help=_("how long to soak: 30s, 90m, 2h, 8h"))
-    g.add_argument("--window", default="60s", metavar="SPAN", help=_("one window of statistics (default: 60s)"))
+    g.add_argument("--window", default=None, metavar="SPAN",
+                   help=_("one window of statistics (default: 60s, or a tenth of a soak shorter than 10 minutes)"))
     g.add_argument("--robots", type=int, default=1, metavar="N", help=_("robots playing sessions at once (default: 1)"))
     g.add_argument("--cycle-s", type=float, default=5.0, metavar="S",
                    help=_("the primer trajectory of each session, in seconds (default: 5)"))
@@ -65,7 +66,8 @@ def settings_from(args: argparse.Namespace) -> SoakSettings:
     duration = parse_span(args.duration, "--duration")
     return SoakSettings(
         duration_s=duration, target=Target.parse(args.target, DEFAULT_PORT) if args.target else None,
-        window_s=parse_window(args.window), robots=args.robots, cycle_s=args.cycle_s,
+        window_s=parse_window(args.window) if args.window else default_window(duration), robots=args.robots,
+        cycle_s=args.cycle_s,
         events=parse_events(args.events), event_kinds=parse_kinds(args.event_kinds), stall_s=args.stall_s,
         burst_size=args.burst, ghost_hold_s=parse_span(args.ghost_hold, "--ghost-hold", shortest_s=0.0),
         box_pid=args.box_pid, restart_cmd=args.restart_cmd,

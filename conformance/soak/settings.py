@@ -116,6 +116,11 @@ class SoakSettings:
         return float(self.profile.time_out_ms)
 
 
+def default_window(duration_s: float) -> float:
+    """A minute; a tenth of a soak shorter than ten minutes (so that a trend has its windows), at least 1 s."""
+    return 60.0 if duration_s >= 600 else max(1.0, round(duration_s / 10, 1))
+
+
 def parse_window(text: str) -> float:
     return parse_span(text, "--window", shortest_s=0.2)
 
@@ -148,4 +153,5 @@ class EventPlan:
         return self.rng.uniform(0.25, 0.75)
 
 
-__all__ = ["EVENT_KINDS", "EventPlan", "EventRate", "SoakSettings", "parse_events", "parse_kinds", "parse_window"]
+__all__ = ["EVENT_KINDS", "EventPlan", "EventRate", "SoakSettings", "default_window", "parse_events", "parse_kinds",
+           "parse_window"]

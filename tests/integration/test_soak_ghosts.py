@@ -122,3 +122,23 @@ def test_a_planted_event_mid_cycle_against_the_bundled_box(event):
         assert session.result.reason.startswith("planted")
     assert ghosts.abandoned == (2 if event == "vanish" else 0)
     assert served.ok and served.after_event == event  # the rebooted robot, from new ports, is served
+
+
+def test_an_unreachable_target_or_a_missing_process_is_one_line_and_exit_2(capsys, tmp_path):
+    from conformance.commands import main
+
+    free = socket.socket()
+    free.bind(("127.0.0.1", 0))
+    port = free.getsockname()[1]
+    free.close()  # nothing listens there now
+    assert main(["soak", "--duration", "30s", "--target", f"127.0.0.1:{port}", "--report-dir", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("isight-conformance soak: target") and "refused" in err and "\n" not in err
+    assert not (tmp_path / "r").exists()  # nothing was written for a soak that never started
+    box = start_bundled(DEFAULT_PROFILE)
+    try:
+        code = main(["soak", "--duration", "30s", "--target", str(box.target), "--box-pid", "999999999"])
+    finally:
+        box.stop()
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and "--box-pid 999999999" in err and "\n" not in err

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from conformance.commands import main
+from conformance.commands import build_parser, main
+from conformance.commands.soak import settings_from
 from conformance.soak.duration import format_span, parse_span
-from conformance.soak.settings import EventPlan, EventRate, SoakSettings, parse_events, parse_kinds
+from conformance.soak.settings import EventPlan, EventRate, SoakSettings, default_window, parse_events, parse_kinds
 
 
 @pytest.mark.parametrize(("text", "seconds"), [("30s", 30), ("2h", 7200), ("8h", 28800), ("90m", 5400),
@@ -67,3 +68,11 @@ def test_the_command_refuses_bad_input_in_one_line_with_exit_2(argv, capsys):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("isight-conformance soak: ") and "\n" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize(("duration", "window"), [("30s", 3.0), ("2h", 60.0), ("8h", 60.0), ("5s", 1.0)])
+def test_the_duration_reaches_the_settings_with_a_window_that_fits(duration, window):
+    args = build_parser("soak").parse_args(["soak", "--duration", duration])
+    settings = settings_from(args)
+    assert settings.window_s == window == default_window(settings.duration_s)
+    assert settings.duration_s == {"30s": 30, "2h": 7200, "8h": 28800, "5s": 5}[duration]
