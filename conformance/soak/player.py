@@ -74,7 +74,7 @@ class SoakPlayer:
         """The box stopped serving (its process ended, or every session failed to the end), else None."""
         if self.box_gone is not None:
             return Stopped(self.served, self.box_gone_at, "died", self.box_gone, self.streak_half_open)
-        if self.streak >= max(STREAK_MIN, self.settings.robots) and (self.dead_windows or self.ended_by != "duration"):
+        if self.streak >= max(STREAK_MIN, self.settings.robots) and self.dead_windows:
             return Stopped(self.streak_from, self.streak_at, self.streak_kind, self.streak_reason,
                            self.streak_half_open)
         return None
