@@ -17,7 +17,7 @@ def build_document(player: SoakPlayer, *, target: str, box: dict[str, Any] | Non
     settings = player.settings
     rows = list(player.rows)
     stopped = player.stopped()
-    judged = judge_soak(rows, stopped, player.ghosts.to_dict())
+    judged = judge_soak(rows, stopped, player.ghosts.to_dict(), player.half_open_outages)
     soak_rss = list(player.soak_rss)
     elapsed = rows[-1].end_s if rows else round(player.elapsed(), 3)
     doc: dict[str, Any] = {

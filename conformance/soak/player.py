@@ -65,13 +65,18 @@ class SoakPlayer:
         self.closing = False  # the duration is over: robots start no new session
         self.conflicts = 0  # E4 sessions whose ProgIdx was answered 409 (not ready) before any was served
         self.notes: list[str] = []
+        self.releasing: Stopped | None = None  # the soak reset the abandoned connections of a box that stopped
+        self.half_open_outages: list[Stopped] = []  # stops that ended once the abandoned connections were reset
 
     # -- what the reports read ------------------------------------------------------------------------
     def elapsed(self) -> float:
         return perf() - self.t0 if self.t0 else 0.0
 
     def stopped(self) -> Stopped | None:
-        """The box stopped serving (its process ended, or every session failed to the end), else None."""
+        """The box stopped serving (its process ended, or every session failed to the end), else None (also
+        when the soak ended while it tested a box that abandoned connections had stopped before: R5 says it)."""
+        if self.box_gone is None and self.releasing is not None and self.half_open_outages:
+            return None
         if self.box_gone is not None:
             return Stopped(self.served, self.box_gone_at, "died", self.box_gone, self.streak_half_open)
         if self.streak >= max(STREAK_MIN, self.settings.robots) and self.dead_windows:
@@ -128,7 +133,8 @@ class SoakPlayer:
         after = ""
         clear = False
         while not self.closing:
-            event = self.plan.next(self.elapsed())
+            # no event while the soak tests whether abandoned connections stopped the box: a clean experiment
+            event = self.plan.next(self.elapsed()) if self.releasing is None else ""
             if event:
                 self.events[event] += 1
                 self.window.note_event(event)
@@ -191,6 +197,25 @@ class SoakPlayer:
         resources["half_open_abandoned"] = float(len(self.ghosts.ring))
         return resources
 
+    def _test_half_open(self, row: WindowRow) -> None:
+        """Did the abandoned connections stop the box? When it serves nothing for a window while the soak
+        holds some, the soak resets them all; serving again in the next windows says they held it (R5)."""
+        if self.dead_windows == 1 and self.ghosts.ring:
+            self.releasing = Stopped(self.streak_from, self.streak_at, self.streak_kind, self.streak_reason,
+                                     len(self.ghosts.ring))
+            self.ghosts.release_all()
+            self.notes.append(f"window {row.index}: nothing served with {self.releasing.half_open} abandoned "
+                              "connections open; the soak reset them all to see whether they held the box")
+        elif self.releasing is not None and row.sessions_ok:
+            self.half_open_outages.append(self.releasing)
+            self.notes.append(f"window {row.index}: the box served again once its {self.releasing.half_open} "
+                              "abandoned connections were reset: they held it (R5)")
+            self.releasing = None
+        elif self.releasing is not None and self.dead_windows >= self.settings.stop_after_dead_windows:
+            self.notes.append(f"resetting the {self.releasing.half_open} abandoned connections did not bring the "
+                              "box back")
+            self.releasing = None
+
     async def _close_window(self, end: float) -> None:
         loop = asyncio.get_running_loop()
         self.ghosts.sweep()
@@ -203,6 +228,7 @@ class SoakPlayer:
         self.window = Window(window.index + 1, end - self.t0, self.settings.time_out_ms)
         dead = row.sessions_ok == 0 and self.streak > 0  # nothing served, and the last session failed
         self.dead_windows = self.dead_windows + 1 if dead else 0
+        self._test_half_open(row)
         if self.box_gone is not None:
             self.ended_by = "box died"
             self._done.set()

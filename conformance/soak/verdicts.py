@@ -47,8 +47,8 @@ class Stopped:
 
     @property
     def clause(self) -> str:
-        """R5 when abandoned connections were outstanding (or the rebooted robot was refused), else S5."""
-        return "R5" if self.half_open or self.kind == "after-vanish" else "S5"
+        """R5 when the rebooted robot was refused (a vanished robot's connections held the box), else S5."""
+        return "R5" if self.kind == "after-vanish" else "S5"
 
     def to_dict(self) -> dict[str, Any]:
         return {"after_sessions": self.after_sessions, "at_s": round(self.at_s, 3), "kind": self.kind,
@@ -172,8 +172,10 @@ def _nothing_judged(rows: Sequence[WindowRow]) -> Judged:
                   [], [], [])
 
 
-def judge_soak(rows: Sequence[WindowRow], stopped: Stopped | None, half_open: dict[str, Any] | None = None) -> Judged:
-    """Every verdict of the soak, from its closed windows and what stopped."""
+def judge_soak(rows: Sequence[WindowRow], stopped: Stopped | None, half_open: dict[str, Any] | None = None,
+               held: Sequence[Stopped] = ()) -> Judged:
+    """Every verdict of the soak, from its closed windows, what stopped, and the stops that ended once the soak
+    reset the abandoned connections (``held``: they held the box, R5)."""
     if stopped is None and (not rows or not rows[-1].sessions_total):
         return _nothing_judged(rows)
     lat = latency_trends(rows)
@@ -185,6 +187,15 @@ def judge_soak(rows: Sequence[WindowRow], stopped: Stopped | None, half_open: di
     verdicts = [_failure_clause("S1", rows, stopped), _failure_clause("S4", rows, stopped),
                 _failure_clause("S5", rows, stopped), _failure_clause("T1", rows, stopped), _t2(rows, lat)]
     r5 = _failure_clause("R5", rows, stopped)
+    if held:
+        first = held[0]
+        also = f"; also {r5.message}" if r5.verdict is Verdict.FAIL else ""
+        r5 = SoakVerdict("R5", TITLES["R5"], Verdict.FAIL,
+                         f"the box stopped serving after {first.after_sessions:,} sessions "
+                         f"({format_duration(first.at_s)} into the soak) with {first.half_open} connections of "
+                         "vanished robots open, and served again once the soak reset them: abandoned connections "
+                         f"are not freed ({len(held)} time(s); {_coverage(rows)}){also}", r5.windows,
+                         {**r5.details, "held": [h.to_dict() for h in held]})
     r5.details["resource_trends"] = [t.to_dict() for t in res]
     if half_open:
         r5.details["half_open"] = half_open
