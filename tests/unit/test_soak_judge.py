@@ -76,15 +76,23 @@ def test_a_step_in_descriptors_during_warm_up_is_not_a_finding():
     assert not judged.findings
 
 
-def test_a_box_that_stopped_fails_s5_with_n_or_r5_with_abandoned_connections():
+def test_a_box_that_stopped_fails_s5_with_n_or_r5_when_abandoned_connections_held_it():
     data = rows(failed=lambda i: 3 if i >= 27 else 0)
     judged = judge_soak(data, Stopped(540, 1620.0, "connect", "connection refused by 127.0.0.1:9 (cmd connection)"))
     s5 = by_clause(judged)["S5"]
     assert s5.verdict is Verdict.FAIL and "stopped serving after 540 sessions (27 min 00 s into the soak)" in s5.message
+    # abandoned connections open when it stopped prove nothing by themselves: still S5, with the figure
     judged = judge_soak(data, Stopped(540, 1620.0, "closed", "the box closed it", half_open=64))
+    s5 = by_clause(judged)["S5"]
+    assert s5.verdict is Verdict.FAIL and "with 64 connections of vanished robots still open" in s5.message
+    # the rebooted robot refused: R5
+    judged = judge_soak(data, Stopped(540, 1620.0, "after-vanish", "connection refused", half_open=2))
+    assert by_clause(judged)["R5"].verdict is Verdict.FAIL
+    # served again once the soak reset them: they held it, R5 with N
+    judged = judge_soak(rows(), None, held=[Stopped(540, 1620.0, "closed", "the box closed it", half_open=64)])
     r5 = by_clause(judged)["R5"]
-    assert r5.verdict is Verdict.FAIL and "with 64 connections of vanished robots still open" in r5.message
-    assert by_clause(judged)["S5"].verdict is Verdict.FAIL  # the refusals themselves are S5 failures too
+    assert r5.verdict is Verdict.FAIL and r5.message.startswith("the box stopped serving after 540 sessions")
+    assert "with 64 connections of vanished robots open, and served again once the soak reset them" in r5.message
 
 
 def test_too_few_windows_is_inconclusive_for_trends():
