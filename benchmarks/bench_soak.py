@@ -1,7 +1,7 @@
 """The soak's own memory beside the box's: is ``isight-conformance soak`` bounded itself (issue 38)?
 
 Run on demand: ``python benchmarks/bench_soak.py [--duration 2m] [--window 10s] [--robots 2]
-[--cycle-s 1] [--events 0.1] [--target HOST:PORT --box-pid PID]``.
+[--cycle-s 1] [--events 0.1] [--target HOST:PORT --box-pid PID] [--keep DIR]``.
 
 One soak in a child process, against the bundled reference box (a child of the soak, watched with
 psutil) unless ``--target`` names another. The soak records, per window, its own RSS and the box's;
@@ -36,8 +36,10 @@ def main() -> int:
     parser.add_argument("--events", default="0.1")
     parser.add_argument("--target")
     parser.add_argument("--box-pid")
+    parser.add_argument("--keep", metavar="DIR", help="keep the soak's report directory here")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as scratch:
+        tmp = args.keep or scratch
         cmd = [sys.executable, "-m", "conformance", "soak", "--duration", args.duration, "--window", args.window,
                "--robots", args.robots, "--cycle-s", args.cycle_s, "--events", args.events, "--stall-s", "0.5",
                "--report-dir", tmp, "--quiet"]

@@ -94,5 +94,6 @@ COMMAND = Command(
     description=N_("Canonical sessions back to back (E4 where the box implements it), planted events (a robot that "
                    "vanishes, a reset, a stalled stream, a reconnect burst), statistics per window, and trends judged "
                    "with Theil-Sen and Mann-Kendall. Exit status: 0 no FAIL, 1 FAIL, 2 usage error, 3 cut short."),
-    lang=True,
+    # no --lang: the soak's verdicts and report.html are English for now (its help follows the locale)
+    lang=False,
 )
