@@ -39,6 +39,12 @@ def render(doc: dict[str, Any]) -> str:
     parts.append("</table>")
     if doc["findings"]:
         parts.append("<h2>Findings</h2><ul>" + "".join(f"<li>{escape(f)}</li>" for f in doc["findings"]) + "</ul>")
+    if doc.get("notes"):
+        parts.append("<h2>What happened</h2><ul>" + "".join(f"<li>{escape(n)}</li>" for n in doc["notes"][:200])
+                     + "</ul>")
+    if doc.get("box_last_words"):
+        words = doc["box_last_words"]
+        parts.append(f"<p>{escape(words['summary'])}</p><pre>{escape(words['tail'])}</pre>")
     if doc.get("stopped"):
         s = doc["stopped"]
         parts.append(f"<p class='FAIL'>The box stopped serving after {s['after_sessions']:,} sessions "
