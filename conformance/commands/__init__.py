@@ -28,7 +28,7 @@ __all__ = ["COMMANDS", "NAMES", "Command", "build_parser", "command", "main"]
 #: every subcommand's name, in the order ``--help`` lists them (a new command: its module
 #: ``commands/<name with _ for ->.py``, and its name here)
 NAMES: tuple[str, ...] = ("decode", "serve", "robot", "certify-robot", "run", "fuzz", "replay", "clauses",
-                          "wireshark", "diff", "analyze", "monitor", "verify", "sign")
+                          "wireshark", "diff", "analyze", "monitor", "verify", "sign", "soak")
 
 
 def command(name: str) -> Command:
