@@ -29,6 +29,7 @@ from ..harness.udp_probe import Asked, UdpProbe
 from ..model.verdicts import RootCause
 from ..protocol import Action, Frame, PoseBlock, crc16_names, crc_function, encode_body, peek_header, request
 from ..protocol.constants import CHECK_LEN, HEADER_LEN
+from ..protocol.profile import ByteOrder
 from . import titles, udp_titles
 from .experiments import MIN_LEFT_S, POSE, Prober
 from .hypotheses import Exchange, Experiment, Heard, Hypothesis, Mechanism, Reading, Status
@@ -76,11 +77,11 @@ class _Datagrams:
     def body(self, frame: Frame) -> bytes:
         return encode_body(frame, self.profile)
 
-    def signed(self, body: bytes, crc: str | None = None, order: str | None = None,
+    def signed(self, body: bytes, crc: str | None = None, order: ByteOrder | None = None,
                cover: tuple[int, int] | None = None) -> bytes:
         first, last = cover if cover is not None else (0, len(body) - 1)
         value = crc_function(crc or self.crc)(body[first:last + 1])
-        return body + value.to_bytes(2, order or self.order)  # type: ignore[arg-type]
+        return body + value.to_bytes(2, order or self.order)
 
     def ask(self, lab: Lab, data: bytes, wait_s: float, note: str) -> Asked | None:
         left = min(self.deadline - time.monotonic(), self.p.left())
@@ -111,18 +112,19 @@ def _exchange(asked: Asked, byte_order: str) -> Exchange:
 
 
 def _pose(p: Prober) -> Frame:
-    return request(Action.POSE, [PoseBlock(p.profile.first_index, POSE)])
+    return request(Action.POSE, p.codec.pose_blocks([POSE]))
 
 
-def crc_matches(body: bytes, check: bytes) -> list[tuple[str, str]]:
+def crc_matches(body: bytes, check: bytes) -> list[tuple[str, ByteOrder]]:
     """Every (crcmod algorithm, byte order) whose CRC of ``body`` is ``check``."""
     return [(name, order) for name in crc16_names() for order in ("big", "little")
             if crc_function(name)(body).to_bytes(2, order) == check]
 
 
-def candidates(profile_crc: str, profile_order: str) -> list[tuple[str, str]]:
+def candidates(profile_crc: str, profile_order: ByteOrder) -> list[tuple[str, ByteOrder]]:
     names = dict.fromkeys(n for n in (profile_crc, *COMMON_CRCS, *crc16_names()) if n in crc16_names())
-    pairs = [(name, order) for name in names for order in (profile_order, "little" if profile_order == "big" else "big")]
+    other: ByteOrder = "little" if profile_order == "big" else "big"
+    pairs = [(name, order) for name in names for order in (profile_order, other)]
     return [pair for pair in pairs if pair != (profile_crc, profile_order)]
 
 
@@ -154,9 +156,9 @@ def answer_shape(d: _Datagrams, lab: Lab, asked: Asked) -> None:
         lab.found("udp-answer-crc", check=raw[end:].hex(" "), profile=d.crc, matches=crc_matches(raw[:end], raw[end:]))
 
 
-def scan_crc(d: _Datagrams, lab: Lab, body: bytes) -> tuple[str, str] | None:
+def scan_crc(d: _Datagrams, lab: Lab, body: bytes) -> tuple[str, ByteOrder] | None:
     """The (algorithm, byte order) under which a NONE datagram is answered 0000 (confirmed), or None."""
-    previous: tuple[str, str] | None = None
+    previous: tuple[str, ByteOrder] | None = None
     seen: set[bytes] = {d.signed(body)[-2:]}
     tried = 0
     for pair in candidates(d.crc, d.order):
@@ -219,7 +221,7 @@ def datagram_length(d: _Datagrams, lab: Lab, wait_s: float) -> None:
         lab.found("udp-trailing", n=2)
 
 
-def tcp_check(p: Prober, lab: Lab, found: tuple[str, str] | None = None) -> None:
+def tcp_check(p: Prober, lab: Lab, found: tuple[str, ByteOrder] | None = None) -> None:
     ex = p.exchange([p.valid_request(int(Action.NONE))], settle=False)
     if ex is None or not ex.reached:
         return
@@ -247,7 +249,7 @@ def _pose_zero(p: Prober, data: bytes) -> bool | None:
     return bool(lab_answers) and lab_answers[0].action == Action.POSE and lab_answers[0].error == 0
 
 
-def crc_refused(p: Prober, lab: Lab, found: tuple[str, str] | None) -> None:
+def crc_refused(p: Prober, lab: Lab, found: tuple[str, ByteOrder] | None) -> None:
     """F6 (SHOULD): a pose with 00 00 accepted, the same pose with its CRC in the check field refused? Then, when
     UDP showed the box's own CRC, is the pose with that one accepted (it checks the TCP check field with it)?"""
     plain = p.valid_request(int(Action.POSE))
@@ -256,7 +258,7 @@ def crc_refused(p: Prober, lab: Lab, found: tuple[str, str] | None) -> None:
         return
     own = None
     if found is not None:
-        theirs = plain[:-2] + crc_function(found[0])(plain[:-2]).to_bytes(2, found[1])  # type: ignore[arg-type]
+        theirs = plain[:-2] + crc_function(found[0])(plain[:-2]).to_bytes(2, found[1])
         own = found[0] if _pose_zero(p, theirs) else None
     lab.found("tcp-crc-refused", check=signed[-2:].hex(" "), crc=p.profile.crc, own=own)
 
@@ -276,7 +278,7 @@ def run(p: Prober, udp_target: Target | None, causes: Sequence[RootCause]) -> La
     return lab
 
 
-def _udp(p: Prober, lab: Lab, d: _Datagrams) -> tuple[str, str] | None:
+def _udp(p: Prober, lab: Lab, d: _Datagrams) -> tuple[str, ByteOrder] | None:
     """The UDP experiments in order; the (CRC, byte order) found when it is not the profile's."""
     wait = min(p.dialer.time_out_s, CONFIRM_WAIT_S * 2)
     none = d.body(request(Action.NONE))

@@ -65,7 +65,7 @@ def _after(transcript: Transcript, last_sent: bytes, before: float) -> str:
 def look_again(transcript: Transcript, target: Target, profile: Profile, case_id: str, last_sent: bytes,
                writes: int, ended: float) -> Stall | None:
     """Another fresh connection, given COME_BACK time_outs: answered, the stall it was; None: still silent."""
-    time_out = profile.time_out_ms / 1000
+    time_out = profile.time_out_s
     began = _began(transcript, ended)  # the case's own events, not the fresh connections'
     outcome = check_alive(transcript, target, profile, time_out_s=COME_BACK * time_out, label="stall or death?",
                           note="a NONE on another fresh connection: does the box come back (a stall) or not (a death)?")

@@ -280,7 +280,7 @@ class SessionState:
         alive = self.probe(transcript)
         self._count(transcript)
         usual = self.baseline.latency_s if isinstance(self.baseline, Answer) else 0.0
-        late = box_stall.held(transcript, alive, usual, self.profile.time_out_ms / 1000, case_id, last_sent, self.writes,
+        late = box_stall.held(transcript, alive, usual, self.profile.time_out_s, case_id, last_sent, self.writes,
                               ended)
         if late is not None:  # the fresh connection was held too: a stall of the whole box, not this case's input
             return box_stall.verdict(late, last_sent)

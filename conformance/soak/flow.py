@@ -56,7 +56,7 @@ def open_box(settings: SoakSettings) -> Box:
     else:
         label = str(target)
     try:
-        problem = check_reachable(target, settings.time_out_ms / 1000)
+        problem = check_reachable(target, settings.profile.time_out_s)
         if problem:
             raise ValueError(problem)
         pid = settings.box_pid

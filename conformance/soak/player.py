@@ -120,7 +120,7 @@ class SoakPlayer:
     def _grace_s(self) -> float:
         """How long the sessions under way at the end may take to finish: a whole session's bounds."""
         settings = self.settings
-        return settings.cycle_s + settings.stall_s + 1.0 + 4 * settings.time_out_ms / 1000
+        return settings.cycle_s + settings.stall_s + 1.0 + 4 * settings.profile.time_out_s
 
     async def _progress(self) -> None:
         assert self.progress is not None

@@ -293,7 +293,7 @@ async def _ping_once(target: tuple[str, int], profile: Profile, time_out: float)
 
 async def reconnect_burst(target: tuple[str, int], profile: Profile, robot: int, size: int) -> SessionOutcome:
     """``size`` connections at once, each a ping: all must be accepted and answered within time_out."""
-    time_out = profile.time_out_ms / 1000.0
+    time_out = profile.time_out_s
     results = await asyncio.gather(*(_ping_once(target, profile, time_out) for _ in range(size)))
     failures = [(kind, why) for _, _, kind, why in results if kind]
     outcome = SessionOutcome(robot, not failures, "", "", "burst")
