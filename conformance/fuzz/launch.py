@@ -16,9 +16,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..endpoints.bundled import Bundled, bundled_or_target
-from ..harness.client import TcpConnection
-from ..harness.extension_probe import detect_extension
-from ..harness.target import Target, Unreachable, check_reachable
+from ..harness.extension_probe import extension_for
+from ..harness.target import Target, check_reachable
 from ..harness.transcript import Transcript
 from ..i18n import _
 from ..model.exit_codes import EXIT_FAILED, EXIT_OK, EXIT_USAGE
@@ -56,20 +55,6 @@ def _box(args: argparse.Namespace, profile: Profile, name: str) -> Iterator[tupl
         yield box
 
 
-def _extension(mode: str, target: Target, profile: Profile, transcript: Transcript) -> tuple[bool, str]:
-    if mode != "auto":
-        return mode == "on", "forced on" if mode == "on" else "off (--extension off)"
-    conn = TcpConnection(transcript, target, profile, "extension detection")
-    try:
-        conn.connect()
-    except Unreachable:
-        return False, "not checked (the box could not be reached)"
-    try:
-        return detect_extension(conn)
-    finally:
-        conn.close()
-
-
 def _run_guarded(name: str, body: Callable[[], int]) -> int:
     try:
         return body()
@@ -104,7 +89,7 @@ def _fuzz(args: argparse.Namespace) -> int:
             report_dir, pcap_dir = default_run_dirs(args.report_dir, args.pcap_dir, prefix="fuzz-")
         except OSError as exc:
             raise ValueError(f"cannot create the report directory: {exc}") from None
-        extension, how = _extension(args.extension, target, profile, Transcript(case_id="FUZZ-extension"))
+        extension, how = extension_for(args.extension, target, profile, Transcript(case_id="FUZZ-extension"))
         config = CampaignConfig(
             target=target, profile=profile, udp_target=udp, stream_target=_parse_target(args.stream_target),
             seed=args.seed, max_examples=args.max_examples if args.max_examples or args.duration else 5000,
@@ -193,7 +178,7 @@ def _replay(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     with _box(args, profile, "replay") as (target, udp, _box_started):
         transcript = Transcript(case_id="REPLAY")
-        extension, how = _extension(args.extension, target, profile, transcript)
+        extension, how = extension_for(args.extension, target, profile, transcript)
         print(f"replay: {len(vectors)} vectors to {target}" + (f", UDP {udp}" if udp else "")
               + f"; profile {profile.describe()}; extension E {how}", flush=True)
         results = replay(vectors, target, profile, udp_target=udp, extension=extension,

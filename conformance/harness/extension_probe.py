@@ -17,10 +17,11 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..protocol import Action, BlockType, Frame, Header, TransferType, request, value_blocks
+from ..protocol import Action, BlockType, Frame, Header, Profile, TransferType, request, value_blocks
 from .client import Answer, Closed, Malformed, Outcome, Silence, TcpConnection
 from .liveness import PROBE_NONE
-from .target import Unreachable
+from .target import Target, Unreachable
+from .transcript import Transcript
 
 #: The program index sent when 27 gave no evidence either way.
 PROG_IDX_VALUE = 7
@@ -120,3 +121,18 @@ def verdict(seen: list[Probe]) -> tuple[bool, str]:
         return True, f"implemented (detected: {name}: {proof.evidence}; {observed})"
     return False, (f"not implemented (detected: no answer to 26 or 27 carries a type-03 block and 27 is not answered "
                    f"0000, a refusal A5 allows; {observed})")
+
+
+def extension_for(mode: str, target: Target, profile: Profile, transcript: Transcript) -> tuple[bool, str]:
+    """``--extension on|off|auto``: forced, or detected on a fresh connection (not checked when unreachable)."""
+    if mode != "auto":
+        return mode == "on", "forced on" if mode == "on" else "off (--extension off)"
+    conn = TcpConnection(transcript, target, profile, "extension detection")
+    try:
+        conn.connect()
+    except Unreachable:
+        return False, "not checked (the box could not be reached)"
+    try:
+        return detect_extension(conn)
+    finally:
+        conn.close()

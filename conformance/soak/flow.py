@@ -17,9 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from ..fuzz.box_process import BoxProcess
-from ..harness.client import TcpConnection
-from ..harness.extension_probe import detect_extension
-from ..harness.target import Target, Unreachable, check_reachable
+from ..harness.extension_probe import extension_for
+from ..harness.target import Target, check_reachable
 from ..harness.transcript import Transcript
 from ..model.exit_codes import EXIT_FAILED, EXIT_INCOMPLETE, EXIT_OK, EXIT_USAGE
 from ..report.rundirs import default_run_dirs
@@ -70,20 +69,6 @@ def open_box(settings: SoakSettings) -> Box:
     return Box(target, label, process, probe)
 
 
-def decide_extension(mode: str, box: Box, settings: SoakSettings) -> tuple[bool, str]:
-    if mode != "auto":
-        return mode == "on", "forced on" if mode == "on" else "off (--extension off)"
-    conn = TcpConnection(Transcript(), box.target, settings.profile, "extension detection")
-    try:
-        conn.connect()
-    except Unreachable:
-        return False, "not checked (the box could not be reached)"
-    try:
-        return detect_extension(conn)
-    finally:
-        conn.close()
-
-
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt  # SIGTERM before the soak's loop runs: the box the soak started is stopped too
 
@@ -110,7 +95,7 @@ def _run_soak(settings: SoakSettings, command: str) -> int:
 
 
 def _soak(settings: SoakSettings, box: Box, command: str) -> int:
-    extension, how = decide_extension(settings.extension, box, settings)
+    extension, how = extension_for(settings.extension, box.target, settings.profile, Transcript())
     try:
         report_dir, _ = default_run_dirs(settings.report_dir, None, pcaps=False, prefix="soak-")
     except OSError as exc:
