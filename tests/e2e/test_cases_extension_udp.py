@@ -242,7 +242,7 @@ def test_prog_idx_conflict_placement(tmp_path: Path) -> None:
 
 def test_box_without_extension_skips_e(tmp_path: Path) -> None:
     with reference_box(BoxConfig(extension=False)) as box:
-        results = run_suite(tmp_path, ["E*", "F4-*"], box, "--time-out", "500")
+        results = run_suite(tmp_path, ["E*", "F4-01"], box, "--time-out", "500")
     v = verdicts(results)
     assert v.pop("F4-01") == "PASS"
     assert v and set(v.values()) == {"SKIP"}, v
@@ -305,9 +305,9 @@ def test_little_endian_box_fails_f4_and_is_discovered(tmp_path: Path) -> None:
 
 def test_swapped_fields_fail_f4(tmp_path: Path) -> None:
     with reference_box(patch=_swap_field(10, lambda f: f.error_code == 0x1001)) as box:
-        error = run_suite(tmp_path / "error", ["F4-*"], box)
+        error = run_suite(tmp_path / "error", ["F4-01"], box)  # F4-02 changes bytes of requests
     with reference_box(patch=_swap_field(8, lambda f: f.action == Action.PROG_IDX)) as box:
-        length = run_suite(tmp_path / "length", ["F4-*"], box, "--time-out", "500")
+        length = run_suite(tmp_path / "length", ["F4-01"], box, "--time-out", "500")
     assert verdicts(error) == {"F4-01": "FAIL"}
     assert "error code 1001 in the other byte order" in error["F4-01"]["message"]
     assert verdicts(length) == {"F4-01": "FAIL"}
