@@ -210,17 +210,24 @@ class Robot:
                 if ans.error != wire.OK:
                     self.outcome.problems += 1
                 return ans
-            left = deadline - time.monotonic()
-            if left <= 0 or self.stopping.is_set():
-                raise SessionStop(4, f"no answer to action {action:02X} within {bound:g} s")
-            self.cmd.settimeout(min(left, 0.2))
-            try:
-                data = self.cmd.recv(4096)
-            except TimeoutError:
-                continue
-            if not data:
-                raise SessionStop(5, f"the box closed the command connection (waiting for action {action:02X})")
-            self.cmd_buf += data
+            self._read_command(deadline, f"no answer to action {action:02X} within {bound:g} s",
+                               f"action {action:02X}")
+
+    def _read_command(self, deadline: float, late: str, waiting_for: str) -> None:
+        """Read what has come on the command connection (at most 0.2 s) into ``cmd_buf``; past ``deadline`` or
+        when stopping, SessionStop 4 with ``late``; on a close, SessionStop 5."""
+        assert self.cmd is not None
+        left = deadline - time.monotonic()
+        if left <= 0 or self.stopping.is_set():
+            raise SessionStop(4, late)
+        self.cmd.settimeout(min(left, 0.2))
+        try:
+            data = self.cmd.recv(4096)
+        except TimeoutError:
+            return
+        if not data:
+            raise SessionStop(5, f"the box closed the command connection (waiting for {waiting_for})")
+        self.cmd_buf += data
 
     def _cycle_without_waiting(self) -> None:
         """The planted A1 defect: CycleOn, CycleOff 1 ms later without waiting for CycleOn's answer, then both answers
@@ -239,17 +246,8 @@ class Robot:
                 raise SessionStop(1, f"garbage on the command connection: {exc}") from None
             if len(got) >= 2:
                 break
-            left = deadline - time.monotonic()
-            if left <= 0 or self.stopping.is_set():
-                raise SessionStop(4, f"{len(got)} of the answers to CycleOn and CycleOff within {self.c.time_out:g} s")
-            self.cmd.settimeout(min(left, 0.2))
-            try:
-                data = self.cmd.recv(4096)
-            except TimeoutError:
-                continue
-            if not data:
-                raise SessionStop(5, "the box closed the command connection (waiting for CycleOn and CycleOff)")
-            self.cmd_buf += data
+            self._read_command(deadline, f"{len(got)} of the answers to CycleOn and CycleOff within {self.c.time_out:g} s",
+                               "CycleOn and CycleOff")
         self.outcome.problems += sum(1 for a in got if a.error != wire.OK)
 
     def _extras(self, when: str) -> None:
