@@ -71,7 +71,8 @@ def test_a_box_dropping_the_answers_it_cannot_send_at_once_fails_s6_05(tmp_path:
         assert case["received_hex"], case
     if "S6-05" in failed:
         message = str(failed["S6-05"]["message"])
-        assert "first lost answer is request" in message or "cut" in message, failed  # where the loss began
+        # where the loss began: one request, or the few a resynchronisation could not tell apart
+        assert "first lost answer is" in message or "cut" in message, failed
 
 
 @pytest.mark.impls(seconds=30)
