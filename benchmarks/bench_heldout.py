@@ -3,7 +3,8 @@
 ``python benchmarks/bench_heldout.py [--set tuning|heldout] [--only NAME ...] [--jobs 2] [--no-legal]
 [--boxes DIR] [--out DIR]``
 
-The boxes are Node.js programs (``tests/impls/node/box.js NAME --port 0``; its first stdout line is
+The boxes are programs in other languages: Node.js (``tests/impls/node/box.js NAME --port 0``) or Perl
+(``tests/impls/perl/box.pl NAME --port 0``, with ``--boxes tests/impls/perl``); a box's first stdout line is
 ``listening tcp 127.0.0.1:PORT [udp 127.0.0.1:UPORT] [args FLAG ...]``), written from docs/PROTOCOL.md and a
 list of mechanism classes by someone who never read ``conformance/diagnose/``. A set's ``CATALOGUE.json``
 names each box's class, clauses, mechanism, keywords and trigger. For every box the bench starts it
@@ -78,9 +79,21 @@ def orphans(doc: dict[str, Any]) -> tuple[list[str], list[str]]:
     return fails, [i for i in fails if i not in listed]
 
 
-def start_box(box_js: Path, name: str) -> tuple[subprocess.Popen[str], str]:
+#: a box program's interpreter, by the program's name in the boxes' directory
+PROGRAMS = (("box.js", "node"), ("box.pl", "perl"))
+
+
+def box_program(boxes: Path) -> list[str] | None:
+    """The command that runs the directory's box program (``node box.js`` or ``perl box.pl``), or None."""
+    for name, interpreter in PROGRAMS:
+        if (boxes / name).is_file():
+            return [interpreter, str(boxes / name)]
+    return None
+
+
+def start_box(program: list[str], name: str) -> tuple[subprocess.Popen[str], str]:
     """The box's process and its "listening" line (raises RuntimeError when it does not start in START_S)."""
-    proc = subprocess.Popen(["node", str(box_js), name, "--port", "0"], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([*program, name, "--port", "0"], stdout=subprocess.PIPE,
                             stderr=subprocess.DEVNULL, text=True)
     assert proc.stdout is not None
     ready, _, _ = select.select([proc.stdout], [], [], START_S)
@@ -121,7 +134,7 @@ def run_one(entry: dict[str, Any], kind: str, args: argparse.Namespace, out: Pat
     work.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
     try:
-        proc, line = start_box(args.boxes / "box.js", name)
+        proc, line = start_box(args.program, name)
     except (RuntimeError, OSError) as exc:
         row.error = str(exc)
         return row
@@ -171,14 +184,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1, help="boxes run at once (default 1, at most 2 here)")
     parser.add_argument("--no-legal", action="store_true", help="skip the legal boxes")
     parser.add_argument("--boxes", type=Path, default=ROOT / "tests" / "impls" / "node",
-                        help="the directory of box.js and the sets (default tests/impls/node)")
+                        help="the directory of box.js or box.pl and the sets (default tests/impls/node)")
     parser.add_argument("--time-out", type=int, default=3000, metavar="MS", help="the suite's time_out (default 3000)")
     parser.add_argument("--limit", type=float, default=600, help="hard bound per suite run, seconds")
     parser.add_argument("--out", type=Path, default=None, help="where reports go (default reports/bench-heldout-*)")
     args = parser.parse_args(argv)
     cat = args.boxes / args.set / "CATALOGUE.json"
-    if not (args.boxes / "box.js").is_file() or not cat.is_file():
-        print(f"error: no box.js or {cat}", file=sys.stderr)
+    args.program = box_program(args.boxes)
+    if args.program is None or not cat.is_file():
+        print(f"error: no box.js or box.pl in {args.boxes}, or no {cat}", file=sys.stderr)
         return 2
     try:
         entries = catalogue(cat)
