@@ -143,6 +143,11 @@ sub known_action {
 sub shape_ok {
     my ($act, $bt, $n, $l) = @_;
     return $H{shape_ok}->($act, $bt, $n, $l) if $H{shape_ok};
+    return base_shape_ok($act, $bt, $n, $l);
+}
+
+sub base_shape_ok {
+    my ($act, $bt, $n, $l) = @_;
     return ($bt == 0 && $n == 0 && $l == 0) if $act <= 0x02 || $act == 0x27;
     return ($bt == 1 && $n >= 1 && $l == 25) if $act == 0x23 || $act == 0x24;
     return ($bt == 2 && $n >= 1 && $l == 5) if $act == 0x25;
@@ -158,6 +163,11 @@ sub finite32 {    # a big-endian binary32 whose exponent is not all ones
 sub build_answer {
     my ($act, $err, $bt, $n, $l, $data) = @_;
     return $H{build_answer}->(@_) if $H{build_answer};
+    return base_answer(@_);
+}
+
+sub base_answer {
+    my ($act, $err, $bt, $n, $l, $data) = @_;
     return pack('n n C C C C n n', 0xFEFE, 1, 0x10, $act, $bt // 0, $n // 0, $l // 0, $err)
         . ($data // '') . "\x00\x00";
 }
@@ -181,6 +191,7 @@ sub send_raw {
         return;
     }
     return if $c->{dead};
+    $bytes = $H{tcp_out}->($bytes) if $H{tcp_out};
     push @{ $c->{q} }, { due => time + ($C->{latency_ms} || 0) / 1000, bytes => $bytes };
     $H{enqueued}->($c) if $H{enqueued};
     pump($c);
