@@ -231,6 +231,13 @@ sub pump {      # move due answers to the output buffer and write what we can
     }
     if (length $c->{out}) { $SEL_W->add($c->{sock}) unless $SEL_W->exists($c->{sock}) }
     else                  { $SEL_W->remove($c->{sock}) if $SEL_W->exists($c->{sock}) }
+    # R5: a robot that sends without reading its answers is not read any further
+    # until they drain (bounded memory per connection)
+    if (!$c->{closing}) {
+        my $full = length($c->{out}) > (1 << 20);
+        if    ($full && !$c->{paused}) { $c->{paused} = 1; $SEL_R->remove($c->{sock}) }
+        elsif (!$full && $c->{paused}) { $c->{paused} = 0; $SEL_R->add($c->{sock}) }
+    }
     if ($c->{closing} && !length($c->{out}) && !@{ $c->{q} }) { drop_conn($c) }
 }
 
@@ -435,7 +442,7 @@ sub udp_in {
     my $frame = udp_frame($d);
     return unless defined $frame;
     my $h = hdr_fields($frame);
-    return unless $h->{sw} == 0xFEFE && $h->{ver} == 0x0001;
+    return unless start_ok($frame) && $h->{ver} == 0x0001;
     my $c = $UDPPEER{$peer} //= { udp => 1, peer => $peer, cycle => 0, q => [] };
     handle_frame($c, $frame);
 }
