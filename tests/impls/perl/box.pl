@@ -467,7 +467,7 @@ sub read_conn {
     }
     if ($r == 0) {    # the robot closed its side
         if ($H{on_peer_close}) { return if $H{on_peer_close}->($c) }
-        drop_conn($c);
+        close_conn($c);    # answers still queued go out first (a half-closed robot reads them)
         return;
     }
     $c->{buf} .= $chunk;
