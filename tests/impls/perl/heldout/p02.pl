@@ -7,7 +7,7 @@ use warnings;
         class     => 'e',
         clauses   => ['R3'],
         mechanism => 'Its start-word scan keeps nothing when the buffer holds no complete FE FE: a frame whose first segment is the single byte FE loses that byte, and the rest (FE 00 01 ...) is then skipped as garbage, so a frame split right after its first byte is never answered.',
-        keywords  => ['split', 'start word'],
+        keywords  => ['split', 'FE'],
         trigger   => 'FE | FE 00 01 01 00 00 00 00 00 00 00 00 00 (the first byte in its own segment, the rest 100 ms later): the box stays silent; it should answer FE FE 00 01 10 00 00 00 00 00 00 00 00 00 as it does when the split falls anywhere else.',
         fix       => 'When no FE FE is found, keep a trailing FE (a possible first half of the start word) and wait for more bytes.',
         looks_like => 'a box that needs the 12-byte header in one read (a frame split one byte per segment is lost either way)',

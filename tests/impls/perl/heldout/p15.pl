@@ -7,7 +7,7 @@ use warnings;
         class     => 'b',
         clauses   => ['F7', 'F4', 'R7'],
         mechanism => 'It reads the received UDP check field little-endian (low byte first) before comparing it with the CRC-16/MODBUS it computes, though it writes its own CRC big-endian: every correctly checked datagram is dropped, and one whose CRC bytes are swapped is answered.',
-        keywords  => ['CRC', 'byte order'],
+        keywords  => ['CRC', 'endian'],
         trigger   => 'UDP datagram FE FE 00 01 01 00 00 00 00 00 00 00 63 35: the box drops it; it should answer FE FE 00 01 10 00 00 00 00 00 00 00 + its CRC. FE FE 00 01 01 00 00 00 00 00 00 00 35 63 is answered.',
         fix       => 'Read the check field big-endian, as the box writes it (and as F7 says).',
         looks_like => 'a different CRC algorithm, or a box that does not serve UDP at all',

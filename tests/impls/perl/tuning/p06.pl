@@ -7,7 +7,7 @@ use warnings;
         class     => 'd',
         clauses   => ['B5', 'A3'],
         mechanism => 'Its receive buffer holds 4096 bytes: a frame longer than that (a pose request with 164 or more blocks) is counted away unread and refused with its action\'s error (1001), though the frame allows up to 255 blocks.',
-        keywords  => ['4096', 'block'],
+        keywords  => ['4096', 'bytes'],
         trigger   => 'a pose request with 164 blocks, FE FE 00 01 01 23 01 A4 00 19 00 00 + 164 valid pose blocks (indexes 00..A3) + 00 00: the box answers FE FE 00 01 10 23 00 00 00 00 10 01 00 00; it should answer 0000 (163 blocks are answered 0000).',
         fix       => 'Size the receive buffer for the largest legal frame (12 + 255*25 + 2 = 6389 bytes) or parse blocks as they stream in.',
         looks_like => 'a fixed-size table of poses (a limit on the block count rather than on the frame\'s size in bytes)',
