@@ -192,6 +192,28 @@ def test_vision_result(isight: CaseContext) -> None:
     isight.details["error_code"] = err(outcome.frame.error_code)
 
 
+@case("E3-02", ["E3", "E1"], Level.MUST, "The run's first result request, before any cycle, gets a ResultCode",
+      "the result request sent at session start (before the suite ran any cycle: the robot asking for a result "
+      "after a restart) is answered with one type-03 block holding 1, 2, 10, 20, 202, 400 or 409, never 0 or 404",
+      checks={"": Requirement(("E3",), "the first result request of the run, before any cycle, is answered with one "
+                              "type-03 block holding a ResultCode the box may send (1, 2, 10, 20, 202, 400, 409; "
+                              "never 0, the robot's empty initial value, or 404)",
+                              accept=answered_allowed(Action.VISION_RESULT, request=request(Action.VISION_RESULT)))})
+def test_first_result_before_any_cycle(isight: CaseContext) -> None:
+    isight.require_extension()
+    first = isight.session.first_result
+    if first is None or first.unanswered or not isinstance(first.outcome, (Answer, Malformed)):
+        raise Inconclusive("the session's first result request got no answer to judge (E3-01 judges whether 27 is "
+                           "answered at all)" if first is not None else
+                           "no result request went out at session start (the box did not answer it, or --extension "
+                           "off)")
+    isight.details["sent"] = ("at session start, before any case's CycleOn: its bytes are in the pcap of the run's "
+                              "first case (T1-00)")
+    isight.judge(first.outcome, sent=isight.codec.encode(request(Action.VISION_RESULT)))
+    if isinstance(first.outcome, Answer):
+        isight.details["result_code"] = first.outcome.frame.blocks[0].value  # type: ignore[union-attr]
+
+
 # -- E4 ------------------------------------------------------------------------------------
 
 

@@ -229,14 +229,21 @@ def test_udp_pose_answers(isight: CaseContext) -> None:
 # -- R7 ------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("kind", ["wrong-crc", "truncated", "trailing-bytes", "two-frames"])
+@pytest.mark.parametrize("kind", ["wrong-crc", "truncated", "trailing-bytes", "two-frames", "truncated-after-whole"])
 @case("R7-01", ["R7", "R1", "F7"], Level.MUST, "A bad datagram is never answered 0000 and is dropped silently",
       "a datagram with a wrong CRC or not exactly one frame long is never answered 0000 (MUST) and gets no "
-      "answer at all (SHOULD: an answer with a non-zero error is NON-STRICT)",
+      "answer at all (SHOULD: an answer with a non-zero error is NON-STRICT); truncated-after-whole: the same pose "
+      "datagram whole (answered 0000), then short of its last 3 bytes (a box that reuses its receive buffer and "
+      "checks only that a datagram is not longer than its frame completes it with the previous datagram's bytes)",
       checks={"no-0000": Requirement(("R7",), "a datagram with a wrong CRC or not exactly one frame MUST NOT be answered 0000"),
               "dropped": Requirement(("R7",), "a datagram with a wrong CRC or not exactly one frame SHOULD be dropped "
                                      "silently", level=Level.SHOULD)})
 def test_udp_bad_datagram(isight: CaseContext, kind: str) -> None:
+    if kind == "truncated-after-whole":
+        whole = udp_bytes(isight, pose_request(isight))
+        judge_bad_datagram(isight, whole[:-3], "bad datagram: the pose datagram just sent whole, without its last "
+                           "3 bytes", before=whole)
+        return
     judge_bad_datagram(isight, bad_datagram(isight, kind), f"bad datagram: pose {kind}")
 
 
@@ -260,10 +267,15 @@ def test_udp_each_check_byte(isight: CaseContext, change: ByteChange) -> None:
     judge_bad_datagram(isight, bad, f"bad datagram: pose whose CRC has {where} changed", where=where)
 
 
-def judge_bad_datagram(isight: CaseContext, bad: bytes, note: str, **values: Any) -> None:
-    """R7: ``bad``, then a valid NONE probe datagram; never answered 0000 (MUST), no answer at all (SHOULD)."""
+def judge_bad_datagram(isight: CaseContext, bad: bytes, note: str, before: bytes = b"", **values: Any) -> None:
+    """R7: (``before``, a valid datagram, and its answer,) ``bad``, then a valid NONE probe datagram; never
+    answered 0000 (MUST), no answer at all (SHOULD)."""
     ch = isight.udp()
     probe = require_udp_answers(isight, ch)
+    if before:
+        ch.send(before, "a valid datagram first (its answer is awaited): what a reused receive buffer keeps")
+        ch.send(probe, "probe: a valid NONE datagram; its answer bounds the wait")
+        await_probe(isight, ch, time.monotonic())
     isight.last_sent = bad
     start = send_datagram(ch, bad, note)
     ch.send(probe, "probe: a valid NONE datagram; its answer bounds the wait")

@@ -90,13 +90,23 @@ def ask(conn: TcpConnection, frame: Frame, note: str, wait_s: float) -> Probe:
 
 
 def detect_extension(conn: TcpConnection) -> tuple[bool, str]:
-    """(implemented, what the detection saw) from a result request (27) on ``conn``, then, when
-    27 gave no positive evidence and the box is seen answering (or closing), a ProgIdx (26) on a
-    fresh connection (``conn`` may be closed, or hold the probe's answer). A box that answered
-    neither 27 nor the probe is not asked again (one wait, not two)."""
-    # E5: 27 is bounded by vision_time_out, not time_out (a box may take that long to have a result)
-    vision_s = max(conn.time_out_s, conn.profile.vision_time_out_s)
-    seen = [ask(conn, request(Action.VISION_RESULT), "detect extension E: result request (27)", vision_s)]
+    """(implemented, what the detection saw): :func:`detect_with_probes` without the probes."""
+    implemented, how, _seen = detect_with_probes(conn)
+    return implemented, how
+
+
+def ask_result(conn: TcpConnection, note: str = "detect extension E: result request (27)") -> Probe:
+    """A result request (27) and a NONE probe on ``conn``; E5: 27 is bounded by vision_time_out, not
+    time_out (a box may take that long to have a result)."""
+    return ask(conn, request(Action.VISION_RESULT), note, max(conn.time_out_s, conn.profile.vision_time_out_s))
+
+
+def detect_with_probes(conn: TcpConnection) -> tuple[bool, str, list[Probe]]:
+    """(implemented, what the detection saw, its probes: the result request's first) from a result
+    request (27) on ``conn``, then, when 27 gave no positive evidence and the box is seen answering
+    (or closing), a ProgIdx (26) on a fresh connection (``conn`` may be closed, or hold the probe's
+    answer). A box that answered neither 27 nor the probe is not asked again (one wait, not two)."""
+    seen = [ask_result(conn)]
     first = seen[0]
     quiet = isinstance(first.outcome, Silence) and not first.unanswered  # not even the probe was answered
     if not first.evidence and not quiet:
@@ -109,7 +119,7 @@ def detect_extension(conn: TcpConnection) -> tuple[bool, str]:
             prog_idx = request(Action.PROG_IDX, value_blocks([PROG_IDX_VALUE], conn.profile.first_index))
             seen.append(ask(other, prog_idx, f"detect extension E: ProgIdx (26) {PROG_IDX_VALUE}", other.time_out_s))
             other.close()
-    return verdict(seen)
+    return (*verdict(seen), seen)
 
 
 def verdict(seen: list[Probe]) -> tuple[bool, str]:

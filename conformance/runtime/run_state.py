@@ -36,6 +36,7 @@ from typing import Any
 import pytest
 
 from ..harness.client import Answer, Outcome, TcpConnection
+from ..harness.extension_probe import Probe, ask_result, detect_with_probes
 from ..harness.liveness import PROBE_NONE, check_alive, responsive
 from ..harness.quiet import Hangs
 from ..harness.target import Target, Unreachable
@@ -82,6 +83,8 @@ class SessionState:
     deaths: list[Death] = field(default_factory=list)
     extension_supported: bool | None = None
     extension_how: str = ""
+    #: E3: the run's first result request (27), sent at session start before any case's cycle (None: not sent)
+    first_result: Probe | None = None
     embedded: Any = None  # the bundled box, when the session started it
     opened: int = 0
     closed: int = 0
@@ -171,6 +174,26 @@ class SessionState:
                                      self.closed))
             return
         self._preflight(transcript)
+        self._first_result(transcript)
+
+    def _first_result(self, transcript: Transcript) -> None:
+        """E3 on a box that has run no cycle for this suite yet: the run's first result request (27) goes out at
+        session start (with ``--extension auto`` it is the detection's), its outcome kept for E3-02."""
+        if self.settings.extension == "off":
+            return
+        conn = TcpConnection(transcript, self.target(), self.profile, "session start: the first result request (E3)")
+        try:
+            conn.connect()
+        except Unreachable:
+            return  # the cases' liveness checks report it
+        try:
+            if self.settings.extension == "auto" and self.extension_supported is None:
+                self.extension_supported, self.extension_how, seen = detect_with_probes(conn)
+                self.first_result = seen[0]
+            else:
+                self.first_result = ask_result(conn, "session start: the first result request (27), before any cycle")
+        finally:
+            conn.close()
 
     def _preflight(self, transcript: Transcript) -> None:
         """S4: a second connection while the first is open; the first stays open as the witness."""
@@ -342,14 +365,13 @@ class SessionState:
                 self.extension_supported = mode == "on"
                 self.extension_how = "forced on" if mode == "on" else "off (--extension off)"
             else:
-                from ..harness.extension_probe import detect_extension
-
                 conn = TcpConnection(transcript, self.target(), self.profile, "extension detection")
                 try:
                     conn.connect()
                 except Unreachable as exc:
                     raise Inconclusive(f"box unreachable: {exc}") from None
-                self.extension_supported, self.extension_how = detect_extension(conn)
+                self.extension_supported, self.extension_how, seen = detect_with_probes(conn)
+                self.first_result = self.first_result or seen[0]
                 conn.close()
         return self.extension_supported
 
