@@ -17,12 +17,14 @@ def _code(code: int | None) -> str:
 
 
 def does(fate: str, code: int | None) -> str:
-    """What the box does to the frame (``fate``: error, closed, dropped, silent), as a sentence's start: "Never
-    answers", "Answers error 1001 to"."""
+    """What the box does to the frame (``fate``: error, closed, dropped: never answered while the NONE behind it
+    is, silent: nothing more within time_out), as a sentence's start: "Never answers", "Answers error 1001 to"."""
     if fate == "error":
         return gettext("Answers error {code} to").format(code=_code(code))
     if fate == "closed":
         return gettext("Closes the connection on")
+    if fate == "silent":
+        return gettext("Gives no answer within time_out to")
     return gettext("Never answers")
 
 
@@ -32,6 +34,8 @@ def done(fate: str, code: int | None) -> str:
         return gettext("is answered with error {code}").format(code=_code(code))
     if fate == "closed":
         return gettext("makes the box close the connection")
+    if fate == "silent":
+        return gettext("gets no answer within time_out (nor does anything sent after it)")
     return gettext("is never answered")
 
 

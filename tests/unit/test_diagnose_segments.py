@@ -86,7 +86,9 @@ def test_a_partial_frame_at_the_end_of_a_segment_needs_the_same_cut_alone_and_th
     ("split-blocks", "error", ["Answers error 1001 to a pose (23) split between its header and its blocks", "R3"]),
     ("split-any", "closed", ["Closes the connection on a pose (23) split", "R3"]),
     ("coalesced", "dropped", ["several frames arrive in one TCP segment", "is never answered", "R4"]),
-    ("partial-tail", "silent", ["partial frame at the end of a segment", "is never answered", "R3/R4"]),
+    ("partial-tail", "dropped", ["partial frame at the end of a segment", "is never answered", "R3/R4"]),
+    ("partial-tail", "silent", ["partial frame at the end of a segment", "no answer within time_out", "R3/R4"]),
+    ("split-header", "silent", ["Gives no answer within time_out to a pose (23) split inside"]),
 ])
 def test_titles_name_the_difference_and_what_the_box_does(kind: str, fate: str, words: list[str]) -> None:
     title = T.title(kind, fate, 0x1001 if fate == "error" else None, 0x23, 0)
