@@ -21,6 +21,7 @@ alone is answered and the two frames in one segment are too.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -45,12 +46,14 @@ ORDER = ("whole", *SPLITS, "coalesced", *TAILS)
 @dataclass(frozen=True)
 class Fate:
     """What became of ``P`` in one trial: ``ok`` (answered like the whole), ``error`` (with ``code``), ``dropped``
-    (never answered, while the tail behind it was), ``closed``, ``silent`` (nothing more came within time_out);
-    ``before``: whether the NONE ahead of it in the same segment was answered (None: there was none)."""
+    (never answered, while the tail behind it was), ``closed``, ``silent`` (nothing more came within time_out),
+    ``late`` (answered ``ms`` after its last byte, past time_out: see :meth:`Segments._confirm`); ``before``:
+    whether the NONE ahead of it in the same segment was answered (None: there was none)."""
 
     kind: str
     code: int | None = None
     before: bool | None = None
+    ms: int | None = None
 
     @property
     def ok(self) -> bool:
@@ -170,15 +173,51 @@ class Segments:
         found = judge(fates)
         if found is None:
             return None
+        if found.fate.kind == "dropped":  # dropped, or only answered later than the tail's answer?
+            late = self._confirm(pieces(found.failed[0], none, pose)[0], pose[5])
+            if late is not None:
+                found = Finding(found.kind, found.failed, late)
         detail: dict[str, object] = {"segmentation": found.kind, "failed": list(found.failed),
-                                     "fate": found.fate.kind, "code": found.fate.code,
+                                     "fate": found.fate.kind, "code": found.fate.code, "ms": found.fate.ms,
                                      "trials": {k: [v.kind, v.code] for k, v in fates.items()}}
         clauses = ("R4", "A1") if found.kind == "coalesced" else ("R3", "R4") if found.kind == "partial-tail" else ("R3",)
         repro = (none, pose) if found.kind in ("coalesced", "partial-tail") else (pose,)
         if found.kind == "coalesced":
             detail["one_write"] = True
         return Isolated(("segmentation", found.kind, found.fate.kind, found.fate.code),
-                        T.title(found.kind, found.fate.kind, found.fate.code, pose[5], reference), clauses, pose[5], repro, detail)
+                        T.title(found.kind, found.fate.kind, found.fate.code, pose[5], reference, found.fate.ms),
+                        clauses, pose[5], repro, detail)
+
+    def _confirm(self, segs: list[bytes], action: int) -> Fate | None:
+        """A frame dropped in a trial sent again the same way with no tail behind it, read for up to twice time_out:
+        answered past time_out is ``late`` (with the delay); None when nothing came (dropped, confirmed) or the
+        deadline leaves no room for the wait."""
+        wait = min(2 * self.p.dialer.time_out_s, self.p.left() - 1.0 - GAP_S * len(segs))
+        if wait <= self.p.dialer.time_out_s:
+            return None
+        conn = _connect(self.p)
+        if conn is None:
+            return None
+        answers: list[Heard] = []
+        late = None
+        try:
+            if conn.send_pieces(segs, GAP_S, "diagnose: segmentation, no tail"):
+                start = time.monotonic()
+                while late is None and time.monotonic() - start < wait:
+                    outcome = conn.next_outcome(max(0.0, wait - (time.monotonic() - start)))
+                    if isinstance(outcome, (Silence, Closed)):
+                        break
+                    if isinstance(outcome, (Answer, Malformed)):
+                        answers.append(heard(outcome))
+                        if answers[-1].action == action:
+                            ms = int((time.monotonic() - start) * 1000)
+                            if ms > self.p.dialer.time_out_s * 1000:
+                                late = Fate("late", answers[-1].error, None, ms)
+                            break
+        finally:
+            conn.close("diagnose")
+        self.exchanges.append(Exchange(tuple(segs), (Reading(tuple(answers)),)))
+        return late
 
     def _trial(self, segs: list[bytes], none: bytes, nones: int) -> Reading | None:
         """``segs`` then the tail NONE, each its own segment :data:`GAP_S` apart, on a fresh connection; read until

@@ -89,9 +89,11 @@ def test_a_partial_frame_at_the_end_of_a_segment_needs_the_same_cut_alone_and_th
     ("partial-tail", "dropped", ["partial frame at the end of a segment", "is never answered", "R3/R4"]),
     ("partial-tail", "silent", ["partial frame at the end of a segment", "no answer within time_out", "R3/R4"]),
     ("split-header", "silent", ["Gives no answer within time_out to a pose (23) split inside"]),
+    ("split-blocks", "late", ["Answers only 6200 ms after its last byte (past time_out) a pose (23) split between"]),
+    ("partial-tail", "late", ["is answered only 6200 ms after its last byte (past time_out)"]),
 ])
 def test_titles_name_the_difference_and_what_the_box_does(kind: str, fate: str, words: list[str]) -> None:
-    title = T.title(kind, fate, 0x1001 if fate == "error" else None, 0x23, 0)
+    title = T.title(kind, fate, 0x1001 if fate == "error" else None, 0x23, 0, 6200 if fate == "late" else None)
     for word in words:
         assert word in title
     assert "unconfirmed" not in title
