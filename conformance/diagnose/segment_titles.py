@@ -43,10 +43,21 @@ def done(fate: str, code: int | None, ms: int | None = None) -> str:
     return gettext("is never answered")
 
 
-def title(kind: str, fate: str, code: int | None, action: int, reference: int, ms: int | None = None) -> str:
-    """The title of what :func:`.segments.judge` found (``kind``: split-header, split-blocks, split-any, coalesced,
-    partial-tail; ``fate`` and ``code``: what became of the frame) for a request of ``action`` answered
-    ``reference`` whole (``ms``: how late a late answer came)."""
+def cut_name(trial: str) -> str:
+    """Where a trial cut the frame, in the protocol's words."""
+    names = {"header": gettext("cut after byte 5 (inside the header)"),
+             "after-header": gettext("cut after byte 12 (between the header and the blocks)"),
+             "blocks": gettext("cut after byte 20 (inside the blocks)"),
+             "check": gettext("cut before the check field")}
+    return names.get(trial, trial)
+
+
+def title(kind: str, fate: str, code: int | None, action: int, reference: int, ms: int | None = None,
+          failed: tuple[str, ...] = ()) -> str:
+    """The title of what :func:`.segments.judge` found (``kind``: split-header, split-blocks, split-check,
+    split-any, split-at, coalesced, partial-tail; ``fate`` and ``code``: what became of the frame) for a request
+    of ``action`` answered ``reference`` whole (``ms``: how late a late answer came; ``failed``: the trials that
+    failed)."""
     what, ref = name(action), _code(reference)
     if kind == "split-header":
         return gettext("{does} a {action} split inside its 12-byte header (cut after byte 5; cut after the header, or "
@@ -58,10 +69,20 @@ def title(kind: str, fate: str, code: int | None, action: int, reference: int, m
                        "header, it is answered {ref}) it parses the blocks from the read that carried the header — R3: "
                        "wait for all 12+N×L+2 bytes of a frame, across reads, before parsing its blocks").format(
             does=does(fate, code, ms), action=what, ref=ref)
+    if kind == "split-check":
+        return gettext("{does} a {action} split before its check field (its last 2 bytes in a later segment; whole, or "
+                       "cut inside the header or the blocks, it is answered {ref}): R3 asks for a split frame handled "
+                       "whole — wait for the check field too before handling the frame").format(
+            does=does(fate, code, ms), action=what, ref=ref)
     if kind == "split-any":
         return gettext("{does} a {action} split across TCP segments wherever it is cut (inside the header, after it, "
-                       "inside the blocks; whole it is answered {ref}): R3 asks for a split frame handled whole — "
-                       "buffer until the frame is complete").format(does=does(fate, code, ms), action=what, ref=ref)
+                       "inside the blocks, before the check field; whole it is answered {ref}): R3 asks for a split "
+                       "frame handled whole — buffer until the frame is complete").format(
+            does=does(fate, code, ms), action=what, ref=ref)
+    if kind == "split-at":
+        return gettext("{does} a {action} split across TCP segments {where} (whole, or cut elsewhere, it is answered "
+                       "{ref}): R3 asks for a split frame handled whole — buffer until the frame is complete").format(
+            does=does(fate, code, ms), action=what, ref=ref, where=", ".join(cut_name(t) for t in failed))
     if kind == "coalesced":
         return gettext("Handles one frame per segment: when several frames arrive in one TCP segment, the {action} "
                        "behind a NONE {done} (each is answered when sent alone): R4 asks for every frame of a segment "

@@ -6,8 +6,8 @@ fresh connections as these segments (50 ms apart), each followed by a NONE in it
 whose answer tells a dropped frame from a slow one without waiting a whole time_out):
 
 * ``whole``: ``P`` in one segment: the reference (answered as PROTOCOL.md asks, else nothing is isolated);
-* ``header`` / ``after-header`` / ``blocks``: ``P`` cut inside its 12-byte header (after byte 5), between the
-  header and the blocks (after byte 12), inside the blocks (after byte 20);
+* ``header`` / ``after-header`` / ``blocks`` / ``check``: ``P`` cut inside its 12-byte header (after byte 5),
+  between the header and the blocks (after byte 12), inside the blocks (after byte 20), before its check field;
 * ``coalesced``: ``N`` and ``P`` in one segment;
 * ``tail-header`` / ``tail-blocks``: ``N`` and the start of ``P`` in one segment (``P`` cut after byte 5 or 20),
   the rest of ``P`` in the next.
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 from ..harness.client import Answer, Closed, Malformed, Silence
 from ..model.verdicts import CaseResult
-from ..protocol.constants import HEADER_LEN
+from ..protocol.constants import CHECK_LEN, HEADER_LEN
 from . import segment_titles as T
 from .differences import Isolated
 from .experiments import SETTLE_MIN_S, Prober, heard
@@ -38,7 +38,7 @@ from .probes import GAP_S, _connect
 CLAUSES = ("R3", "R4")
 #: where ``P`` is cut: inside the header, between header and blocks, inside the first block
 CUT_HEADER, CUT_BLOCKS = 5, 20
-SPLITS = ("header", "after-header", "blocks")
+SPLITS = ("header", "after-header", "blocks", "check")
 TAILS = ("tail-header", "tail-blocks")
 ORDER = ("whole", *SPLITS, "coalesced", *TAILS)
 
@@ -62,7 +62,7 @@ class Fate:
 
 def pieces(trial: str, none: bytes, pose: bytes) -> tuple[list[bytes], int]:
     """The segments of ``trial`` (before the tail), and how many NONE precede ``P``."""
-    cut = {"header": CUT_HEADER, "after-header": HEADER_LEN, "blocks": CUT_BLOCKS,
+    cut = {"header": CUT_HEADER, "after-header": HEADER_LEN, "blocks": CUT_BLOCKS, "check": len(pose) - CHECK_LEN,
            "tail-header": CUT_HEADER, "tail-blocks": CUT_BLOCKS}.get(trial)
     if trial == "whole":
         return [pose], 0
@@ -100,7 +100,8 @@ def _ahead(answers: Sequence[Heard], action: int) -> bool:
 
 @dataclass(frozen=True)
 class Finding:
-    """The isolated difference: ``kind`` (split-header, split-blocks, split-any, coalesced, partial-tail), the trials
+    """The isolated difference: ``kind`` (split-header, split-blocks, split-check, split-any, split-at: some cuts,
+    coalesced, partial-tail), the trials
     that failed, and how ``P`` fared in them."""
 
     kind: str
@@ -116,11 +117,13 @@ def judge(fates: Mapping[str, Fate]) -> Finding | None:
     split_bad = tuple(t for t in SPLITS if t in fates and not fates[t].ok)
     if split_bad:
         first = fates[split_bad[0]]
-        if split_bad == ("header",):
-            return Finding("split-header", split_bad, first)
-        if "header" not in split_bad and "header" in fates:
+        if split_bad in (("header",), ("check",)):
+            return Finding(f"split-{split_bad[0]}", split_bad, first)
+        if "header" in fates and "header" not in split_bad and {"after-header", "blocks"} & set(split_bad):
             return Finding("split-blocks", split_bad, first)
-        return Finding("split-any", split_bad, first)
+        if len(split_bad) == len([t for t in SPLITS if t in fates]):
+            return Finding("split-any", split_bad, first)
+        return Finding("split-at", split_bad, first)
     coalesced = fates.get("coalesced")
     if coalesced is not None and not coalesced.ok:
         return Finding("coalesced", ("coalesced",), coalesced)
@@ -185,7 +188,7 @@ class Segments:
         if found.kind == "coalesced":
             detail["one_write"] = True
         return Isolated(("segmentation", found.kind, found.fate.kind, found.fate.code),
-                        T.title(found.kind, found.fate.kind, found.fate.code, pose[5], reference, found.fate.ms),
+                        T.title(found.kind, found.fate.kind, found.fate.code, pose[5], reference, found.fate.ms, found.failed),
                         clauses, pose[5], repro, detail)
 
     def _confirm(self, segs: list[bytes], action: int) -> Fate | None:

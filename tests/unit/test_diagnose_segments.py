@@ -23,6 +23,7 @@ def test_the_trials_cut_the_pose_where_their_names_say() -> None:
     assert pieces("header", NONE, POSE) == ([POSE[:5], POSE[5:]], 0)
     assert pieces("after-header", NONE, POSE) == ([POSE[:12], POSE[12:]], 0)
     assert pieces("blocks", NONE, POSE) == ([POSE[:20], POSE[20:]], 0)
+    assert pieces("check", NONE, POSE) == ([POSE[:37], POSE[37:]], 0)
     assert pieces("coalesced", NONE, POSE) == ([NONE + POSE], 1)
     assert pieces("tail-header", NONE, POSE) == ([NONE + POSE[:5], POSE[5:]], 1)
 
@@ -46,7 +47,8 @@ def test_an_error_answer_with_action_00_is_not_the_tail_s_answer() -> None:
 
 
 def _all_ok(**bad: Fate) -> dict[str, Fate]:
-    fates = {t: OK for t in ("whole", "header", "after-header", "blocks", "coalesced", "tail-header", "tail-blocks")}
+    fates = {t: OK for t in ("whole", "header", "after-header", "blocks", "check", "coalesced", "tail-header",
+                             "tail-blocks")}
     fates.update({k.replace("_", "-"): v for k, v in bad.items()})
     return fates
 
@@ -59,7 +61,11 @@ def test_nothing_is_isolated_when_every_trial_passes_or_the_whole_frame_fails() 
 def test_a_split_inside_the_header_alone_is_told_from_a_split_anywhere() -> None:
     dropped = Fate("dropped")
     assert judge(_all_ok(header=dropped)) == Finding("split-header", ("header",), dropped)
-    assert judge(_all_ok(header=dropped, after_header=dropped, blocks=dropped)).kind == "split-any"  # type: ignore[union-attr]
+    every = judge(_all_ok(header=dropped, after_header=dropped, blocks=dropped, check=dropped))
+    assert every is not None and every.kind == "split-any"
+    assert judge(_all_ok(check=dropped)) == Finding("split-check", ("check",), dropped)
+    some = judge(_all_ok(header=dropped, check=dropped))
+    assert some == Finding("split-at", ("header", "check"), dropped)
 
 
 def test_blocks_in_a_later_segment_than_the_header() -> None:
@@ -85,6 +91,8 @@ def test_a_partial_frame_at_the_end_of_a_segment_needs_the_same_cut_alone_and_th
     ("split-header", "dropped", ["Never answers a pose (23) split inside its 12-byte header", "R3"]),
     ("split-blocks", "error", ["Answers error 1001 to a pose (23) split between its header and its blocks", "R3"]),
     ("split-any", "closed", ["Closes the connection on a pose (23) split", "R3"]),
+    ("split-check", "dropped", ["Never answers a pose (23) split before its check field", "R3"]),
+    ("split-at", "error", ["split across TCP segments cut after byte 5 (inside the header), cut before the check"]),
     ("coalesced", "dropped", ["several frames arrive in one TCP segment", "is never answered", "R4"]),
     ("partial-tail", "dropped", ["partial frame at the end of a segment", "is never answered", "R3/R4"]),
     ("partial-tail", "silent", ["partial frame at the end of a segment", "no answer within time_out", "R3/R4"]),
@@ -93,7 +101,8 @@ def test_a_partial_frame_at_the_end_of_a_segment_needs_the_same_cut_alone_and_th
     ("partial-tail", "late", ["is answered only 6200 ms after its last byte (past time_out)"]),
 ])
 def test_titles_name_the_difference_and_what_the_box_does(kind: str, fate: str, words: list[str]) -> None:
-    title = T.title(kind, fate, 0x1001 if fate == "error" else None, 0x23, 0, 6200 if fate == "late" else None)
+    title = T.title(kind, fate, 0x1001 if fate == "error" else None, 0x23, 0, 6200 if fate == "late" else None,
+                    ("header", "check"))
     for word in words:
         assert word in title
     assert "unconfirmed" not in title
