@@ -83,6 +83,10 @@ def title(kind: str, fate: str, code: int | None, action: int, reference: int, m
         return gettext("{does} a {action} split across TCP segments {where} (whole, or cut elsewhere, it is answered "
                        "{ref}): R3 asks for a split frame handled whole — buffer until the frame is complete").format(
             does=does(fate, code, ms), action=what, ref=ref, where=", ".join(cut_name(t) for t in failed))
+    if kind in ("coalesced", "partial-tail") and fate == "ok":  # the frame is answered, the NONE ahead of it is not
+        return gettext("Loses the NONE ahead of a {action} in the same TCP segment (the {action} is answered; each is "
+                       "answered when sent alone): R4 asks for every frame of a segment answered — read every whole "
+                       "frame in the received bytes").format(action=what)
     if kind == "coalesced":
         return gettext("Handles one frame per segment: when several frames arrive in one TCP segment, the {action} "
                        "behind a NONE {done} (each is answered when sent alone): R4 asks for every frame of a segment "
