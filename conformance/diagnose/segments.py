@@ -161,11 +161,10 @@ class Segments:
         fates: dict[str, Fate] = {}
         reference = 0
         for trial in ORDER:
-            segs, ahead = pieces(trial, none, pose)
-            got = self._trial(segs, none, ahead + 1)
-            if got is None:
+            fate = self._fate(trial, none, pose, reference)
+            if fate is None:
                 return None
-            fates[trial] = fate_of(got.answers, got.closed, pose[5], ahead + 1, reference)
+            fates[trial] = fate
             if trial == "whole":
                 if fates[trial].kind not in ("ok", "error") or fates[trial].code is None:
                     return None
@@ -174,7 +173,7 @@ class Segments:
             if fates[trial].kind == "silent":  # a box stuck on a partial frame: the trials after it would wait too
                 break
         found = judge(fates)
-        if found is None:
+        if found is None or not self._again(found, none, pose, reference):
             return None
         if found.fate.kind == "dropped":  # dropped, or only answered later than the tail's answer?
             late = self._confirm(pieces(found.failed[0], none, pose)[0], pose[5])
@@ -190,6 +189,18 @@ class Segments:
         return Isolated(("segmentation", found.kind, found.fate.kind, found.fate.code),
                         T.title(found.kind, found.fate.kind, found.fate.code, pose[5], reference, found.fate.ms, found.failed),
                         clauses, pose[5], repro, detail)
+
+    def _fate(self, trial: str, none: bytes, pose: bytes, reference: int) -> Fate | None:
+        segs, ahead = pieces(trial, none, pose)
+        got = self._trial(segs, none, ahead + 1)
+        return None if got is None else fate_of(got.answers, got.closed, pose[5], ahead + 1, reference)
+
+    def _again(self, found: Finding, none: bytes, pose: bytes, reference: int) -> bool:
+        """The first failing trial fails again and the whole frame is answered right again (a box that stalled or
+        dropped a frame once, whatever its segments, is not named for a split)."""
+        again = self._fate(found.failed[0], none, pose, reference)
+        whole = self._fate("whole", none, pose, reference)
+        return again is not None and not again.ok and whole is not None and whole.ok
 
     def _confirm(self, segs: list[bytes], action: int) -> Fate | None:
         """A frame dropped in a trial sent again the same way with no tail behind it, read for up to twice time_out:
