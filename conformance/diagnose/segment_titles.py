@@ -60,8 +60,8 @@ def title(kind: str, fate: str, code: int | None, action: int, reference: int, m
     failed)."""
     what, ref = name(action), _code(reference)
     if kind == "split-header":
-        return gettext("{does} a {action} split inside its 12-byte header (cut after byte 5; cut after the header, or "
-                       "whole, it is answered {ref}): R3 asks for a split frame handled whole — buffer a partial "
+        return gettext("{does} a {action} split inside its 12-byte header (cut after byte 5, the rest in a later "
+                       "segment; cut after the header, or whole, it is answered {ref}): R3 asks for a split frame handled whole — buffer a partial "
                        "header until its 12 bytes are there").format(does=does(fate, code, ms), action=what, ref=ref)
     if kind == "split-blocks":
         return gettext("{does} a {action} split between its header and its blocks: when the blocks come in a later "
@@ -88,12 +88,12 @@ def title(kind: str, fate: str, code: int | None, action: int, reference: int, m
                        "answered when sent alone): R4 asks for every frame of a segment answered — read every whole "
                        "frame in the received bytes").format(action=what)
     if kind == "coalesced":
-        return gettext("Handles one frame per segment: when several frames arrive in one TCP segment, the {action} "
-                       "behind a NONE {done} (each is answered when sent alone): R4 asks for every frame of a segment "
+        return gettext("Handles one frame per segment: when several frames arrive coalesced in one TCP segment, the "
+                       "{action} behind a NONE {done} (each is answered when sent alone): R4 asks for every frame of a segment "
                        "answered — keep parsing the receive buffer until no complete frame is left, and keep the "
                        "rest").format(action=what, done=done(fate, code, ms))
-    return gettext("Discards the partial frame at the end of a segment: a {action} whose start arrives in one segment "
-                   "behind a complete frame {done} when its rest comes in the next segment (cut the same way alone, "
-                   "or whole behind the frame, it is answered): R3/R4 ask for a frame continued in the next segment "
-                   "handled whole — keep the unparsed remainder of the receive buffer").format(
+    return gettext("Discards the partial frame at the end of a segment: a {action} split across two segments, its "
+                   "start behind a complete frame in the first, {done} when its rest comes in the next (cut the same "
+                   "way alone, or whole behind the frame, it is answered): R3/R4 ask for a frame continued in the next "
+                   "segment handled whole — keep the unparsed remainder of the receive buffer").format(
         action=what, done=done(fate, code, ms))
