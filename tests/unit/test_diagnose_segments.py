@@ -93,7 +93,7 @@ def test_a_partial_frame_at_the_end_of_a_segment_needs_the_same_cut_alone_and_th
     ("split-any", "closed", ["Closes the connection on a pose (23) split", "R3"]),
     ("split-check", "dropped", ["Never answers a pose (23) split before its check field", "R3"]),
     ("split-at", "error", ["split across TCP segments cut after byte 5 (inside the header), cut before the check"]),
-    ("coalesced", "dropped", ["several frames arrive in one TCP segment", "is never answered", "R4"]),
+    ("coalesced", "dropped", ["several frames arrive coalesced in one TCP segment", "is never answered", "R4"]),
     ("coalesced", "ok", ["Loses the NONE ahead of a pose (23) in the same TCP segment", "R4"]),
     ("partial-tail", "dropped", ["partial frame at the end of a segment", "is never answered", "R3/R4"]),
     ("partial-tail", "silent", ["partial frame at the end of a segment", "no answer within time_out", "R3/R4"]),
