@@ -64,6 +64,11 @@ def of(kind: str, d: dict[str, Any]) -> str:
         return gettext("UDP CRC not checked: answers 0000 to a NONE datagram whose check field ({check}) no CRC-16 "
                        "computes: R7 asks for such datagrams dropped — compute the CRC of bytes 0..12+N×L−1 and drop "
                        "the datagram when it differs from the check field").format(check=d["check"])
+    if kind == "udp-crc-one-byte":
+        return gettext("Checks only one byte of the UDP CRC: a NONE datagram whose CRC has byte {ignored} of 2 (frame "
+                       "byte {at}) changed is answered 0000, one with byte {checked} changed is dropped: R7 asks for a "
+                       "datagram with a wrong CRC dropped — compare both bytes of the CRC").format(
+            ignored=d["ignored"], checked=d["checked"], at=d["at"])
     if kind == "udp-crc-coverage":
         return gettext("Computes the UDP CRC over {part}: a pose datagram is answered only when its CRC covers {bytes} "
                        "(F7: the CRC covers bytes 0..12+N×L−1, the header and the blocks) — compute the CRC over the "
