@@ -207,18 +207,19 @@ def coverage(d: _Datagrams, lab: Lab, wait_s: float) -> None:
     lab.tried.append("a pose datagram refused under CRCs over the whole frame and four parts of it")
 
 
-def one_byte(d: _Datagrams, lab: Lab, body: bytes, wait_s: float) -> None:
-    """The CRC with one of its two bytes changed (each on its own): answered 0000 when the box compares the other
-    byte only."""
+def one_byte(d: _Datagrams, lab: Lab, body: bytes) -> None:
+    """The CRC with one of its two bytes changed (each on its own, a short wait each): answered 0000 when the box
+    compares the other byte only (the one answered asked again with a longer wait, so that a slow answer to the
+    first is not taken for an answer to the second)."""
     good = d.signed(body)
-    passed = []
-    for at in (0, 1):
-        check = bytearray(good[-2:])
-        check[at] ^= 0xFF
-        asked = d.ask(lab, body + bytes(check), wait_s, f"NONE datagram, byte {at + 1} of the CRC changed")
-        passed.append(bool(d.zeros(asked, Action.NONE)))
-    if passed.count(True) == 1:
-        ignored = passed.index(True)
+    changed = [body + bytes([good[-2] ^ 0xFF, good[-1]]), body + bytes([good[-2], good[-1] ^ 0xFF])]
+    passed = [bool(d.zeros(d.ask(lab, data, SCAN_WAIT_S * 3, f"NONE datagram, byte {at + 1} of the CRC changed"),
+                           Action.NONE)) for at, data in enumerate(changed)]
+    if passed.count(True) != 1:
+        return
+    ignored = passed.index(True)
+    again = d.ask(lab, changed[ignored], CONFIRM_WAIT_S, f"confirm: byte {ignored + 1} of the CRC changed")
+    if d.zeros(again, Action.NONE):
         lab.found("udp-crc-one-byte", ignored=ignored + 1, checked=2 - ignored, at=len(body) + ignored)
 
 
@@ -321,7 +322,7 @@ def _udp(p: Prober, lab: Lab, d: _Datagrams) -> tuple[str, ByteOrder] | None:
     if d.zeros(bad, Action.NONE):
         lab.found("udp-crc-unchecked", check=_no_crc_value(none).hex(" "))
     else:
-        one_byte(d, lab, none, wait)
+        one_byte(d, lab, none)
         coverage(d, lab, wait)
     datagram_length(d, lab, wait)
     return None
