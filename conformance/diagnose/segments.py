@@ -244,9 +244,8 @@ class Segments:
         answers: list[Heard] = []
         closed = False
         try:
-            if not conn.send_pieces([*segs, none], GAP_S, "diagnose: segmentation"):
-                closed = True
-            while not closed:
+            sent = conn.send_pieces([*segs, none], GAP_S, "diagnose: segmentation")
+            while not closed:  # what came before a close is read too (an error answer, then the close)
                 outcome = conn.next_outcome(max(0.0, min(self.p.dialer.time_out_s, self.p.left())))
                 if isinstance(outcome, Silence):
                     break
@@ -260,6 +259,6 @@ class Segments:
                     break
         finally:
             conn.close("diagnose")
-        reading = Reading(tuple(answers), closed)
+        reading = Reading(tuple(answers), closed or not sent)
         self.exchanges.append(Exchange((*segs, none), (reading,)))
         return reading
