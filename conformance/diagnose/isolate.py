@@ -78,7 +78,8 @@ class Isolator:
         if any(_udp(m) for m in members):  # datagrams are not put to TCP experiments
             notes.append("UDP cases not isolated over TCP")
             members = [m for m in members if not _udp(m)]
-        got = self._whole_box(exp, cause) or self.segments.isolate(exp, members) or self._isolate(exp, members, notes)
+        got = (self._whole_box(exp, cause) or self.segments.isolate(exp, [by_id[i] for i in cause.cases if i in by_id])
+               or self._isolate(exp, members, notes))
         exp.finding = got.title if got is not None else "; ".join(notes) or "no case quotes a whole request"
         if got is not None:
             mech = self.mechanisms.get(got.key)
