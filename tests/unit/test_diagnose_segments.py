@@ -7,7 +7,8 @@ import pytest
 
 from conformance.diagnose import segment_titles as T
 from conformance.diagnose.hypotheses import Heard
-from conformance.diagnose.segments import Fate, Finding, fate_of, judge, pieces
+from conformance.diagnose.segments import Fate, Finding, fate_of, involved, judge, pieces
+from conformance.model.verdicts import CaseResult, Level, Verdict
 
 NONE = bytes.fromhex("fefe000101000000000000000000")
 POSE = bytes(range(39))
@@ -107,3 +108,11 @@ def test_titles_name_the_difference_and_what_the_box_does(kind: str, fate: str, 
     for word in words:
         assert word in title
     assert "unconfirmed" not in title
+
+
+def test_segmentation_is_asked_for_root_causes_whose_cases_split_or_coalesce_frames() -> None:
+    def case(clauses: tuple[str, ...]) -> CaseResult:
+        return CaseResult("X-01", "X-01", clauses, Level.MUST, Verdict.FAIL, "seen")
+
+    assert involved([case(("S6", "R4", "A1"))]) and involved([case(("A3",)), case(("R3", "A1"))])
+    assert not involved([case(("F7", "R7")), case(("A1", "T1"))])
