@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol.constants import HEADER_LEN
-from . import dimensions
+from . import dimensions, segments
 from . import isolation_titles as T
 from .differences import (
     REQUESTS,
@@ -62,6 +62,7 @@ class Isolator:
         self.p = p
         self.mechanisms: dict[tuple[object, ...], Mechanism] = {}
         self._exp = Experiment("isolate", "")
+        self.segments = segments.Segments(p)  # R3/R4: the split point or the segment isolated, once per phase
 
     def diagnose(self, cause: RootCause, cases: Sequence[CaseResult]) -> Found:
         """Isolation for ``cause``; when it pins nothing, the case sent again (:func:`.reproduce.reproduce`),
@@ -77,7 +78,8 @@ class Isolator:
         if any(_udp(m) for m in members):  # datagrams are not put to TCP experiments
             notes.append("UDP cases not isolated over TCP")
             members = [m for m in members if not _udp(m)]
-        got = self._whole_box(exp, cause) or self._isolate(exp, members, notes)
+        got = (self._whole_box(exp, cause) or self.segments.isolate(exp, [by_id[i] for i in cause.cases if i in by_id])
+               or self._isolate(exp, members, notes))
         exp.finding = got.title if got is not None else "; ".join(notes) or "no case quotes a whole request"
         if got is not None:
             mech = self.mechanisms.get(got.key)

@@ -8,7 +8,7 @@ sent from an unconnected socket whose neighbouring ports listen too (:class:`~..
 * which CRC: the profile's; else every crcmod 16-bit algorithm in both byte orders (common ones
   first, a short wait each, a hit confirmed with a longer one), and whether the answers are
   signed with it too;
-* whether the CRC is checked at all (a check no algorithm computes) and what it covers (a pose
+* whether the CRC is checked at all (a check no algorithm computes), both of its bytes, and what it covers (a pose
   datagram whose CRC covers the whole frame, the header only, the frame without its start word,
   the blocks only);
 * one frame per datagram: two frames in one datagram, trailing bytes, and the answers' own length;
@@ -38,11 +38,11 @@ from .hypotheses import Exchange, Experiment, Heard, Hypothesis, Mechanism, Read
 KINDS = (UDP, TCP_CHECK)
 #: mechanism kinds, the one that titles a root cause first
 ORDER = ("udp-answer-port", "udp-answer-source", "udp-silent", "udp-crc-algorithm", "udp-crc-byte-order",
-         "udp-crc-unchecked", "udp-crc-coverage", "udp-several-frames", "udp-trailing", "udp-answer-frames",
+         "udp-crc-unchecked", "udp-crc-one-byte", "udp-crc-coverage", "udp-several-frames", "udp-trailing", "udp-answer-frames",
          "udp-answer-crc", "tcp-check-field", "tcp-crc-refused")
 TCP_KINDS = ("tcp-check-field", "tcp-crc-refused")
 _CLAUSES = {"udp-answer-port": ("F7", "A1"), "udp-answer-source": ("F7", "A1"), "udp-silent": ("F7", "A1"),
-            "udp-crc-unchecked": ("R7", "F7"), "udp-several-frames": ("F7", "R7"), "udp-trailing": ("F7", "R7"),
+            "udp-crc-unchecked": ("R7", "F7"), "udp-crc-one-byte": ("R7", "F7"), "udp-several-frames": ("F7", "R7"), "udp-trailing": ("F7", "R7"),
             "tcp-check-field": ("F6",), "tcp-crc-refused": ("F6",)}
 #: tried first when the profile's CRC is not answered (then every other crcmod 16-bit algorithm)
 COMMON_CRCS = ("modbus", "crc-ccitt-false", "xmodem", "kermit", "x-25", "crc-16", "crc-16-usb", "crc-16-maxim")
@@ -207,6 +207,22 @@ def coverage(d: _Datagrams, lab: Lab, wait_s: float) -> None:
     lab.tried.append("a pose datagram refused under CRCs over the whole frame and four parts of it")
 
 
+def one_byte(d: _Datagrams, lab: Lab, body: bytes) -> None:
+    """The CRC with one of its two bytes changed (each on its own, a short wait each): answered 0000 when the box
+    compares the other byte only (the one answered asked again with a longer wait, so that a slow answer to the
+    first is not taken for an answer to the second)."""
+    good = d.signed(body)
+    changed = [body + bytes([good[-2] ^ 0xFF, good[-1]]), body + bytes([good[-2], good[-1] ^ 0xFF])]
+    passed = [bool(d.zeros(d.ask(lab, data, SCAN_WAIT_S * 3, f"NONE datagram, byte {at + 1} of the CRC changed"),
+                           Action.NONE)) for at, data in enumerate(changed)]
+    if passed.count(True) != 1:
+        return
+    ignored = passed.index(True)
+    again = d.ask(lab, changed[ignored], CONFIRM_WAIT_S, f"confirm: byte {ignored + 1} of the CRC changed")
+    if d.zeros(again, Action.NONE):
+        lab.found("udp-crc-one-byte", ignored=ignored + 1, checked=2 - ignored, at=len(body) + ignored)
+
+
 def datagram_length(d: _Datagrams, lab: Lab, wait_s: float) -> None:
     """Two frames in one datagram, and a frame with trailing bytes: answered 0000?"""
     pose = d.signed(d.body(_pose(d.p)))
@@ -306,6 +322,7 @@ def _udp(p: Prober, lab: Lab, d: _Datagrams) -> tuple[str, ByteOrder] | None:
     if d.zeros(bad, Action.NONE):
         lab.found("udp-crc-unchecked", check=_no_crc_value(none).hex(" "))
     else:
+        one_byte(d, lab, none)
         coverage(d, lab, wait)
     datagram_length(d, lab, wait)
     return None

@@ -22,6 +22,21 @@ def _cover(detail: dict[str, Any]) -> str:
     return gettext("bytes {first}..{last}").format(first=first, last=last)
 
 
+def coverage_part(detail: dict[str, Any]) -> str:
+    """The part of a frame a CRC covers, in the protocol's words (``cover``: its first and last byte)."""
+    first, last = detail["cover"]
+    if (first, last) == (0, 11):
+        return gettext("the 12-byte header only, not over the blocks")
+    if (first, last) == (2, 11):
+        return gettext("the header without its start word, not over the blocks")
+    if first == 12:
+        return gettext("the blocks only, not over the header")
+    if first == 2:
+        return gettext("the frame without its start word (bytes 2..{last})").format(last=last)
+    return gettext("bytes {first}..{last} only, not over the whole frame before the check field").format(
+        first=first, last=last)
+
+
 def of(kind: str, d: dict[str, Any]) -> str:
     if kind == "udp-answer-port":
         return gettext("Sends its UDP answers to the request's source port {offset} ({to} for a request from "
@@ -46,13 +61,18 @@ def of(kind: str, d: dict[str, Any]) -> str:
                        "each datagram answered — check that the UDP socket answers the request's source").format(
             tried=d["tried"])
     if kind == "udp-crc-unchecked":
-        return gettext("Does not check the CRC of UDP requests: answers 0000 to a NONE datagram whose check field "
-                       "({check}) no CRC-16 computes: R7 asks for such datagrams dropped — verify the CRC before "
-                       "answering").format(check=d["check"])
+        return gettext("UDP CRC not checked: answers 0000 to a NONE datagram whose check field ({check}) no CRC-16 "
+                       "computes: R7 asks for such datagrams dropped — compute the CRC of bytes 0..12+N×L−1 and drop "
+                       "the datagram when it differs from the check field").format(check=d["check"])
+    if kind == "udp-crc-one-byte":
+        return gettext("Checks only one byte of the UDP CRC: a NONE datagram whose CRC has byte {ignored} of 2 (frame "
+                       "byte {at}) changed is answered 0000, one with byte {checked} changed is dropped: R7 asks for a "
+                       "datagram with a wrong CRC dropped — compare both bytes of the CRC").format(
+            ignored=d["ignored"], checked=d["checked"], at=d["at"])
     if kind == "udp-crc-coverage":
-        return gettext("Computes the UDP CRC over {part} only, not over the whole frame before the check field: a "
-                       "pose datagram is answered only when its CRC covers {part} (F7: bytes 0..12+N×L−1) — cover "
-                       "the header and every block").format(part=_cover(d))
+        return gettext("Computes the UDP CRC over {part}: a pose datagram is answered only when its CRC covers {bytes} "
+                       "(F7: the CRC covers bytes 0..12+N×L−1, the header and the blocks) — compute the CRC over the "
+                       "header and every block").format(part=coverage_part(d), bytes=_cover(d))
     if kind == "udp-several-frames" and int(d["n"]) == 1:
         return gettext("Answers 0000 to the first frame of a datagram holding two and ignores the rest: it checks only "
                        "that a datagram is at least one frame long (F7/R7 ask for exactly one frame per datagram) — "

@@ -46,8 +46,8 @@ def diagnosed(choices: Choices, kind: str) -> RootCause:
 @pytest.mark.parametrize("defect, kind, mechanism, words", [
     ("udp-crc-ccitt", "udp", "udp-crc-algorithm", "Signs and checks UDP frames with CRC-16/CCITT-FALSE, not "
                                                   "CRC-16/MODBUS: rerun with `--crc crc-ccitt-false`"),
-    ("udp-no-crc-check", "udp", "udp-crc-unchecked", "Does not check the CRC of UDP requests"),
-    ("udp-crc-header", "udp", "udp-crc-coverage", "over bytes 0..11 only"),
+    ("udp-no-crc-check", "udp", "udp-crc-unchecked", "UDP CRC not checked"),
+    ("udp-crc-header", "udp", "udp-crc-coverage", "over the 12-byte header only, not over the blocks"),
     ("udp-answer-port", "udp", "udp-answer-port", "to the request's source port +1"),
     ("udp-two-frames", "udp", "udp-several-frames", "Takes 2 frames from one datagram"),
     ("tcp-check-crc", "tcp-check", "tcp-check-field", "in the check field of its TCP answers (the CRC-16/MODBUS"),

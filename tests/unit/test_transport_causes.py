@@ -71,7 +71,13 @@ def test_titles_name_the_mechanism_and_the_flag() -> None:
     assert title.startswith("Signs and checks UDP frames with CRC-16/CCITT-FALSE, not CRC-16/MODBUS")
     assert "`--crc crc-ccitt-false`" in title
     title = udp_titles.of("udp-crc-coverage", {"cover": (0, 11)})
-    assert "bytes 0..11 only" in title
+    assert "CRC over the 12-byte header only, not over the blocks" in title and "bytes 0..11" in title
+    assert "over the blocks only, not over the header" in udp_titles.of("udp-crc-coverage", {"cover": (12, 36)})
+    assert "without its start word (bytes 2..36)" in udp_titles.of("udp-crc-coverage", {"cover": (2, 36)})
+    title = udp_titles.of("udp-crc-one-byte", {"ignored": 2, "checked": 1, "at": 13})
+    assert "Checks only one byte of the UDP CRC" in title and "byte 2 of 2 (frame byte 13)" in title
+    title = udp_titles.of("udp-crc-unchecked", {"check": "5a a5"})
+    assert "CRC not checked" in title and "5a a5" in title and "R7" in title
     title = udp_titles.of("tcp-check-field", {"check": "a3 f5", "matches": [("modbus", "big")]})
     assert "a3 f5" in title and "F6" in title
 
