@@ -38,11 +38,12 @@ from .hypotheses import Exchange, Experiment, Heard, Hypothesis, Mechanism, Read
 KINDS = (UDP, TCP_CHECK)
 #: mechanism kinds, the one that titles a root cause first
 ORDER = ("udp-answer-port", "udp-answer-source", "udp-silent", "udp-crc-algorithm", "udp-crc-byte-order",
-         "udp-crc-unchecked", "udp-crc-one-byte", "udp-crc-coverage", "udp-several-frames", "udp-trailing", "udp-answer-frames",
+         "udp-crc-unchecked", "udp-crc-one-byte", "udp-crc-coverage", "udp-several-frames", "udp-trailing", "udp-short-completed", "udp-answer-frames",
          "udp-answer-crc", "tcp-check-field", "tcp-crc-refused")
 TCP_KINDS = ("tcp-check-field", "tcp-crc-refused")
 _CLAUSES = {"udp-answer-port": ("F7", "A1"), "udp-answer-source": ("F7", "A1"), "udp-silent": ("F7", "A1"),
             "udp-crc-unchecked": ("R7", "F7"), "udp-crc-one-byte": ("R7", "F7"), "udp-several-frames": ("F7", "R7"), "udp-trailing": ("F7", "R7"),
+            "udp-short-completed": ("R7", "F7"),
             "tcp-check-field": ("F6",), "tcp-crc-refused": ("F6",)}
 #: tried first when the profile's CRC is not answered (then every other crcmod 16-bit algorithm)
 COMMON_CRCS = ("modbus", "crc-ccitt-false", "xmodem", "kermit", "x-25", "crc-16", "crc-16-usb", "crc-16-maxim")
@@ -237,6 +238,34 @@ def datagram_length(d: _Datagrams, lab: Lab, wait_s: float) -> None:
         lab.found("udp-trailing", n=2)
 
 
+#: a second pose, unlike :data:`~.experiments.POSE` in every value: the datagram sent before a short copy of the first
+OTHER_POSE = (-1.5, 2.5, -3.5, 4.5, -5.5, 6.5)
+#: bytes taken off the end of a pose datagram: its last block byte and its CRC
+SHORT_BY = 3
+
+
+def short_after_whole(d: _Datagrams, lab: Lab, wait_s: float) -> None:
+    """A pose datagram short of its last bytes, answered 0000 right after the same datagram whole, and dropped after
+    another one: the box completes a short datagram with what the previous one left in its buffer."""
+    whole = d.signed(d.body(_pose(d.p)))
+    other = d.signed(d.body(request(Action.POSE, d.p.codec.pose_blocks([OTHER_POSE]))))
+    short = whole[:-SHORT_BY]
+    if not d.zeros(d.ask(lab, whole, wait_s, "a pose datagram whole"), Action.POSE):
+        return
+    if not d.zeros(d.ask(lab, short, wait_s, f"the same pose datagram short of its last {SHORT_BY} bytes"),
+                   Action.POSE):
+        lab.tried.append(f"a pose datagram short of {SHORT_BY} bytes, right after it came whole: dropped")
+        return
+    d.ask(lab, other, wait_s, "another pose datagram whole (other values)")
+    after_other = d.zeros(d.ask(lab, short, wait_s, f"the first pose datagram short of {SHORT_BY} bytes, after the "
+                                "other one"), Action.POSE)
+    d.ask(lab, whole, wait_s, "the first pose datagram whole again")
+    again = d.zeros(d.ask(lab, short, wait_s, f"short of {SHORT_BY} bytes again, right after it came whole"),
+                    Action.POSE)
+    if again and not after_other:
+        lab.found("udp-short-completed", missing=SHORT_BY, size=len(short), frame=len(whole))
+
+
 def tcp_check(p: Prober, lab: Lab, found: tuple[str, ByteOrder] | None = None) -> None:
     ex = p.exchange([p.valid_request(int(Action.NONE))], settle=False)
     if ex is None or not ex.reached:
@@ -325,6 +354,7 @@ def _udp(p: Prober, lab: Lab, d: _Datagrams) -> tuple[str, ByteOrder] | None:
         one_byte(d, lab, none)
         coverage(d, lab, wait)
     datagram_length(d, lab, wait)
+    short_after_whole(d, lab, wait)
     return None
 
 

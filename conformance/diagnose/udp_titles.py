@@ -84,6 +84,12 @@ def of(kind: str, d: dict[str, Any]) -> str:
     if kind == "udp-trailing":
         return gettext("Answers 0000 to a UDP datagram with {n} bytes after its frame: F7/R7 ask for exactly one "
                        "frame per datagram — drop a datagram whose length is not 12+N×L+2").format(n=d["n"])
+    if kind == "udp-short-completed":
+        return gettext("Answers 0000 to a UDP datagram {missing} bytes short of its frame ({size} of {frame} bytes) "
+                       "right after the same frame came whole, and drops it after another datagram: it completes a "
+                       "short datagram with the bytes the previous datagram left in its receive buffer (R7 asks for "
+                       "it dropped) — check that each datagram's length is exactly 12+N×L+2").format(
+            missing=d["missing"], size=d["size"], frame=d["frame"])
     if kind == "udp-answer-frames":
         return gettext("Writes UDP answers that are not one frame ({size} bytes for a {frame}-byte frame): F7 asks "
                        "for one frame per datagram — send each answer in its own datagram").format(

@@ -129,3 +129,11 @@ def test_a_fresh_connection_answered_late_right_after_a_silence_is_a_stall_and_a
     assert held(tr, Silence(5.0), 0.001, 5.0, "A1-01", b"", 16, ended) is None  # silent: a death, judged elsewhere
     tr.timeouts = 0
     assert held(tr, late, 0.001, 5.0, "A1-01", b"", 16, ended) is None  # the case itself was answered in time
+
+
+def test_a_short_datagram_completed_from_the_previous_one_is_titled_with_its_length() -> None:
+    title = udp_titles.of("udp-short-completed", {"missing": 3, "size": 36, "frame": 39})
+    assert "3 bytes short" in title and "36 of 39" in title and "previous datagram" in title
+    assert "length" in title and "R7" in title
+    assert udp_family.ORDER.index("udp-trailing") < udp_family.ORDER.index("udp-short-completed")
+    assert udp_family._CLAUSES["udp-short-completed"] == ("R7", "F7")
