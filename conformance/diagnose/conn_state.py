@@ -90,7 +90,7 @@ def title(kind: str, m: Measured) -> str:
     assert m.idle_s is not None
     if kind == "age-close":
         return conn_titles.age_close(m.idle_s, m.busy_s)
-    return conn_titles.idle_close(m.idle_s, m.busy_s, m.prompt_action if m.prompt_kept else None)
+    return conn_titles.idle_close(m.idle_s, m.busy_s, pace(m.idle_s), m.prompt_action if m.prompt_kept else None)
 
 
 def prompt_kept(alone: Experiment | None, action: int) -> bool | None:
@@ -190,7 +190,7 @@ def run(p: Prober, alone: Experiment | None, action: int | None) -> Found:
     """The idle and busy connections (``action``: the request the catalogue saw closed, for the story that the
     request itself closes it)."""
     exp = Experiment("connection-state", "a NONE answered then silence: when does the box close the connection? "
-                                         "and a connection carrying a NONE every few tenths of a second: kept open?")
+                                         "and a connection carrying a NONE every third of that time: kept open?")
     found = Found(exp)
     kept = prompt_kept(alone, action) if action is not None else None
     wait_s = min(IDLE_MAX_S, p.left() - RESERVE_S)
@@ -206,7 +206,7 @@ def run(p: Prober, alone: Experiment | None, action: int | None) -> Found:
         busy_s, busy_closed = _busy(p, exp, m.idle_s)
         m = Measured(m.idle_s, wait_s, busy_s, busy_closed, action, kept)
     kind, found.stories = judge(m)
-    exp.finding = "; ".join(why for _, why in found.stories.values())
+    exp.finding = "; ".join(dict.fromkeys(why for _, why in found.stories.values()))
     if kind:
         detail = {"idle_s": m.idle_s, "busy_s": m.busy_s, "title": title(kind, m)}
         # no repro file: a time on the wire is no frame a vector can hold

@@ -13,14 +13,15 @@ def seconds(s: float) -> str:
     return f"{s:.1f}"
 
 
-def idle_close(idle_s: float, busy_s: float, action: int | None) -> str:
-    """An idle connection closed after ``idle_s`` while one carrying requests stayed open ``busy_s``."""
+def idle_close(idle_s: float, busy_s: float, gap_s: float, action: int | None) -> str:
+    """An idle connection closed after ``idle_s`` while one carrying a request every ``gap_s`` stayed open
+    ``busy_s``."""
     at = (gettext("; {action} sent at once on a fresh connection is answered and the connection kept open").format(
         action=name(action)) if action is not None else "")
     return gettext("Closes any connection idle for {t} s (a NONE answered, then silence: closed after {t} s; a "
-                   "connection sent a NONE every few tenths of a second stayed open {busy} s{at}): S1/S4 keep the "
-                   "command connection open though it is silent for a whole trajectory — do not close a connection "
-                   "for being idle").format(t=seconds(idle_s), busy=seconds(busy_s), at=at)
+                   "connection sent a NONE every {gap} s stayed open {busy} s{at}): S1/S4 keep the command connection "
+                   "open though it is silent for a whole trajectory — do not close a connection for being "
+                   "idle").format(t=seconds(idle_s), busy=seconds(busy_s), gap=seconds(gap_s), at=at)
 
 
 def age_close(idle_s: float, busy_s: float) -> str:
