@@ -107,12 +107,12 @@ def _note(cause: RootCause, story: str, why: str) -> None:
     strong = why == conn_titles.nothing_unusual()  # the case sent nothing an input story could blame
     count = Status.CONFIRMED if story == "count" and strong else Status.CONSISTENT
     inp = Status.RULED_OUT if story == "count" and strong else Status.CONSISTENT
-    if story == "count" and not strong:
-        why = f"supported, not proven (no restart to try the input again): {why}"
+    for_count = why if strong or story != "count" else f"supported, not proven (no restart to try again): {why}"
+    for_input = why if strong or story != "count" else f"weakened, not ruled out: {why}"
     hyps = [Hypothesis("connection-count-leak", "the state of closed connections is never freed: a fixed number of "
-                       "connections, then no more", count, "session", why),
+                       "connections, then no more", count, "session", for_count),
             Hypothesis("input-kills-listener", "the case's input stopped the box accepting connections", inp,
-                       "session", why)]
+                       "session", for_input)]
     diagnosis = dict(cause.diagnosis or {})
     diagnosis["hypotheses"] = [*diagnosis.get("hypotheses", []), *(h.to_dict() for h in hyps)]
     diagnosis["confirmed"] = cause.confirmed
