@@ -24,6 +24,17 @@ def idle_close(idle_s: float, busy_s: float, gap_s: float, action: int | None) -
                    "idle").format(t=seconds(idle_s), busy=seconds(busy_s), gap=seconds(gap_s), at=at)
 
 
+def peer_close(action: int) -> str:
+    """Connection A closed after ``action`` on connection B (NONE: B merely opened)."""
+    if action == 0:
+        return gettext("Closes a connection when another one opens (connection A closed once connection B connected "
+                       "and had a NONE answered): S4 asks for the command and stream connections served at once — "
+                       "keep every open connection")
+    return gettext("Closes the other open connections at {action} (connection A closed after {action} on connection "
+                   "B): S1/S4 keep the command and stream connections open through a cycle — close only the "
+                   "connection the robot closes").format(action=name(action))
+
+
 def age_close(idle_s: float, busy_s: float) -> str:
     """Every connection closed about ``idle_s`` after it opened, even one carrying requests (closed at ``busy_s``)."""
     return gettext("Closes every connection about {t} s after it opened, even while requests flow on it (an idle one "
