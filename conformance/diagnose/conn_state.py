@@ -32,7 +32,7 @@ from .hypotheses import Exchange, Experiment, Heard, Mechanism, Reading, Status
 #: the longest silence waited for a close (the robot's command connection is silent for a trajectory: seconds)
 IDLE_MAX_S = 8.0
 #: what must be left of the phase's budget after the idle wait (for the busy connection and the rest)
-RESERVE_S = 2.0
+RESERVE_S = 5.0
 #: the busy connection is kept this many times the idle close's time
 BUSY_FACTOR = 1.5
 KINDS = ("idle-close", "age-close")

@@ -111,7 +111,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     def unexplained() -> list[RootCause]:
         return [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
 
-    _closes(p, lab, [c for c in unexplained() if c.kind == "closes"], cases)  # idle or age? (conn_state)
+    _closes(p, lab, [c for c in unexplained() if c.kind == "closes" or facts_by[c.id].closed], cases)  # conn_state
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
         refine_cycle(p, lab.mechanisms)  # ... on the connection holding the cycle only? (issue 34)

@@ -76,3 +76,18 @@ def test_closed_instead_of_reads_the_signature_subject() -> None:
     assert conn_state.closed_instead_of([case]) == 2
     odd = CaseResult("X", "t", ("T2",), Level.MUST, Verdict.FAIL, signature=Signature(Sig.CLOSED, "nothing"))
     assert conn_state.closed_instead_of([odd]) is None
+
+
+def test_a_close_seen_by_any_case_lets_the_close_mechanisms_explain_its_root_cause() -> None:
+    from conformance.diagnose import match
+    from conformance.diagnose.hypotheses import Mechanism
+    from conformance.model.verdicts import RootCause
+
+    lost = CaseResult("SEQ-S1", "t", ("S1",), Level.MUST, Verdict.FAIL, observed="36 answers, 3 lost: the box closed "
+                      "the connection")
+    late = CaseResult("T1-01", "t", ("T1",), Level.MUST, Verdict.FAIL, observed="answered after 6.1 s")
+    idle = Mechanism("idle-close", frozenset(), "connection-state", "t", ("S1",), ())
+    own = match.facts_of(RootCause("RC1", ("S1",), "t", "e", ["SEQ-S1"], kind="own"), [lost, late])
+    other = match.facts_of(RootCause("RC2", ("T1",), "t", "e", ["T1-01"], kind="own"), [lost, late])
+    assert own.closed and match.explains(idle, own)
+    assert not other.closed and not match.explains(idle, other)
