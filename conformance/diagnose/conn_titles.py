@@ -35,6 +35,13 @@ def peer_close(action: int) -> str:
                    "connection the robot closes").format(action=name(action))
 
 
+def open_limit(n: int) -> str:
+    """A new connection not served while ``n`` are open; served again once they closed."""
+    return gettext("Stops serving new connections while {n} connections are open (a fresh one is served again once they "
+                   "close: a table of {n} open connections?): R5 asks that connections held open never stop the box "
+                   "serving others — serve more connections at once").format(n=n)
+
+
 def age_close(idle_s: float, busy_s: float) -> str:
     """Every connection closed about ``idle_s`` after it opened, even one carrying requests (closed at ``busy_s``)."""
     return gettext("Closes every connection about {t} s after it opened, even while requests flow on it (an idle one "

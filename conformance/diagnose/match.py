@@ -33,6 +33,7 @@ _NAMES = {"count-limit": "a limit on the block count", "byte-limit": "a limit on
           "cycle-dependent": "depends on the cycle state", "connection-count": "depends on how many requests the "
           "connection carried", "idle-close": "closes a connection left idle for some time",
           "peer-close": "another connection (opened, or a cycle request on it) closes this one",
+          "open-limit": "no more than some number of connections served at once",
           "age-close": "closes every connection some time after it opened", "closes-at-request": "the request "
           "itself closes the connection", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)"}
 
@@ -122,7 +123,7 @@ def explains(m: Mechanism, f: CauseFacts) -> bool:
         if m.kind == "byte-limit":
             return f.longest > int(m.detail.get("max_bytes", 0))
         return f.most_blocks >= int(m.detail.get("threshold", m.detail.get("block", 256)))
-    if m.kind in ("peer-close", "idle-close", "age-close"):  # a close in place of an answer, whatever was asked (conn_state)
+    if m.kind in ("peer-close", "open-limit", "idle-close", "age-close"):  # a close in place of an answer, whatever was asked (conn_state)
         return f.kind == "closes" or f.closed
     if m.kind == "extra-answer":
         return bool(m.actions & (f.asked | f.answered))

@@ -26,7 +26,7 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import conn_deaths, conn_peers, conn_state, death_inputs, deaths, families, match, titles, udp_family
+from . import conn_deaths, conn_limit, conn_peers, conn_state, death_inputs, deaths, families, match, titles, udp_family
 from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
@@ -124,10 +124,13 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
 
 
 def _closes(p: Prober, lab: _Lab, closing: list[RootCause], cases: Sequence[CaseResult]) -> None:
-    """A close the requests alone did not show: another connection's doing, or idle time, or connection age."""
+    """A close the requests alone did not show: another connection's doing, a limit on
+    connections open at once, idle time, or connection age."""
     alone = lab.experiments.get("alone")
     if closing and not conn_state.closed_at_once(alone) and not p.unreachable:
         if conn_peers.decided(lab.add(conn_peers.run(p))):  # another connection's doing (S4)
+            return
+        if conn_limit.decided(lab.add(conn_limit.run(p))):  # a limit on connections held open (R5)
             return
         members = [c for c in cases if c.id in set(closing[0].cases)]
         lab.add(conn_state.run(p, alone, conn_state.closed_instead_of(members)))

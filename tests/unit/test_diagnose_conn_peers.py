@@ -31,3 +31,15 @@ def test_kept_answering_rules_it_out_and_silence_leaves_it_untested() -> None:
 def test_titles_name_what_closed_it() -> None:
     assert "another one opens" in conn_titles.peer_close(NONE)
     assert "CycleOff (02)" in conn_titles.peer_close(OFF)
+
+
+def test_open_limit_is_confirmed_only_when_a_fresh_connection_is_served_after_they_close() -> None:
+    from conformance.diagnose.conn_limit import KIND, Held
+    from conformance.diagnose.conn_limit import judge as limit
+
+    assert limit(Held(8, True, 9)) == (KIND, limit(Held(8, True, 9))[1])
+    assert limit(Held(8, True, 9))[1][0] is Status.CONFIRMED
+    assert limit(Held(8, False, 9))[0] == "" and limit(Held(8, False, 9))[1][0] is Status.CONSISTENT
+    assert limit(Held(None, None, 48))[1][0] is Status.RULED_OUT
+    assert limit(Held(1, True, 2))[1][0] is Status.UNTESTED
+    assert "8 connections are open" in conn_titles.open_limit(8)
