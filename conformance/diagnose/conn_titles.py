@@ -37,9 +37,10 @@ def peer_close(action: int) -> str:
 
 def open_limit(n: int) -> str:
     """A new connection not served while ``n`` are open; served again once they closed."""
-    return gettext("Stops serving new connections while {n} connections are open (a fresh one is served again once they "
-                   "close: a table of {n} open connections?): R5 asks that connections held open never stop the box "
-                   "serving others — serve more connections at once").format(n=n)
+    return gettext("Stops serving new connections once {n} connections are held open by the experiment (besides any the "
+                   "suite still holds), and serves a fresh one again once they close (a fixed table of open "
+                   "connections?): R5 asks that connections held open never stop the box serving others — serve more "
+                   "connections at once").format(n=n)
 
 
 def age_close(idle_s: float, busy_s: float) -> str:

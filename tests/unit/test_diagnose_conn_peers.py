@@ -42,4 +42,4 @@ def test_open_limit_is_confirmed_only_when_a_fresh_connection_is_served_after_th
     assert limit(Held(8, False, 9))[0] == "" and limit(Held(8, False, 9))[1][0] is Status.CONSISTENT
     assert limit(Held(None, None, 48))[1][0] is Status.RULED_OUT
     assert limit(Held(1, True, 2))[1][0] is Status.UNTESTED
-    assert "8 connections are open" in conn_titles.open_limit(8)
+    assert "once 8 connections are held open" in conn_titles.open_limit(8)
