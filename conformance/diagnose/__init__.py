@@ -11,6 +11,10 @@ sends the few requests that tell their stories apart, each on a fresh connection
 * :mod:`.bisect`: a threshold pinned by bisection; :mod:`.shrink`: the fewest frames;
 * :mod:`.families`: the experiment families (answers per action, size: count vs bytes vs
   index, state after an error, cycle, connection);
+* :mod:`.conn_peers`, :mod:`.conn_state`: a close the requests alone do not show, told apart by
+  what triggers it (another connection opening or running a cycle, idle time, connection age);
+  :mod:`.conn_deaths`: a box that stops accepting connections, the input before it vs a count of
+  connections never freed (the session's evidence); their titles in :mod:`.conn_titles`;
 * :mod:`.titles`: the one-line titles a firmware engineer reads once;
 * :mod:`.repro`: ``rootcause-N.json`` (isight-vectors-1) and its judgement on ``replay``.
 """

@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+from ..model.signature import Sig
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol import parse_header
 from ..protocol.constants import HEADER_LEN, START_WORD
@@ -30,7 +31,11 @@ _NAMES = {"count-limit": "a limit on the block count", "byte-limit": "a limit on
           "missing-answer": "an answer missing (later answers shifted back)", "refuses-valid": "a valid request refused",
           "state-leak": "state left by an error answer spoils the next answer",
           "cycle-dependent": "depends on the cycle state", "connection-count": "depends on how many requests the "
-          "connection carried", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)"}
+          "connection carried", "idle-close": "closes a connection left idle for some time",
+          "peer-close": "another connection (opened, or a cycle request on it) closes this one",
+          "open-limit": "no more than some number of connections served at once",
+          "age-close": "closes every connection some time after it opened", "closes-at-request": "the request "
+          "itself closes the connection", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)"}
 
 
 def statement(kind: str) -> str:
@@ -44,6 +49,7 @@ class CauseFacts:
     answered: frozenset[int]  # actions the box answered them with
     most_blocks: int = 0  # the largest block count among the requests the cases quote
     longest: int = 0  # the longest frame (bytes) among them
+    closed: bool = False  # a case saw the box close (or reset) the connection where it should have answered
 
 
 def facts_of(cause: RootCause, cases: Sequence[CaseResult]) -> CauseFacts:
@@ -61,7 +67,16 @@ def facts_of(cause: RootCause, cases: Sequence[CaseResult]) -> CauseFacts:
             answered.update(_sent_actions(case.received_hex, anywhere=True))
     sizes = [size for case in members for size in _sizes(case.sent_hex)]
     return CauseFacts(cause.kind, frozenset(asked), frozenset(answered), max((n for n, _ in sizes), default=0),
-                      max((length for _, length in sizes), default=0))
+                      max((length for _, length in sizes), default=0), any(map(_closed, members)))
+
+
+#: what a case observed when the box closed (or reset) the connection (:mod:`conformance.harness.outcomes`)
+_CLOSE_WORDS = ("closed the connection", "reset the connection")
+
+
+def _closed(case: CaseResult) -> bool:
+    sig = case.signature
+    return (sig is not None and sig.kind is Sig.CLOSED) or any(w in case.observed for w in _CLOSE_WORDS)
 
 
 def _sizes(sent_hex: str) -> list[tuple[int, int]]:
@@ -108,6 +123,8 @@ def explains(m: Mechanism, f: CauseFacts) -> bool:
         if m.kind == "byte-limit":
             return f.longest > int(m.detail.get("max_bytes", 0))
         return f.most_blocks >= int(m.detail.get("threshold", m.detail.get("block", 256)))
+    if m.kind in ("peer-close", "open-limit", "idle-close", "age-close"):  # a close in place of an answer, whatever was asked (conn_state)
+        return f.kind == "closes" or f.closed
     if m.kind == "extra-answer":
         return bool(m.actions & (f.asked | f.answered))
     if m.kind == "echo-all":

@@ -26,7 +26,7 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import death_inputs, deaths, families, match, titles, udp_family
+from . import conn_deaths, conn_limit, conn_peers, conn_state, death_inputs, deaths, families, match, titles, udp_family
 from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
@@ -86,6 +86,7 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
         _run(prober, lab, probed, facts_by, cases, own)
     out = _assign(causes, facts_by, lab, own, dead)
     death_inputs.name(out.causes, cases)  # a death named with the input it followed (issue 34)
+    conn_deaths.name(out.causes, cases, facts.deaths)  # ... or with a count of connections, as the evidence says
     elapsed = round(time.monotonic() - start, 3)
     for cause in out.causes:
         if cause.diagnosis is not None:
@@ -110,6 +111,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     def unexplained() -> list[RootCause]:
         return [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
 
+    _closes(p, lab, [c for c in unexplained() if c.kind == "closes" or facts_by[c.id].closed], cases)  # conn_state
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
         refine_cycle(p, lab.mechanisms)  # ... on the connection holding the cycle only? (issue 34)
@@ -119,6 +121,19 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     for cause in unexplained():
         if p.left() > 1.0:
             own[cause.id] = isolator.diagnose(cause, cases)
+
+
+def _closes(p: Prober, lab: _Lab, closing: list[RootCause], cases: Sequence[CaseResult]) -> None:
+    """A close the requests alone did not show: another connection's doing, a limit on
+    connections open at once, idle time, or connection age."""
+    alone = lab.experiments.get("alone")
+    if closing and not conn_state.closed_at_once(alone) and not p.unreachable:
+        if conn_peers.decided(lab.add(conn_peers.run(p))):  # another connection's doing (S4)
+            return
+        if conn_limit.decided(lab.add(conn_limit.run(p))):  # a limit on connections held open (R5)
+            return
+        members = [c for c in cases if c.id in set(closing[0].cases)]
+        lab.add(conn_state.run(p, alone, conn_state.closed_instead_of(members)))
 
 
 def _session_diagnosis(cause: RootCause) -> dict[str, Any]:
