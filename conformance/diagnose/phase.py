@@ -26,7 +26,19 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import conn_deaths, conn_limit, conn_peers, conn_state, death_inputs, deaths, families, match, titles, udp_family
+from . import (
+    conn_deaths,
+    conn_limit,
+    conn_peers,
+    conn_state,
+    death_inputs,
+    deaths,
+    families,
+    match,
+    result_state,
+    titles,
+    udp_family,
+)
 from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
@@ -73,7 +85,7 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
     lab = _Lab()
     facts_by = {c.id: match.facts_of(c, cases) for c in causes}
     own: dict[str, Found] = {}
-    probed = [c for c in causes if c.kind not in match.SESSION_KINDS + udp_family.KINDS]
+    probed = [c for c in causes if c.kind not in match.SESSION_KINDS + udp_family.KINDS + result_state.KINDS]
     prober = None if target is None else Prober(target, profile, time_out_s, start + budget_s)
     dead = {c.id: deaths.check(prober, c, cases) for c in causes if c.kind in deaths.DEATH_KINDS and prober is not None}
     still_dead = any(v.confirmed for v in dead.values()) or (prober is None and bool(facts.unresponsive or facts.deaths))
@@ -82,6 +94,9 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
         lab_udp = udp_family.run(prober, udp_target, transport)
         for cause in transport:
             udp_family.assign(cause, lab_udp)
+    for cause in (c for c in causes if c.kind in result_state.KINDS):
+        if prober is not None and not still_dead:
+            result_state.run(prober, cause, cases)  # E3: wrong before the first cycle only?
     if prober is not None and probed and not still_dead:
         _run(prober, lab, probed, facts_by, cases, own)
     out = _assign(causes, facts_by, lab, own, dead)
@@ -159,7 +174,7 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
                 cause.title = titles.unconfirmed(f"{cause.title} ({verdict.why})")
             kept.append(cause)
             continue
-        if cause.kind in udp_family.KINDS:  # diagnosed by the UDP family (or left as read when it could not run)
+        if cause.kind in udp_family.KINDS + result_state.KINDS:  # diagnosed by their family (or left as read)
             kept.append(cause)
             continue
         if cause.kind in match.SESSION_KINDS:

@@ -33,6 +33,7 @@ from ..i18n import gettext  # titles in the language of the run (the .format pla
 from ..model.signature import Death, DeathKind, Sig, Signature
 from ..model.verdicts import CaseResult, Level, RootCause, Verdict
 from .box_events import stall_causes
+from .history_causes import history_causes
 from .orphans import orphan_causes
 from .patterns import Claim, block_position_cause, evidence_of, field_causes
 from .transport_causes import transport_causes
@@ -86,6 +87,8 @@ def find_root_causes(cases: Sequence[CaseResult], facts: SessionFacts = SessionF
     for cause, members in _session_causes(cases, facts):
         claim(cause, members)
     for cause, members in stall_causes(cases) + transport_causes([c for c in cases if id(c) not in taken]):  # T1/S4; F6, F7, R7
+        claim(cause, members)
+    for cause, members in history_causes([c for c in cases if id(c) not in taken]):  # E3 before the first cycle
         claim(cause, members)
     for cause, members in field_causes([c for c in cases if id(c) not in taken]):
         claim(cause, members)

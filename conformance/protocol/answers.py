@@ -23,7 +23,18 @@ from dataclasses import dataclass, replace
 from math import isfinite
 
 from .codec import codec_for
-from .constants import ACTION_ERROR, EXTENSION_ACTIONS, START_WORD, VERSION, Action, ResultCode, TransferType, Transport
+from .constants import (
+    ACTION_ERROR,
+    EXTENSION_ACTIONS,
+    HEADER_LEN,
+    START_WORD,
+    VERSION,
+    Action,
+    BlockType,
+    ResultCode,
+    TransferType,
+    Transport,
+)
 from .errors import DirectionError, FloatError, ProtocolError, StartWordError, UnknownActionError, VersionError
 from .frames import Frame, Header, ToleranceBlock, ValueBlock
 from .levels import Level
@@ -34,6 +45,17 @@ from .session_table import Cycle
 ROBOT_RESULTS = frozenset({ResultCode.EMPTY, ResultCode.NO_ANSWER})
 #: Result codes a box may send (E3): every ResultCode but the robot's own.
 SENDABLE_RESULTS: tuple[int, ...] = tuple(int(r) for r in ResultCode if r not in ROBOT_RESULTS)
+
+
+def block_value(raw: bytes, byte_order: str = "big") -> int | None:
+    """The int32 of an answer's one type-03 block (a ProgIdx or a ResultCode), read from the bytes even when the
+    answer is malformed (a ResultCode E3 does not allow, say); None when it carries no such block."""
+    value_at = HEADER_LEN + 1  # the block's index byte, then its int32 (E1)
+    if len(raw) < value_at + 4 or raw[6] != BlockType.VALUE or raw[7] != 1:
+        return None
+    return int.from_bytes(raw[value_at:value_at + 4], "little" if byte_order == "little" else "big", signed=True)
+
+
 #: E3: the ResultCode of a 26/27 request the box did not understand.
 NOT_UNDERSTOOD = int(ResultCode.NOT_UNDERSTOOD)
 #: E2: resource conflict / not ready.
