@@ -61,6 +61,8 @@ class Found:
     mechanisms: list[Mechanism] = field(default_factory=list)
     stories: dict[str, tuple[Status, str]] = field(default_factory=dict)  # kind -> (status, why)
     alone: dict[int, Alone] = field(default_factory=dict)
+    #: the two stories the family could not tell apart, in one line (an unconfirmed root cause's title)
+    undecided: str = ""
 
 
 # -- answers ---------------------------------------------------------------------------------------------
@@ -180,6 +182,11 @@ def size(p: Prober, usable: Sequence[int]) -> Found:
                             for b, t in sorted(thresholds.items()))
     if kind:
         found.mechanisms.append(_size_mechanism(p, kind, detail, which, thresholds, found))
+    elif "max_bytes" in detail and 25 in refused:
+        accepted = ", ".join(f"{b}-byte blocks are accepted up to 255 ({frame_len(255, b)} bytes)"
+                             for b, t in sorted(thresholds.items()) if t is None) or "no other block size was tried"
+        found.undecided = titles.size_undecided(refused[25], int(detail["max_bytes"]), int(detail["refused_bytes"]),
+                                                accepted)
     return found
 
 

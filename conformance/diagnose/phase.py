@@ -65,10 +65,13 @@ class _Lab:
         self.experiments: dict[str, Experiment] = {}
         self.mechanisms: list[Mechanism] = []
         self.stories: dict[str, tuple[Status, str, str]] = {}
+        self.undecided: list[str] = []  # stories a family could not tell apart (see Found.undecided)
 
     def add(self, found: Found) -> Found:
         self.experiments[found.experiment.name] = found.experiment
         self.mechanisms += found.mechanisms
+        if found.undecided:
+            self.undecided.append(found.undecided)
         for kind, (status, why) in found.stories.items():
             self.stories[kind] = (status, why, found.experiment.name)
         return found
@@ -165,6 +168,7 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
     kept: list[RootCause] = []
     repros: dict[str, tuple[tuple[bytes, Expect], ...]] = {}
     owner: dict[int, RootCause] = {}  # id(mechanism) -> the root cause it already explains
+    owner_of: dict[str, RootCause] = {}  # an undecided story -> the root cause it already titles
     for cause in causes:
         if dead and cause.id in dead:  # a death the phase put to the test again
             verdict = dead[cause.id]
@@ -196,7 +200,13 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
         hyps = match.hypotheses(f, cause.title, chosen, stories)
         original = cause.title
         if chosen is None:
-            cause.confirmed, cause.title = False, titles.unconfirmed(original)
+            undecided = lab.undecided[0] if lab.undecided and POSE in f.asked else ""
+            if undecided and undecided in owner_of:  # one story for both: one root cause
+                owner_of[undecided].cases += [c for c in cause.cases if c not in owner_of[undecided].cases]
+                continue
+            if undecided:
+                owner_of[undecided] = cause
+            cause.confirmed, cause.title = False, titles.unconfirmed(undecided or original)
         else:
             owner[id(chosen)] = cause
             cause.confirmed, cause.title = True, chosen.title

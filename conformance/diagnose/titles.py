@@ -118,6 +118,18 @@ def unconfirmed(title: str) -> str:
     return gettext("unconfirmed: {title}").format(title=title)
 
 
+def size_undecided(count: int, max_bytes: int, refused_bytes: int, accepted: str) -> str:
+    """A block count refused at one block size only, where no legal frame of another size is as long: a frame-size
+    limit and a count limit both fit (the title of an unconfirmed root cause; ``accepted``: what other sizes did)."""
+    powers = [1 << k for k in range(8, 17) if max_bytes <= 1 << k < refused_bytes]
+    buffer = gettext(" (a {size}-byte receive buffer?)").format(size=powers[0]) if powers else ""
+    return gettext("Refuses pose requests of {count} or more blocks ({refused} bytes; {below} blocks, {max} bytes, "
+                   "answered 0000) while {accepted}: a limit on the frame's size in bytes, between {max} and {refused}"
+                   "{buffer}, or on the count of 25-byte blocks; no legal frame of another block size is that long "
+                   "to tell them apart — B5 allows 255 blocks").format(
+        count=count, refused=refused_bytes, below=count - 1, max=max_bytes, accepted=accepted, buffer=buffer)
+
+
 def of(kind: str, detail: dict[str, Any]) -> str:
     """The title of a confirmed mechanism from its kind and numbers (see :mod:`.families`)."""
     d = detail
