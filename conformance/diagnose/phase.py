@@ -36,6 +36,7 @@ from . import (
     families,
     match,
     result_state,
+    segments,
     titles,
     udp_family,
 )
@@ -127,15 +128,21 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
                                  alone))
 
     def unexplained() -> list[RootCause]:
-        return [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
+        return [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None and c.id not in own]
 
+    isolator = Isolator(p)  # the failure-inducing difference isolated; else the case sent again (issue 34)
+    by_id = {c.id: c for c in cases}
+    for cause in unexplained():  # segmentation first: a close in a split stream is not an idle close (R3/R4)
+        if segments.involved([by_id[i] for i in cause.cases if i in by_id]) and p.left() > 1.0:
+            mine = isolator.diagnose(cause, cases)
+            if mine.mechanisms:
+                own[cause.id] = mine
     _closes(p, lab, [c for c in unexplained() if c.kind == "closes" or facts_by[c.id].closed], cases)  # conn_state
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
         refine_cycle(p, lab.mechanisms)  # ... on the connection holding the cycle only? (issue 34)
     if unexplained():
         lab.add(families.per_connection(p))
-    isolator = Isolator(p)  # the failure-inducing difference isolated; else the case sent again (issue 34)
     for cause in unexplained():
         if p.left() > 1.0:
             own[cause.id] = isolator.diagnose(cause, cases)

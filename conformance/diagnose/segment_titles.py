@@ -27,6 +27,9 @@ def does(fate: str, code: int | None, ms: int | None = None) -> str:
         return gettext("Gives no answer within time_out to")
     if fate == "late":
         return gettext("Answers only {ms} ms after its last byte (past time_out)").format(ms=ms)
+    if fate == "answered-closed":
+        return gettext("Answers before its last bytes have come, then takes them for the start of another frame and "
+                       "closes the connection on")
     return gettext("Never answers")
 
 
@@ -40,6 +43,8 @@ def done(fate: str, code: int | None, ms: int | None = None) -> str:
         return gettext("gets no answer within time_out (nor does anything sent after it)")
     if fate == "late":
         return gettext("is answered only {ms} ms after its last byte (past time_out)").format(ms=ms)
+    if fate == "answered-closed":
+        return gettext("is answered before its last bytes have come, and they then make the box close the connection")
     return gettext("is never answered")
 
 

@@ -45,7 +45,9 @@ ORDER = ("whole", *SPLITS, "coalesced", *TAILS)
 
 @dataclass(frozen=True)
 class Fate:
-    """What became of ``P`` in one trial: ``ok`` (answered like the whole), ``error`` (with ``code``), ``dropped``
+    """What became of ``P`` in one trial: ``ok`` (answered like the whole), ``error`` (with ``code``),
+    ``answered-closed`` (answered like the whole, then the box closed the connection before the NONE behind it,
+    the bytes left of ``P`` taken for the start of another frame), ``dropped``
     (never answered, while the tail behind it was), ``closed``, ``silent`` (nothing more came within time_out),
     ``late`` (answered ``ms`` after its last byte, past time_out: see :meth:`Segments._confirm`); ``before``:
     whether the NONE ahead of it in the same segment was answered (None: there was none)."""
@@ -82,6 +84,8 @@ def fate_of(answers: Sequence[Heard], closed: bool, action: int, nones: int, ref
     mine = [a for a in answers if a.action == action]
     if mine:
         code = mine[0].error
+        if code == reference and closed and len(zeros) < nones:  # answered, then what was left closed the connection
+            return Fate("answered-closed", code, before)
         return Fate("ok" if code == reference else "error", code, before)
     if len(zeros) >= nones:
         return Fate("dropped", None, before)

@@ -116,3 +116,16 @@ def test_segmentation_is_asked_for_root_causes_whose_cases_split_or_coalesce_fra
 
     assert involved([case(("S6", "R4", "A1"))]) and involved([case(("A3",)), case(("R3", "A1"))])
     assert not involved([case(("F7", "R7")), case(("A1", "T1"))])
+
+
+def test_a_frame_answered_before_its_check_field_then_a_close_is_its_own_fate() -> None:
+    # the pose answered like the whole, then the connection closed before the NONE behind it (the check field taken
+    # for the start of another frame): not ok, so a split before the check field is isolated
+    fate = fate_of([_heard(0x23, 0)], closed=True, action=0x23, nones=1)
+    assert fate.kind == "answered-closed" and not fate.ok
+    assert fate_of([_heard(0x23, 0), _heard(0, 0)], closed=True, action=0x23, nones=1).ok  # the NONE came: fine
+    found = judge({"whole": Fate("ok", 0), "header": Fate("ok", 0), "after-header": Fate("ok", 0),
+                   "blocks": Fate("ok", 0), "check": fate})
+    assert found is not None and found.kind == "split-check"
+    title = T.title(found.kind, fate.kind, fate.code, 0x23, 0)
+    assert "check field" in title and "split" in title and "closes the connection" in title
