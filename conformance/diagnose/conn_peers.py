@@ -4,8 +4,8 @@ The robot holds two connections at once (S4: the command connection and Send_Pos
 the other, and sends CycleOn and CycleOff on one while the other stays open. A box that keeps only its newest
 connection, or that ends every connection at CycleOff, closes a connection the robot still uses; the catalogue
 sees a close "instead of answering" on the first. The experiment: connection A (a NONE answered), then on a
-second connection B in turn a NONE, a CycleOn, a CycleOff, each followed by a NONE on A: the first step after
-which A is found closed is the state that closes it. :func:`judge` is the pure verdict.
+second connection B in turn a NONE, a CycleOn, a CycleOff, a pose and B's close (the stream ended), each
+followed by a NONE on A: the first step after which A is found closed is the state that closes it. :func:`judge` is the pure verdict.
 """
 
 from __future__ import annotations
@@ -21,9 +21,11 @@ from .experiments import Prober, heard
 from .families import Found
 from .hypotheses import Exchange, Experiment, Mechanism, Reading, Status
 
-NONE, ON, OFF = int(Action.NONE), int(Action.CYCLE_ON), int(Action.CYCLE_OFF)
+NONE, ON, OFF, POSE = int(Action.NONE), int(Action.CYCLE_ON), int(Action.CYCLE_OFF), int(Action.POSE)
+#: not an action: connection B, after it sent a pose (a stream), closes (Send_Pos_Off)
+STREAM_CLOSED = -1
 #: what is done on connection B before A is asked again ("open": B connected and a NONE answered on it)
-STEPS = (NONE, ON, OFF)
+STEPS = (NONE, ON, OFF, STREAM_CLOSED)
 KIND = "peer-close"
 #: a step on B longer than this leaves A idle long enough that an idle close may explain a close of A
 SLOW_STEP_S = 1.0
@@ -53,6 +55,8 @@ def judge(s: Steps) -> tuple[int | None, tuple[Status, str]]:
 
 
 def _what(action: int) -> str:
+    if action == STREAM_CLOSED:
+        return "a pose, then the close of connection B (a stream ended)"
     return "a connection opened (a NONE answered)" if action == NONE else f"{'CycleOn' if action == ON else 'CycleOff'}"
 
 
@@ -87,10 +91,14 @@ def measure(p: Prober, exp: Experiment) -> Steps:
         conns.append(p.dialer.dial("diagnose peers B"))
         for action in STEPS:
             since = time.monotonic()  # A's last answer (near enough: B's dial is quick)
-            on_b, _ = _ask(p, conns[1], p.valid_request(action))
+            sent = p.valid_request(POSE if action == STREAM_CLOSED else action)
+            on_b, _ = _ask(p, conns[1], sent)
+            if action == STREAM_CLOSED:
+                conns[1].close("diagnose peers: the stream ends (Send_Pos_Off)")
+                time.sleep(min(0.2, p.dialer.wait_s()))  # the box sees B's close before A is asked
             idle_s = round(time.monotonic() - since, 2)
             on_a, alive = _ask(p, conns[0], none)
-            frames += [p.valid_request(action), none]
+            frames += [sent, none]
             readings += [on_b, on_a]
             after.append((action, alive, idle_s))
             if alive is not True:
@@ -108,7 +116,7 @@ def measure(p: Prober, exp: Experiment) -> Steps:
 
 def run(p: Prober) -> Found:
     exp = Experiment("peers", "connection A (a NONE answered), then on connection B a NONE, a CycleOn, a CycleOff, "
-                              "each followed by a NONE on A: does anything on B close A?")
+                              "a pose and B's close, each followed by a NONE on A: does anything on B close A?")
     found = Found(exp)
     steps = measure(p, exp)
     action, story = judge(steps)

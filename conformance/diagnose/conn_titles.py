@@ -26,6 +26,11 @@ def idle_close(idle_s: float, busy_s: float, gap_s: float, action: int | None) -
 
 def peer_close(action: int) -> str:
     """Connection A closed after ``action`` on connection B (NONE: B merely opened)."""
+    if action == -1:  # conn_peers.STREAM_CLOSED
+        return gettext("Closes the command connection when the stream connection closes (connection A closed once "
+                       "connection B, which had sent a pose, closed): the robot ends the stream (Send_Pos_Off) and "
+                       "keeps its command connection until ISIGHT(2) (S1, E4) — close only the connection the robot "
+                       "closes")
     if action == 0:
         return gettext("Closes a connection when another one opens (connection A closed once connection B connected "
                        "and had a NONE answered): S4 asks for the command and stream connections served at once — "

@@ -43,3 +43,14 @@ def test_open_limit_is_confirmed_only_when_a_fresh_connection_is_served_after_th
     assert limit(Held(None, None, 48))[1][0] is Status.RULED_OUT
     assert limit(Held(1, True, 2))[1][0] is Status.UNTESTED
     assert "once 8 connections are held open" in conn_titles.open_limit(8)
+
+
+def test_a_close_of_the_command_connection_when_the_stream_closes_is_named_so() -> None:
+    from conformance.diagnose.conn_peers import STREAM_CLOSED
+    from conformance.diagnose.conn_titles import peer_close
+
+    steps = Steps(((NONE, True, 0.0), (ON, True, 0.0), (OFF, True, 0.0), (STREAM_CLOSED, False, 0.25)))
+    action, (status, why) = judge(steps)
+    assert action == STREAM_CLOSED and status is Status.CONFIRMED and "close of connection B" in why
+    title = peer_close(STREAM_CLOSED)
+    assert "stream" in title and "closes" in title and "command connection" in title
