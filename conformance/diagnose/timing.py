@@ -1,0 +1,265 @@
+"""Time and thresholds, the live half: answer latency against the action, the block count and the request's
+index on its connection, each measured on fresh connections with every wait bounded (the judgements and titles
+are in :mod:`.timing_judge`).
+
+:func:`run` puts a root cause "not answered within time_out" to three experiments, cheapest first:
+
+* :func:`late` — the action the box left unanswered, sent alone and waited for past time_out (at most
+  :data:`LATE_FACTOR` × time_out, cut to the phase's deadline), with a NONE on another connection meanwhile:
+  a late answer to that action, a stall of the whole box, or a silence;
+* :func:`per_block` — a block action at a few block counts, each on a fresh connection: latency's slope over
+  the block count and the count where it crosses time_out;
+* :func:`budget` — requests one at a time on one connection to the first unanswered, then a fresh connection
+  (answered again: a per-connection count) and the same count again on another (the same number: a budget).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from ..harness.client import Answer, Closed, Malformed, Outcome, TcpConnection
+from ..harness.target import Unreachable
+from ..model.verdicts import RootCause
+from ..protocol import Action
+from . import timing_judge as J
+from .experiments import BLOCK_ACTIONS, Prober, block_request, heard
+from .families import Found
+from .hypotheses import LEGAL_CODES, Alone, Exchange, Expect, Experiment, Mechanism, Reading, Status
+from .titles import name
+
+#: the wait for a late answer, in time_outs (bounded by the phase's deadline too)
+LATE_FACTOR = 3.0
+#: an answer within this is "at once": the other connection's NONE is sent after it
+AT_ONCE_S = 0.2
+#: block counts measured first (a third is chosen from their slope)
+FIRST_COUNTS = (1, 8)
+#: requests counted on one connection to the first unanswered, at most
+BUDGET_MAX = 1000
+#: the wait that calls one request of the count unanswered: this many times the slowest answer so far, within
+BUDGET_QUIET = (0.5, 20.0)
+#: the root-cause kinds these experiments are for
+FOR_KINDS = ("unanswered",)
+NONE = int(Action.NONE)
+
+
+def _expect(action: int) -> Expect:
+    return Expect("valid", action, LEGAL_CODES.get(action, (0,)))
+
+
+def _reading(outcome: Outcome | None) -> Reading:
+    if isinstance(outcome, (Answer, Malformed)):
+        return Reading((heard(outcome),))
+    return Reading((), isinstance(outcome, Closed))
+
+
+def _dial(p: Prober, note: str) -> TcpConnection | None:
+    p.count += 1
+    try:
+        return p.dialer.dial(note)
+    except Unreachable as exc:
+        p.unreachable = str(exc)
+        return None
+
+
+def _timed(conn: TcpConnection, frame: bytes, wait_s: float) -> tuple[Outcome | None, float]:
+    """``frame`` sent; what came within ``wait_s`` (None: nothing) and its latency."""
+    sent = time.monotonic()
+    if not conn.send(frame, "diagnose: timed"):
+        return Closed(False, 0.0), 0.0
+    got = conn.next_outcome(max(0.0, wait_s), since=sent)
+    return (got if isinstance(got, (Answer, Malformed, Closed)) else None), time.monotonic() - sent
+
+
+# -- late vs stall vs silence ----------------------------------------------------------------------------------------
+def late(p: Prober, action: int) -> Found:
+    t = p.dialer.time_out_s
+    found = Found(Experiment("late", f"{name(action)} alone, waited for up to {LATE_FACTOR:g} × time_out, and a NONE "
+                                     f"on another connection sent {AT_ONCE_S:g} s after it"))
+    wait = min(LATE_FACTOR * t, p.left() - 0.2)
+    if wait <= t * 1.05:
+        found.stories[J.LATE] = (Status.UNTESTED, "not enough of the phase left to wait past time_out")
+        return found
+    frame, none = p.valid_request(action), p.valid_request(NONE)
+    a = _dial(p, "diagnose: late")
+    if a is None:
+        found.stories[J.LATE] = (Status.UNTESTED, "no connection")
+        return found
+    try:
+        start = time.monotonic()
+        if not a.send(frame, "diagnose: the request waited for"):
+            found.stories[J.LATE] = (Status.UNTESTED, "closed before the request went out")
+            return found
+        first = a.next_outcome(AT_ONCE_S, since=start)
+        other, other_latency, other_after = None, None, 0.0
+        if not isinstance(first, (Answer, Malformed, Closed)):
+            b = _dial(p, "diagnose: meanwhile")
+            if b is not None:
+                other_after = time.monotonic() - start
+                try:
+                    other, spent = _timed(b, none, start + wait - time.monotonic())
+                    other_latency = spent if isinstance(other, (Answer, Malformed)) else None
+                finally:
+                    b.close("diagnose")
+                found.experiment.exchanges.append(Exchange((none,), (_reading(other),)))
+            first = a.next_outcome(max(0.0, start + wait - time.monotonic()), since=start)
+        latency = first.latency_s if isinstance(first, (Answer, Malformed)) else None
+    finally:
+        a.close("diagnose")
+    found.experiment.exchanges.insert(0, Exchange((frame,), (_reading(first),)))
+    if action == int(Action.CYCLE_ON) and latency is not None:  # the cycle left on is ended (S3: idle first)
+        p.exchange([p.valid_request(int(Action.CYCLE_OFF))], settle=False)
+    facts = J.LateFacts(action, t, wait, latency, other_latency, other_after)
+    kind, detail, stories = J.late_story(facts)
+    for k, status, why in stories:
+        found.stories[k] = (status, why)
+    found.experiment.finding = "; ".join(why for _, _, why in stories[:1])
+    if kind:
+        found.mechanisms.append(_mech(kind, {action}, found, ("T1",) if kind == J.LATE else ("T1", "S4"),
+                                      [(frame, _expect(action))], J.title_of(kind, detail), detail))
+    return found
+
+
+def _mech(kind: str, actions: set[int], found: Found, clauses: tuple[str, ...],
+          repro: Sequence[tuple[bytes, Expect]], title: str, detail: Mapping[str, Any]) -> Mechanism:
+    return Mechanism(kind, frozenset(actions), found.experiment.name, title, clauses, tuple(repro), dict(detail))
+
+
+# -- latency against the block count ---------------------------------------------------------------------------------
+def _latency(p: Prober, found: Found, frame: bytes) -> float | None:
+    """``frame`` alone on a fresh connection: its answer's latency (None: none within time_out)."""
+    conn = _dial(p, "diagnose: latency")
+    if conn is None:
+        return None
+    try:
+        got, _ = _timed(conn, frame, p.dialer.wait_s())
+    finally:
+        conn.close("diagnose")
+    found.experiment.exchanges.append(Exchange((frame,), (_reading(got),)))
+    return got.latency_s if isinstance(got, Answer) and got.frame.error_code == 0 else None
+
+
+def third_count(points: Sequence[tuple[int, float]], time_out_s: float) -> int | None:
+    """The third block count to measure: where the line of the first two reaches half of time_out (within 255,
+    and not one measured already); None when the first two show no growth."""
+    (n0, t0), (n1, t1) = points[0], points[-1]
+    k = (t1 - t0) / (n1 - n0)
+    if t1 - t0 < J.GROWTH_MIN_S or k <= 0:
+        return None
+    n = min(255, n0 + math.floor((0.5 * time_out_s - t0) / k))
+    if n <= n1:
+        n = (n0 + n1) // 2
+    return n if n not in (n0, n1) else None
+
+
+def per_block(p: Prober, action: int) -> Found:
+    t = p.dialer.time_out_s
+    found = Found(Experiment("latency-per-block", f"{name(action)} at a few block counts, each alone on a fresh "
+                                                  "connection: latency against the block count"))
+    points: list[tuple[int, float]] = []
+    for n in FIRST_COUNTS:
+        lat = _latency(p, found, block_request(p, action, n))
+        if lat is None:
+            break
+        points.append((n, lat))
+    n3 = third_count(points, t) if len(points) == 2 else None
+    if n3 is not None and p.left() > 0.5 * t + 1.0:
+        lat = _latency(p, found, block_request(p, action, n3))
+        if lat is not None:
+            points.append((n3, lat))
+    slope = J.slope_of(points, t)
+    measured = ", ".join(f"{n}: {J.seconds(s)}" for n, s in sorted(points))
+    if slope is None:
+        why = f"no growth with the block count on one line ({measured})"
+        found.stories[J.PER_BLOCK] = (Status.RULED_OUT if len(points) >= 2 else Status.UNTESTED, why)
+        found.experiment.finding = why
+        return found
+    why = f"{J.seconds(slope.per_block_s)} more per block ({measured}), each on a fresh connection"
+    found.stories[J.PER_BLOCK] = (Status.CONFIRMED, why)
+    found.experiment.finding = why
+    crossing = slope.crossing or 255
+    detail = {"action": action, "per_block_s": round(slope.per_block_s, 4), "crossing": slope.crossing,
+              "points": [[n, round(s, 3)] for n, s in sorted(points)], "time_out_s": t}
+    found.mechanisms.append(_mech(J.PER_BLOCK, {action}, found, ("T1",),
+                                  [(block_request(p, action, crossing), _expect(action))],
+                                  J.per_block_title(action, slope, points, t), detail))
+    return found
+
+
+# -- a count of requests on one connection ----------------------------------------------------------------------------
+def _count(p: Prober, found: Found, frame: bytes, most: int) -> int | None:
+    """Requests one at a time on one fresh connection until one goes unanswered: how many were answered before it
+    (None: all ``most`` answered, or the phase ran out)."""
+    conn = _dial(p, "diagnose: count")
+    if conn is None:
+        return None
+    slowest, answered = 0.0, 0
+    try:
+        for _ in range(most):
+            if p.left() < 0.5:
+                return None
+            quiet = min(p.dialer.wait_s(), max(BUDGET_QUIET[0], BUDGET_QUIET[1] * slowest))
+            got, _ = _timed(conn, frame, quiet)
+            if not isinstance(got, (Answer, Malformed)):
+                found.experiment.exchanges.append(Exchange((frame,) * (answered + 1),
+                                                           (Reading(),) * answered + (_reading(got),)))
+                return answered
+            slowest, answered = max(slowest, got.latency_s), answered + 1
+    finally:
+        conn.close("diagnose")
+    return None
+
+
+def budget(p: Prober) -> Found:
+    found = Found(Experiment("request-budget", f"NONE requests one at a time on one connection (at most "
+                                               f"{BUDGET_MAX}) to the first unanswered, then a fresh connection, "
+                                               "then the same count again on another"))
+    none = p.valid_request(NONE)
+    n = _count(p, found, none, BUDGET_MAX)
+    if n is None or n < 2:
+        why = (f"{BUDGET_MAX} requests on one connection all answered" if n is None else
+               f"unanswered from request {n + 1}: a missing answer, not a count")
+        found.stories[J.BUDGET] = (Status.RULED_OUT, why)
+        found.experiment.finding = why
+        return found
+    fresh = p.exchange([none], settle=False)
+    fresh_ok = fresh is not None and fresh.reached and not _expect(NONE).broken_by(fresh.reading(0))
+    if fresh is not None:
+        found.experiment.exchanges.append(fresh)
+    replay = _count(p, found, none, n + 1) if fresh_ok else None
+    kind, detail, stories = J.budget_story(J.BudgetFacts(BUDGET_MAX, n, fresh_ok, replay))
+    for k, status, why in stories:
+        found.stories[k] = (status, why)
+    found.experiment.finding = stories[0][2]
+    if kind:
+        found.mechanisms.append(_mech(kind, {NONE, *BLOCK_ACTIONS, int(Action.CYCLE_ON), int(Action.CYCLE_OFF)},
+                                      found, ("A1", "S6"), [(none, _expect(NONE))] * (n + 1),
+                                      J.title_of(kind, detail), detail))
+    return found
+
+
+# -- the family ---------------------------------------------------------------------------------------------------------
+def run(p: Prober, causes: Sequence[RootCause], asked: Mapping[str, frozenset[int]],
+        alone: Mapping[int, Alone]) -> list[Found]:
+    """The experiments for the root causes of :data:`FOR_KINDS` (``asked``: each one's actions; ``alone``: how
+    each action was answered alone), cheapest story first, until one confirms a mechanism."""
+    out: list[Found] = []
+    actions = sorted(set().union(*(asked.get(c.id, frozenset()) for c in causes if c.kind in FOR_KINDS)))
+    if not actions:
+        return out
+    for action in actions:  # left unanswered alone: late, or a stall?
+        v = alone.get(action)
+        if v is not None and v.kind in ("silent", "missing") and action != NONE:
+            out.append(late(p, action))
+            if out[-1].mechanisms:
+                return out
+    for action in actions:  # answered alone: late with more blocks?
+        v = alone.get(action)
+        if action in BLOCK_ACTIONS and (v is None or v.kind == "ok"):
+            out.append(per_block(p, action))
+            if out[-1].mechanisms:
+                return out
+    out.append(budget(p))
+    return out
