@@ -32,6 +32,8 @@ from .titles import name
 
 #: the wait for a late answer, in time_outs (bounded by the phase's deadline too)
 LATE_FACTOR = 3.0
+#: actions waited for past time_out, at most (an action answered at once costs one answer)
+LATE_ACTIONS = 3
 #: an answer within this is "at once": the other connection's NONE is sent after it
 AT_ONCE_S = 0.2
 #: block counts measured first (a third is chosen from their slope)
@@ -249,12 +251,11 @@ def run(p: Prober, causes: Sequence[RootCause], asked: Mapping[str, frozenset[in
     actions = sorted(set().union(*(asked.get(c.id, frozenset()) for c in causes if c.kind in FOR_KINDS)))
     if not actions:
         return out
-    for action in actions:  # left unanswered alone: late, or a stall?
-        v = alone.get(action)
-        if v is not None and v.kind in ("silent", "missing") and action != NONE:
-            out.append(late(p, action))
-            if out[-1].mechanisms:
-                return out
+    waited = sorted((a for a in actions if a != NONE), key=lambda a: a in BLOCK_ACTIONS)[:LATE_ACTIONS]
+    for action in waited:  # late, or a stall? (alone's NONE may have been read with a late answer: each is waited for)
+        out.append(late(p, action))
+        if out[-1].mechanisms:
+            return out
     for action in actions:  # answered alone: late with more blocks?
         v = alone.get(action)
         if action in BLOCK_ACTIONS and (v is None or v.kind == "ok"):

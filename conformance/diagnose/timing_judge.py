@@ -125,7 +125,9 @@ def slope_of(points: Sequence[tuple[int, float]], time_out_s: float) -> Slope | 
 
 
 def per_block_title(action: int, slope: Slope, points: Sequence[tuple[int, float]], time_out_s: float) -> str:
-    measured = ", ".join(gettext("{n} blocks: {t}").format(n=n, t=seconds(t)) for n, t in sorted(points))
+    ordered = sorted(points)
+    measured = gettext("at {counts} blocks: {times}").format(counts=" / ".join(str(n) for n, _ in ordered),
+                                                             times=" / ".join(seconds(t) for _, t in ordered))
     if slope.crossing is None:
         return gettext("Answer latency grows with the block count: about {k} per block for {action} ({measured}): "
                        "T1 asks for every answer within time_out — do not spend time per block").format(
