@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from ..harness.client import Answer, Closed, Malformed, Outcome, TcpConnection
@@ -45,6 +46,8 @@ BUDGET_QUIET = (0.5, 20.0)
 #: the root-cause kinds these experiments are for
 FOR_KINDS = ("unanswered",)
 NONE = int(Action.NONE)
+#: the actions a per-connection count or slowdown touches: every request
+ALL_ACTIONS = {NONE, *BLOCK_ACTIONS, int(Action.CYCLE_ON), int(Action.CYCLE_OFF)}
 
 
 def _expect(action: int) -> Expect:
@@ -191,54 +194,100 @@ def per_block(p: Prober, action: int) -> Found:
 
 
 # -- a count of requests on one connection ----------------------------------------------------------------------------
-def _count(p: Prober, found: Found, frame: bytes, most: int) -> int | None:
-    """Requests one at a time on one fresh connection until one goes unanswered: how many were answered before it
-    (None: all ``most`` answered, or the phase ran out)."""
+@dataclass
+class Count:
+    """Requests one at a time on one connection: the latency of each answered one, and whether one went unanswered
+    (``silent``: the count before it) or the phase ran out first."""
+
+    latencies: list[float] = field(default_factory=list)
+    silent: bool = False
+    out_of_time: bool = False
+
+    @property
+    def answered(self) -> int:
+        return len(self.latencies)
+
+
+def _count(p: Prober, found: Found, frame: bytes, most: int) -> Count:
+    """Requests one at a time on one fresh connection until one goes unanswered (or ``most`` are answered, or the
+    latency grows with the request's index: :func:`.timing_judge.index_growth`)."""
+    out = Count()
     conn = _dial(p, "diagnose: count")
     if conn is None:
-        return None
-    slowest, answered = 0.0, 0
+        out.out_of_time = True
+        return out
+    slowest = 0.0
     try:
-        for _ in range(most):
+        for i in range(most):
             if p.left() < 0.5:
-                return None
+                out.out_of_time = True
+                return out
             quiet = min(p.dialer.wait_s(), max(BUDGET_QUIET[0], BUDGET_QUIET[1] * slowest))
             got, _ = _timed(conn, frame, quiet)
             if not isinstance(got, (Answer, Malformed)):
-                found.experiment.exchanges.append(Exchange((frame,) * (answered + 1),
-                                                           (Reading(),) * answered + (_reading(got),)))
-                return answered
-            slowest, answered = max(slowest, got.latency_s), answered + 1
+                found.experiment.exchanges.append(Exchange((frame,) * (i + 1), (Reading(),) * i + (_reading(got),)))
+                out.silent = True
+                return out
+            slowest = max(slowest, got.latency_s)
+            out.latencies.append(got.latency_s)
+            if i % 10 == 9 and J.index_growth(out.latencies) is not None:
+                return out
     finally:
         conn.close("diagnose")
-    return None
+    return out
 
 
 def budget(p: Prober) -> Found:
     found = Found(Experiment("request-budget", f"NONE requests one at a time on one connection (at most "
-                                               f"{BUDGET_MAX}) to the first unanswered, then a fresh connection, "
-                                               "then the same count again on another"))
+                                               f"{BUDGET_MAX}) to the first unanswered, with each one's latency; then "
+                                               "a fresh connection, and the same count again on another"))
     none = p.valid_request(NONE)
-    n = _count(p, found, none, BUDGET_MAX)
-    if n is None or n < 2:
-        why = (f"{BUDGET_MAX} requests on one connection all answered" if n is None else
+    first = _count(p, found, none, BUDGET_MAX)
+    growth = J.index_growth(first.latencies)
+    if growth is not None:
+        return _per_request(p, found, none, growth, first)
+    n = first.answered
+    if not first.silent or n < 2:
+        why = (f"{n} requests on one connection all answered" if not first.silent else
                f"unanswered from request {n + 1}: a missing answer, not a count")
-        found.stories[J.BUDGET] = (Status.RULED_OUT, why)
+        found.stories[J.BUDGET] = (Status.RULED_OUT if not first.out_of_time else Status.UNTESTED, why)
         found.experiment.finding = why
         return found
     fresh = p.exchange([none], settle=False)
     fresh_ok = fresh is not None and fresh.reached and not _expect(NONE).broken_by(fresh.reading(0))
     if fresh is not None:
         found.experiment.exchanges.append(fresh)
-    replay = _count(p, found, none, n + 1) if fresh_ok else None
+    again = _count(p, found, none, n + 1) if fresh_ok else None
+    replay = None if again is None or again.out_of_time else again.answered
     kind, detail, stories = J.budget_story(J.BudgetFacts(BUDGET_MAX, n, fresh_ok, replay))
     for k, status, why in stories:
         found.stories[k] = (status, why)
     found.experiment.finding = stories[0][2]
     if kind:
-        found.mechanisms.append(_mech(kind, {NONE, *BLOCK_ACTIONS, int(Action.CYCLE_ON), int(Action.CYCLE_OFF)},
-                                      found, ("A1", "S6"), [(none, _expect(NONE))] * (n + 1),
+        found.mechanisms.append(_mech(kind, ALL_ACTIONS, found, ("A1", "S6"), [(none, _expect(NONE))] * (n + 1),
                                       J.title_of(kind, detail), detail))
+    return found
+
+
+def _per_request(p: Prober, found: Found, none: bytes, growth: J.Growth, first: Count) -> Found:
+    """Latency grew with the request's index: a fresh connection's NONE tells per connection from box-wide."""
+    conn = _dial(p, "diagnose: fresh after growth")
+    fresh_s = None
+    if conn is not None:
+        try:
+            got, _ = _timed(conn, none, p.dialer.wait_s())
+            fresh_s = got.latency_s if isinstance(got, Answer) else None
+        finally:
+            conn.close("diagnose")
+    kind, stories = J.per_request_story(growth, fresh_s, first.answered)
+    for k, status, why in stories:
+        found.stories[k] = (status, why)
+    found.experiment.finding = stories[0][2]
+    if kind and fresh_s is not None:
+        detail = {"knee": growth.knee, "per_request_s": round(growth.per_request_s, 5), "base_s": round(growth.base_s, 4),
+                  "last": growth.last, "last_s": round(growth.last_s, 3), "fresh_s": round(fresh_s, 4)}
+        found.mechanisms.append(_mech(kind, ALL_ACTIONS, found, ("T2", "T1"), [(none, _expect(NONE))] * growth.last,
+                                      J.per_request_title(growth, fresh_s), detail))
     return found
 
 

@@ -29,8 +29,9 @@ LATE = "late-answer"
 STALL = "stall"
 PER_BLOCK = "latency-per-block"
 BUDGET = "request-budget"
+PER_REQUEST = "latency-per-request"
 #: the mechanism kinds this module confirms (in the order one explains a root cause before the next)
-KINDS = (PER_BLOCK, BUDGET, STALL, LATE)
+KINDS = (PER_BLOCK, PER_REQUEST, BUDGET, STALL, LATE)
 #: a latency this much over the one-block latency, and a slope at least this steep, is a growth with the block count
 GROWTH_MIN_S = 0.15
 SLOPE_MIN_S = 0.002
@@ -171,6 +172,72 @@ def budget_title(n: int) -> str:
     return gettext("Stops answering a connection after its {nth} request (request {m} and later go unanswered; a "
                    "fresh connection is answered again: a per-connection request budget?): A1 asks for every "
                    "request answered — do not limit the requests of a connection").format(nth=ordinal(n), m=n + 1)
+
+
+# -- latency against the request's index on its connection ----------------------------------------------------------
+#: the first requests of a connection whose median latency is the base
+BASE_REQUESTS = 20
+#: the last requests that must all be this much slower than the base, and grow by this much a request at least
+TAIL_REQUESTS = 30
+TAIL_OVER_S = 0.03
+TAIL_SLOPE_S = 0.0003
+
+
+@dataclass(frozen=True)
+class Growth:
+    base_s: float
+    per_request_s: float
+    knee: int  # the request (1-based) after which latency grows
+    last: int  # the last request measured
+    last_s: float
+
+
+def _median(xs: Sequence[float]) -> float:
+    ys = sorted(xs)
+    return ys[len(ys) // 2]
+
+
+def index_growth(latencies: Sequence[float]) -> Growth | None:
+    """Latency that grows with the request's index on one connection (requests one at a time): the last
+    :data:`TAIL_REQUESTS` all :data:`TAIL_OVER_S` over the base and rising by :data:`TAIL_SLOPE_S` a request at
+    least (least squares); the knee where that line meets the base. None otherwise."""
+    if len(latencies) < BASE_REQUESTS + TAIL_REQUESTS:
+        return None
+    base = _median(latencies[:BASE_REQUESTS])
+    tail = list(latencies[-TAIL_REQUESTS:])
+    if min(tail) < base + TAIL_OVER_S:
+        return None
+    xs = range(TAIL_REQUESTS)
+    mx, my = (TAIL_REQUESTS - 1) / 2, sum(tail) / TAIL_REQUESTS
+    k = sum((x - mx) * (y - my) for x, y in zip(xs, tail)) / sum((x - mx) ** 2 for x in xs)
+    if k < TAIL_SLOPE_S:
+        return None
+    centre = len(latencies) - TAIL_REQUESTS + 1 + mx  # 1-based request index of the tail's centre
+    knee = max(0, round(centre - (my - base) / k))
+    return Growth(base, k, knee, len(latencies), tail[-1])
+
+
+def per_request_story(g: Growth | None, fresh_s: float | None, sent: int) -> tuple[str, list[Story]]:
+    """Growth on one connection, and a NONE's latency on a fresh connection after it: per connection when the
+    fresh one is answered near the base, else the box slows for everyone (time since start, load)."""
+    if g is None:
+        return "", [(PER_REQUEST, Status.RULED_OUT, f"latency flat over {sent} requests on one connection")]
+    seen = (f"from request {g.knee} on, about {seconds(g.per_request_s)} more per request "
+            f"({seconds(g.base_s)} at first, {seconds(g.last_s)} at request {g.last})")
+    if fresh_s is not None and fresh_s < g.base_s + 0.5 * (g.last_s - g.base_s):
+        why = f"{seen}; a fresh connection answered in {seconds(fresh_s)}"
+        return PER_REQUEST, [(PER_REQUEST, Status.CONFIRMED, why)]
+    why = f"{seen}; a fresh connection was {'not answered' if fresh_s is None else 'slow too'}: not per connection"
+    return "", [(PER_REQUEST, Status.CONSISTENT, why)]
+
+
+def per_request_title(g: Growth, fresh_s: float) -> str:
+    return gettext("Answer latency grows with each request on a connection: about {k} more per request after the "
+                   "{nth} ({base} at first, {last} at request {n}; a fresh connection is answered in {fresh}), so a "
+                   "steady stream builds a backlog: T1/T2 ask for every answer within time_out at the stream's rate "
+                   "— do not let a connection's history slow its answers").format(
+        k=seconds(g.per_request_s), nth=ordinal(g.knee) if g.knee else ordinal(1), base=seconds(g.base_s),
+        last=seconds(g.last_s), n=g.last, fresh=seconds(fresh_s))
 
 
 def title_of(kind: str, d: dict[str, Any], points: Sequence[tuple[int, float]] = ()) -> str:

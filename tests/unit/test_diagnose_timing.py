@@ -91,3 +91,25 @@ def test_every_timing_kind_is_ranked_among_the_mechanism_kinds() -> None:
 
 def test_durations_are_written_in_ms_below_one_second() -> None:
     assert J.seconds(0.0624) == "62 ms" and J.seconds(5.53) == "5.5 s"
+
+
+def _stream(n: int, knee: int, per: float, base: float = 0.002) -> list[float]:
+    return [base + max(0, i - knee) * per for i in range(1, n + 1)]
+
+
+def test_latency_growing_with_the_request_index_gives_the_knee_and_the_rate() -> None:
+    g = J.index_growth(_stream(160, 100, 0.001))
+    assert g is not None
+    assert abs(g.per_request_s - 0.001) < 0.0001 and abs(g.knee - 100) <= 2 and g.last == 160
+    kind, stories = J.per_request_story(g, 0.002, 160)
+    assert kind == J.PER_REQUEST and stories[0][1] is Status.CONFIRMED
+    title = J.per_request_title(g, 0.002)
+    assert "latency" in title.lower() and "grows" in title and "connection" in title and "request 160" in title
+
+
+def test_flat_latency_or_a_slow_fresh_connection_is_no_per_connection_growth() -> None:
+    assert J.index_growth([0.002] * 200) is None
+    assert J.index_growth(_stream(40, 10, 0.01)) is None  # too few requests to judge
+    g = J.index_growth(_stream(160, 100, 0.001))
+    assert J.per_request_story(g, 0.058, 160)[0] == ""  # the fresh connection slow too: the box, not the connection
+    assert J.per_request_story(None, 0.002, 1000)[1][0][1] is Status.RULED_OUT
