@@ -102,8 +102,9 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     refine_refused(p, lab.mechanisms)  # a valid request refused: its block length read little-endian? (issue 34)
     if p.unreachable:
         return
-    for found in timing.run(p, probed, {c.id: facts_by[c.id].asked for c in probed}, alone):
-        lab.add(found)  # not answered within time_out: late, a stall, latency per block, a request budget? (first: slow)
+    waiting = [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
+    for found in timing.run(p, waiting, {c.id: facts_by[c.id].asked for c in waiting}, alone):
+        lab.add(found)  # not answered within time_out: late, a stall, latency per block or request, a count? (slow: first)
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
     lab.add(families.size(p, usable))
     lab.add(families.after_error(p, [NONE, POSE, *sorted(a for a in involved if a in CORE and a not in (NONE, POSE))],

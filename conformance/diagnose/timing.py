@@ -32,7 +32,7 @@ from .hypotheses import LEGAL_CODES, Alone, Exchange, Expect, Experiment, Mechan
 from .titles import name
 
 #: the wait for a late answer, in time_outs (bounded by the phase's deadline too)
-LATE_FACTOR = 3.0
+LATE_FACTOR = 2.0
 #: actions waited for past time_out, at most (an action answered at once costs one answer)
 LATE_ACTIONS = 3
 #: an answer within this is "at once": the other connection's NONE is sent after it

@@ -28,7 +28,7 @@ from .titles import name
 LATE = "late-answer"
 STALL = "stall"
 PER_BLOCK = "latency-per-block"
-BUDGET = "request-budget"
+BUDGET = "connection-count"  # the same story as families.per_connection, told with its count to the first silence
 PER_REQUEST = "latency-per-request"
 #: the mechanism kinds this module confirms (in the order one explains a root cause before the next)
 KINDS = (PER_BLOCK, PER_REQUEST, BUDGET, STALL, LATE)
