@@ -104,8 +104,8 @@ def late(p: Prober, action: int) -> Found:
             if b is not None:
                 other_after = time.monotonic() - start
                 try:
-                    other, spent = _timed(b, none, start + wait - time.monotonic())
-                    other_latency = spent if isinstance(other, (Answer, Malformed)) else None
+                    other, _ = _timed(b, none, start + wait - time.monotonic())
+                    other_latency = other.latency_s if isinstance(other, (Answer, Malformed)) else None
                 finally:
                     b.close("diagnose")
                 found.experiment.exchanges.append(Exchange((none,), (_reading(other),)))
