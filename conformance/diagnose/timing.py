@@ -39,6 +39,8 @@ LATE_ACTIONS = 3
 AT_ONCE_S = 0.2
 #: block counts measured first (a third is chosen from their slope)
 FIRST_COUNTS = (1, 8)
+#: the count measured when the first two show too little growth to read a slope from
+WIDE_COUNT = 64
 #: requests counted on one connection to the first unanswered, at most
 BUDGET_MAX = 1000
 #: the wait that calls one request of the count unanswered: this many times the slowest answer so far, within
@@ -169,6 +171,10 @@ def per_block(p: Prober, action: int) -> Found:
         if lat is None:
             break
         points.append((n, lat))
+    if len(points) == 2 and points[1][1] - points[0][1] < J.GROWTH_MIN_S:  # too little at 8 blocks to see: at more
+        lat = _latency(p, found, block_request(p, action, WIDE_COUNT))
+        if lat is not None:
+            points.append((WIDE_COUNT, lat))
     n3 = third_count(points, t) if len(points) == 2 else None
     if n3 is not None and p.left() > 0.5 * t + 1.0:
         lat = _latency(p, found, block_request(p, action, n3))

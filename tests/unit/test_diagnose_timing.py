@@ -113,3 +113,8 @@ def test_flat_latency_or_a_slow_fresh_connection_is_no_per_connection_growth() -
     g = J.index_growth(_stream(160, 100, 0.001))
     assert J.per_request_story(g, 0.058, 160)[0] == ""  # the fresh connection slow too: the box, not the connection
     assert J.per_request_story(None, 0.002, 1000)[1][0][1] is Status.RULED_OUT
+
+
+def test_a_gentle_slope_read_over_a_wide_count_still_names_its_count_past_time_out() -> None:
+    slope = J.slope_of([(1, 0.02), (8, 0.16), (64, 1.28)], 5.0)  # 20 ms a block: 251 blocks pass 5 s
+    assert slope is not None and slope.crossing == 251
