@@ -41,7 +41,7 @@ class Stall:
     at: int | None = None  # the action of the first request the box left unanswered (:mod:`.stall_point`)
 
     def describe(self) -> str:
-        at = "" if self.at is None else f" from {stall_point.word(self.at)} on (the first request it left unanswered)"
+        at = "" if self.at is None else f" on {stall_point.word(self.at)} (the only request it left unanswered)"
         return (f"The whole box stalled for about {self.lasted_s:.1f} s{at}, once: case {self.case_id} met it (after "
                 f"{self.after}; the session's write {self.writes}); {self.affected}")
 

@@ -1,6 +1,7 @@
-"""Where a stall of the whole box began, read from the case's own wire: the first request of its last write that
-the box left unanswered (answers come in order, A1: the requests answered before the silence are the first
-ones). Pure: the bytes written and the bytes received after them in, the request's action out."""
+"""Where a stall of the whole box began, read from the case's own wire: the request of its last write that the box
+left unanswered, when it is the only one (answers come in order, A1: every request before it was answered, so the
+box went silent while that request was the only one pending). Pure: the bytes written and the bytes received
+after them in, the request's action out."""
 
 from __future__ import annotations
 
@@ -29,10 +30,11 @@ def frames(data: bytes) -> list[int]:
 
 
 def first_unanswered(sent: bytes, received: bytes) -> int | None:
-    """The action of the first request in ``sent`` left unanswered by ``received`` (the answers heard after it was
-    written), None when every request was answered or ``sent`` holds no whole request."""
+    """The action of the one request in ``sent`` that ``received`` (the answers heard after it was written) leaves
+    unanswered. None when every request was answered, when several were not (a box whose loop blocks may hold the
+    answers it already wrote: the request it blocked on is then not told by the wire), or ``sent`` holds none."""
     asked, answered = frames(sent), len(frames(received))
-    return asked[answered] if answered < len(asked) else None
+    return asked[answered] if answered == len(asked) - 1 else None
 
 
 def word(action: int) -> str:

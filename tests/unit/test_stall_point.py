@@ -12,10 +12,13 @@ NONE_ANSWER = bytes.fromhex("fefe000110000000000000000000")
 POSE = bytes.fromhex("fefe0001012301010019000000" + "44480000" * 6) + b"\x00\x00"
 
 
-def test_the_first_request_not_covered_by_the_answers_heard_is_where_the_stall_began() -> None:
-    assert first_unanswered(NONE + CYCLE_ON + CYCLE_OFF, NONE_ANSWER) == 0x01
+def test_the_only_request_not_covered_by_the_answers_heard_is_where_the_stall_began() -> None:
+    assert first_unanswered(NONE + CYCLE_ON, NONE_ANSWER) == 0x01
     assert first_unanswered(CYCLE_ON, b"") == 0x01
     assert first_unanswered(NONE + POSE, NONE_ANSWER) == 0x23  # a frame with blocks is read by its length
+    # several left unanswered: a blocked loop may hold answers it wrote, so the wire does not tell which one
+    assert first_unanswered(NONE + CYCLE_ON + CYCLE_OFF, NONE_ANSWER) is None
+    assert first_unanswered(NONE + CYCLE_ON, b"") is None
 
 
 def test_every_request_answered_or_no_whole_request_names_nothing() -> None:
@@ -27,5 +30,5 @@ def test_every_request_answered_or_no_whole_request_names_nothing() -> None:
 def test_the_stall_names_the_request_in_the_protocols_words() -> None:
     assert word(0x01) == "CycleOn (01)" and word(0x77) == "0x77 (77)"
     title = Stall("A1-01", "fe fe", 16, 6.0, "held", 0x01).describe()
-    assert title.startswith("The whole box stalled for about 6.0 s from CycleOn (01) on (the first request it left "
+    assert title.startswith("The whole box stalled for about 6.0 s on CycleOn (01) (the only request it left "
                             "unanswered), once: case A1-01")
