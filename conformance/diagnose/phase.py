@@ -26,7 +26,7 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import death_inputs, deaths, families, match, timing, titles, udp_family
+from . import death_inputs, deaths, families, match, timing, timing_judge, titles, udp_family
 from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
@@ -189,11 +189,13 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
     return _ordered(kept, repros)
 
 
-def _rank(cause: RootCause) -> tuple[bool, bool, bool]:
-    """Confirmed first; then a broken MUST first; then a mechanism named (or the session's finding) before a
-    story only seen again on a fresh connection (the catalogue's order within, as sorted is stable)."""
+def _rank(cause: RootCause) -> tuple[bool, bool, bool, bool]:
+    """Confirmed first; then a broken MUST first; then a mechanism in the answers before an answer late past the
+    run's time_out (:data:`.timing_judge.TIME_ONLY`: it depends on the time_out given); then a mechanism named (or
+    the session's finding) before a story only seen again on a fresh connection (the catalogue's order within)."""
     mechanism = (cause.diagnosis or {}).get("mechanism")
-    return cause.confirmed is False, cause.level is not Level.MUST, mechanism in ("reproduces", "order-dependent")
+    return (cause.confirmed is False, cause.level is not Level.MUST, mechanism in timing_judge.TIME_ONLY,
+            mechanism in ("reproduces", "order-dependent"))
 
 
 def _ordered(causes: list[RootCause], repros: dict[str, tuple[tuple[bytes, Expect], ...]]) -> Diagnosed:

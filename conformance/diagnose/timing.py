@@ -43,6 +43,9 @@ FIRST_COUNTS = (1, 8)
 WIDE_COUNT = 64
 #: requests counted on one connection to the first unanswered, at most
 BUDGET_MAX = 1000
+#: one count's share of what is left of the phase, and its bound in seconds (a box slow to answer is not counted to
+#: the end: the phase's other experiments need their time)
+COUNT_SHARE, COUNT_S = 0.25, 3.0
 #: the wait that calls one request of the count unanswered: this many times the slowest answer so far, within
 BUDGET_QUIET = (0.5, 20.0)
 #: the root-cause kinds these experiments are for
@@ -222,10 +225,10 @@ def _count(p: Prober, found: Found, frame: bytes, most: int) -> Count:
     if conn is None:
         out.out_of_time = True
         return out
-    slowest = 0.0
+    slowest, until = 0.0, time.monotonic() + min(COUNT_S, COUNT_SHARE * p.left())
     try:
         for i in range(most):
-            if p.left() < 0.5:
+            if p.left() < 0.5 or time.monotonic() > until:
                 out.out_of_time = True
                 return out
             quiet = min(p.dialer.wait_s(), max(BUDGET_QUIET[0], BUDGET_QUIET[1] * slowest))
@@ -254,8 +257,8 @@ def budget(p: Prober) -> Found:
         return _per_request(p, found, none, growth, first)
     n = first.answered
     if not first.silent or n < 2:
-        why = (f"{n} requests on one connection all answered" if not first.silent else
-               f"unanswered from request {n + 1}: a missing answer, not a count")
+        why = (f"{n} requests on one connection all answered" + (" (then out of time)" if first.out_of_time else "")
+               if not first.silent else f"unanswered from request {n + 1}: a missing answer, not a count")
         found.stories[J.BUDGET] = (Status.RULED_OUT if not first.out_of_time else Status.UNTESTED, why)
         found.experiment.finding = why
         return found

@@ -32,6 +32,9 @@ BUDGET = "connection-count"  # the same story as families.per_connection, told w
 PER_REQUEST = "latency-per-request"
 #: the mechanism kinds this module confirms (in the order one explains a root cause before the next)
 KINDS = (PER_BLOCK, PER_REQUEST, BUDGET, STALL, LATE)
+#: findings that hold only against the run's time_out (a late answer, latency per block): a root cause they explain
+#: is ranked after the root causes explained by a mechanism in the answers themselves
+TIME_ONLY = (LATE, PER_BLOCK)
 #: a latency this much over the one-block latency, and a slope at least this steep, is a growth with the block count
 GROWTH_MIN_S = 0.15
 SLOPE_MIN_S = 0.002

@@ -118,3 +118,16 @@ def test_flat_latency_or_a_slow_fresh_connection_is_no_per_connection_growth() -
 def test_a_gentle_slope_read_over_a_wide_count_still_names_its_count_past_time_out() -> None:
     slope = J.slope_of([(1, 0.02), (8, 0.16), (64, 1.28)], 5.0)  # 20 ms a block: 251 blocks pass 5 s
     assert slope is not None and slope.crossing == 251
+
+
+def test_a_late_answer_ranks_after_a_mechanism_in_the_answers_and_before_anything_unconfirmed() -> None:
+    from conformance.diagnose.phase import _ordered
+    from conformance.model.verdicts import RootCause
+
+    def cause(name: str, mechanism: str | None) -> RootCause:
+        rc = RootCause(name, ("T1",), name, "", [name], kind="unanswered")
+        rc.confirmed, rc.diagnosis = mechanism is not None, {"mechanism": mechanism}
+        return rc
+
+    done = _ordered([cause("late", J.LATE), cause("open", None), cause("size", "byte-limit")], {})
+    assert [c.title for c in done.causes] == ["size", "late", "open"]
