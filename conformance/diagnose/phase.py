@@ -190,12 +190,12 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
 
 
 def _rank(cause: RootCause) -> tuple[bool, bool, bool, bool]:
-    """Confirmed first; then a broken MUST first; then a mechanism in the answers before an answer late past the
-    run's time_out (:data:`.timing_judge.TIME_ONLY`: it depends on the time_out given); then a mechanism named (or
-    the session's finding) before a story only seen again on a fresh connection (the catalogue's order within)."""
+    """Confirmed first; then a broken MUST first; then a mechanism named (or the session's finding) before a story
+    only seen again on a fresh connection; within them a mechanism in the answers before an answer late past the
+    run's time_out (:data:`.timing_judge.TIME_ONLY`: it depends on the time_out given; the catalogue's order within)."""
     mechanism = (cause.diagnosis or {}).get("mechanism")
-    return (cause.confirmed is False, cause.level is not Level.MUST, mechanism in timing_judge.TIME_ONLY,
-            mechanism in ("reproduces", "order-dependent"))
+    return (cause.confirmed is False, cause.level is not Level.MUST, mechanism in ("reproduces", "order-dependent"),
+            mechanism in timing_judge.TIME_ONLY)
 
 
 def _ordered(causes: list[RootCause], repros: dict[str, tuple[tuple[bytes, Expect], ...]]) -> Diagnosed:

@@ -120,7 +120,7 @@ def test_a_gentle_slope_read_over_a_wide_count_still_names_its_count_past_time_o
     assert slope is not None and slope.crossing == 251
 
 
-def test_a_late_answer_ranks_after_a_mechanism_in_the_answers_and_before_anything_unconfirmed() -> None:
+def test_a_late_answer_ranks_after_a_mechanism_in_the_answers_and_before_a_story_only_seen_again() -> None:
     from conformance.diagnose.phase import _ordered
     from conformance.model.verdicts import RootCause
 
@@ -129,5 +129,6 @@ def test_a_late_answer_ranks_after_a_mechanism_in_the_answers_and_before_anythin
         rc.confirmed, rc.diagnosis = mechanism is not None, {"mechanism": mechanism}
         return rc
 
-    done = _ordered([cause("late", J.LATE), cause("open", None), cause("size", "byte-limit")], {})
-    assert [c.title for c in done.causes] == ["size", "late", "open"]
+    done = _ordered([cause("again", "reproduces"), cause("late", J.LATE), cause("open", None),
+                     cause("size", "byte-limit")], {})
+    assert [c.title for c in done.causes] == ["size", "late", "again", "open"]
