@@ -104,7 +104,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
         return
     waiting = [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
     for found in timing.run(p, waiting, {c.id: facts_by[c.id].asked for c in waiting}, alone):
-        lab.add(found)  # not answered within time_out: late, a stall, latency per block or request, a count? (slow: first)
+        lab.add(found)  # not answered within time_out: late, a stall, latency per block? (first: they wait long)
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
     lab.add(families.size(p, usable))
     lab.add(families.after_error(p, [NONE, POSE, *sorted(a for a in involved if a in CORE and a not in (NONE, POSE))],
@@ -112,6 +112,9 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
 
     def unexplained() -> list[RootCause]:
         return [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
+
+    for found in timing.counts(p, unexplained()):
+        lab.add(found)  # requests counted on one connection: a count to the first silence, latency by the request
 
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)

@@ -86,7 +86,7 @@ def _timed(conn: TcpConnection, frame: bytes, wait_s: float) -> tuple[Outcome | 
 # -- late vs stall vs silence ----------------------------------------------------------------------------------------
 def late(p: Prober, action: int) -> Found:
     t = p.dialer.time_out_s
-    found = Found(Experiment("late", f"{name(action)} alone, waited for up to {LATE_FACTOR:g} × time_out, and a NONE "
+    found = Found(Experiment(f"late {action:02X}", f"{name(action)} alone, waited for up to {LATE_FACTOR:g} × time_out, and a NONE "
                                      f"on another connection sent {AT_ONCE_S:g} s after it"))
     wait = min(LATE_FACTOR * t, p.left() - 0.2)
     if wait <= t * 1.05:
@@ -301,14 +301,16 @@ def _per_request(p: Prober, found: Found, none: bytes, growth: J.Growth, first: 
 
 
 # -- the family ---------------------------------------------------------------------------------------------------------
+def _actions(causes: Sequence[RootCause], asked: Mapping[str, frozenset[int]]) -> list[int]:
+    return sorted(set().union(*(asked.get(c.id, frozenset()) for c in causes if c.kind in FOR_KINDS)))
+
+
 def run(p: Prober, causes: Sequence[RootCause], asked: Mapping[str, frozenset[int]],
         alone: Mapping[int, Alone]) -> list[Found]:
-    """The experiments for the root causes of :data:`FOR_KINDS` (``asked``: each one's actions; ``alone``: how
-    each action was answered alone), cheapest story first, until one confirms a mechanism."""
+    """Late vs stall vs silence, then latency per block, for the root causes of :data:`FOR_KINDS` (``asked``: each
+    one's actions; ``alone``: how each action was answered alone), until one confirms a mechanism."""
     out: list[Found] = []
-    actions = sorted(set().union(*(asked.get(c.id, frozenset()) for c in causes if c.kind in FOR_KINDS)))
-    if not actions:
-        return out
+    actions = _actions(causes, asked)
     waited = sorted((a for a in actions if a != NONE), key=lambda a: a in BLOCK_ACTIONS)[:LATE_ACTIONS]
     for action in waited:  # late, or a stall? (alone's NONE may have been read with a late answer: each is waited for)
         out.append(late(p, action))
@@ -320,5 +322,10 @@ def run(p: Prober, causes: Sequence[RootCause], asked: Mapping[str, frozenset[in
             out.append(per_block(p, action))
             if out[-1].mechanisms:
                 return out
-    out.append(budget(p))
     return out
+
+
+def counts(p: Prober, causes: Sequence[RootCause]) -> list[Found]:
+    """The requests of one connection counted (:func:`budget`) for the root causes of :data:`FOR_KINDS` still
+    unexplained (after the cheaper families: a box slow to answer makes a count slow)."""
+    return [budget(p)] if any(c.kind in FOR_KINDS for c in causes) and p.left() > 1.0 else []
