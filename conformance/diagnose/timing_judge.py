@@ -45,6 +45,8 @@ Story = tuple[str, Status, str]
 
 def seconds(s: float) -> str:
     """A duration as a title writes it: "62 ms", "5.5 s"."""
+    if s < 0.0005:
+        return "< 1 ms"
     return f"{s * 1000:.0f} ms" if s < 1.0 else f"{s:.1f} s"
 
 

@@ -90,7 +90,7 @@ def test_every_timing_kind_is_ranked_among_the_mechanism_kinds() -> None:
 
 
 def test_durations_are_written_in_ms_below_one_second() -> None:
-    assert J.seconds(0.0624) == "62 ms" and J.seconds(5.53) == "5.5 s"
+    assert J.seconds(0.0624) == "62 ms" and J.seconds(5.53) == "5.5 s" and J.seconds(0.0001) == "< 1 ms"
 
 
 def _stream(n: int, knee: int, per: float, base: float = 0.002) -> list[float]:
