@@ -113,7 +113,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     def unexplained() -> list[RootCause]:
         return [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
 
-    for found in timing.counts(p, unexplained()):
+    for found in timing.counts(p, unexplained(), {c.id: facts_by[c.id].asked for c in probed}):
         lab.add(found)  # requests counted on one connection: a count to the first silence, latency by the request
 
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):

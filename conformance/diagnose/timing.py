@@ -50,7 +50,7 @@ COUNT_SHARE, COUNT_S = 0.25, 3.0
 BUDGET_QUIET = (0.5, 20.0)
 #: the root-cause kinds these experiments are for
 FOR_KINDS = ("unanswered",)
-NONE = int(Action.NONE)
+NONE, POSE = int(Action.NONE), int(Action.POSE)
 #: the actions a per-connection count or slowdown touches: every request
 ALL_ACTIONS = {NONE, *BLOCK_ACTIONS, int(Action.CYCLE_ON), int(Action.CYCLE_OFF)}
 
@@ -246,15 +246,15 @@ def _count(p: Prober, found: Found, frame: bytes, most: int) -> Count:
     return out
 
 
-def budget(p: Prober) -> Found:
-    found = Found(Experiment("request-budget", f"NONE requests one at a time on one connection (at most "
-                                               f"{BUDGET_MAX}) to the first unanswered, with each one's latency; then "
-                                               "a fresh connection, and the same count again on another"))
-    none = p.valid_request(NONE)
+def budget(p: Prober, action: int = NONE) -> Found:
+    found = Found(Experiment(f"request-budget {action:02X}", f"{name(action)} requests one at a time on one "
+                             f"connection (at most {BUDGET_MAX}) to the first unanswered, with each one's latency; "
+                             "then a fresh connection, and the same count again on another"))
+    none = p.valid_request(action)
     first = _count(p, found, none, BUDGET_MAX)
     growth = J.index_growth(first.latencies)
     if growth is not None:
-        return _per_request(p, found, none, growth, first)
+        return _per_request(p, found, none, growth, first, action)
     n = first.answered
     if not first.silent or n < 2:
         why = (f"{n} requests on one connection all answered" + (" (then out of time)" if first.out_of_time else "")
@@ -263,7 +263,7 @@ def budget(p: Prober) -> Found:
         found.experiment.finding = why
         return found
     fresh = p.exchange([none], settle=False)
-    fresh_ok = fresh is not None and fresh.reached and not _expect(NONE).broken_by(fresh.reading(0))
+    fresh_ok = fresh is not None and fresh.reached and not _expect(action).broken_by(fresh.reading(0))
     if fresh is not None:
         found.experiment.exchanges.append(fresh)
     again = _count(p, found, none, n + 1) if fresh_ok else None
@@ -273,12 +273,12 @@ def budget(p: Prober) -> Found:
         found.stories[k] = (status, why)
     found.experiment.finding = stories[0][2]
     if kind:
-        found.mechanisms.append(_mech(kind, ALL_ACTIONS, found, ("A1", "S6"), [(none, _expect(NONE))] * (n + 1),
+        found.mechanisms.append(_mech(kind, ALL_ACTIONS, found, ("A1", "S6"), [(none, _expect(action))] * (n + 1),
                                       J.title_of(kind, detail), detail))
     return found
 
 
-def _per_request(p: Prober, found: Found, none: bytes, growth: J.Growth, first: Count) -> Found:
+def _per_request(p: Prober, found: Found, none: bytes, growth: J.Growth, first: Count, action: int) -> Found:
     """Latency grew with the request's index: a fresh connection's NONE tells per connection from box-wide."""
     conn = _dial(p, "diagnose: fresh after growth")
     fresh_s = None
@@ -295,7 +295,7 @@ def _per_request(p: Prober, found: Found, none: bytes, growth: J.Growth, first: 
     if kind and fresh_s is not None:
         detail = {"knee": growth.knee, "per_request_s": round(growth.per_request_s, 5), "base_s": round(growth.base_s, 4),
                   "last": growth.last, "last_s": round(growth.last_s, 3), "fresh_s": round(fresh_s, 4)}
-        found.mechanisms.append(_mech(kind, ALL_ACTIONS, found, ("T2", "T1"), [(none, _expect(NONE))] * growth.last,
+        found.mechanisms.append(_mech(kind, ALL_ACTIONS, found, ("T2", "T1"), [(none, _expect(action))] * growth.last,
                                       J.per_request_title(growth, fresh_s), detail))
     return found
 
@@ -325,7 +325,14 @@ def run(p: Prober, causes: Sequence[RootCause], asked: Mapping[str, frozenset[in
     return out
 
 
-def counts(p: Prober, causes: Sequence[RootCause]) -> list[Found]:
+def counts(p: Prober, causes: Sequence[RootCause], asked: Mapping[str, frozenset[int]]) -> list[Found]:
     """The requests of one connection counted (:func:`budget`) for the root causes of :data:`FOR_KINDS` still
-    unexplained (after the cheaper families: a box slow to answer makes a count slow)."""
-    return [budget(p)] if any(c.kind in FOR_KINDS for c in causes) and p.left() > 1.0 else []
+    unexplained (after the cheaper families: a box slow to answer makes a count slow): NONE requests, then poses
+    when the root cause asked for poses and every NONE was answered (a box may count only its stream's poses)."""
+    if not any(c.kind in FOR_KINDS for c in causes) or p.left() <= 1.0:
+        return []
+    out = [budget(p)]
+    status = out[0].stories.get(J.BUDGET, (Status.UNTESTED, ""))[0]
+    if not out[0].mechanisms and status is Status.RULED_OUT and POSE in _actions(causes, asked) and p.left() > 1.0:
+        out.append(budget(p, POSE))
+    return out
