@@ -183,7 +183,8 @@ class Mechanism:
 
 #: mechanism kinds, in the order one explains a root cause before the next
 KINDS = ("count-limit", "byte-limit", "index", "extra-answer", "echo-one", "echo-all", "cycle-dependent",
-         "state-leak", "connection-count", "peer-close", "open-limit", "idle-close", "age-close", "missing-answer", "refuses-valid",
+         "state-leak", "connection-count", "latency-per-block", "latency-per-request", "stall", "late-answer",
+         "peer-close", "open-limit", "idle-close", "age-close", "missing-answer", "refuses-valid",
          "order-dependent", "reproduces")
 
 

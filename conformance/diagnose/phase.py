@@ -37,6 +37,8 @@ from . import (
     match,
     result_state,
     segments,
+    timing,
+    timing_judge,
     titles,
     udp_family,
 )
@@ -122,6 +124,9 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     refine_refused(p, lab.mechanisms)  # a valid request refused: its block length read little-endian? (issue 34)
     if p.unreachable:
         return
+    waiting = [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
+    for found in timing.run(p, waiting, {c.id: facts_by[c.id].asked for c in waiting}, alone):
+        lab.add(found)  # not answered within time_out: late, a stall, latency per block? (first: they wait long)
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
     lab.add(families.size(p, usable))
     lab.add(families.after_error(p, [NONE, POSE, *sorted(a for a in involved if a in CORE and a not in (NONE, POSE))],
@@ -137,6 +142,8 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
             mine = isolator.diagnose(cause, cases)
             if mine.mechanisms:
                 own[cause.id] = mine
+    for found in timing.counts(p, unexplained(), {c.id: facts_by[c.id].asked for c in probed}):
+        lab.add(found)  # requests counted on one connection: a count to the first silence, latency by the request
     _closes(p, lab, [c for c in unexplained() if c.kind == "closes" or facts_by[c.id].closed], cases)  # conn_state
     if unexplained() or any(m.kind in ("refuses-valid", "missing-answer") and POSE in m.actions for m in lab.mechanisms):
         lab.add(families.cycle(p, alone))  # a pose refused alone may be accepted in a cycle (S3)
@@ -233,11 +240,13 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
     return _ordered(kept, repros)
 
 
-def _rank(cause: RootCause) -> tuple[bool, bool, bool]:
-    """Confirmed first; then a broken MUST first; then a mechanism named (or the session's finding) before a
-    story only seen again on a fresh connection (the catalogue's order within, as sorted is stable)."""
+def _rank(cause: RootCause) -> tuple[bool, bool, bool, bool]:
+    """Confirmed first; then a broken MUST first; then a mechanism named (or the session's finding) before a story
+    only seen again on a fresh connection; within them a mechanism in the answers before an answer late past the
+    run's time_out (:data:`.timing_judge.TIME_ONLY`: it depends on the time_out given; the catalogue's order within)."""
     mechanism = (cause.diagnosis or {}).get("mechanism")
-    return cause.confirmed is False, cause.level is not Level.MUST, mechanism in ("reproduces", "order-dependent")
+    return (cause.confirmed is False, cause.level is not Level.MUST, mechanism in ("reproduces", "order-dependent"),
+            mechanism in timing_judge.TIME_ONLY)
 
 
 def _ordered(causes: list[RootCause], repros: dict[str, tuple[tuple[bytes, Expect], ...]]) -> Diagnosed:

@@ -22,6 +22,7 @@ from ..model.case_verdicts import CaseVerdict
 from ..model.signature import Sig, Signature
 from ..model.verdicts import Verdict
 from ..protocol import Profile
+from . import stall_point
 
 #: the time_outs a box that went silent is given to answer a fresh connection again (then it is dead)
 COME_BACK = 2.0
@@ -37,14 +38,16 @@ class Stall:
     writes: int  # writes the session had made to the box by then
     lasted_s: float  # from the case's last answer (or first write) to the answer on the fresh connection
     affected: str
+    at: int | None = None  # the action of the first request the box left unanswered (:mod:`.stall_point`)
 
     def describe(self) -> str:
-        return (f"The whole box stalled for about {self.lasted_s:.1f} s, once: case {self.case_id} met it (after "
+        at = "" if self.at is None else f" on {stall_point.word(self.at)} (the only request it left unanswered)"
+        return (f"The whole box stalled for about {self.lasted_s:.1f} s{at}, once: case {self.case_id} met it (after "
                 f"{self.after}; the session's write {self.writes}); {self.affected}")
 
     def to_dict(self) -> dict[str, object]:
         return {"case": self.case_id, "after": self.after, "writes": self.writes, "lasted_s": round(self.lasted_s, 2),
-                "affected": self.affected, "example": None}
+                "affected": self.affected, "example": None, "at": self.at}
 
 
 def _began(transcript: Transcript, before: float) -> float:
@@ -62,6 +65,17 @@ def _after(transcript: Transcript, last_sent: bytes, before: float) -> str:
     return data[:16].hex(" ") + (" …" if len(data) > 16 else "") if data else "its first bytes"
 
 
+def _at(transcript: Transcript, before: float) -> int | None:
+    """The first request of the case's last write before ``before`` that no answer after it on its connection
+    covers (:func:`.stall_point.first_unanswered`)."""
+    write = next((e for e in reversed(transcript.events) if e.kind == Kind.SEND and e.t < before and e.data), None)
+    if write is None:
+        return None
+    heard = b"".join(e.data for e in transcript.events if e.kind == Kind.RECV and e.conn == write.conn
+                     and write.t <= e.t < before)
+    return stall_point.first_unanswered(write.data, heard)
+
+
 def look_again(transcript: Transcript, target: Target, profile: Profile, case_id: str, last_sent: bytes,
                writes: int, ended: float) -> Stall | None:
     """Another fresh connection, given COME_BACK time_outs: answered, the stall it was; None: still silent."""
@@ -74,7 +88,7 @@ def look_again(transcript: Transcript, target: Target, profile: Profile, case_id
     after = _after(transcript, last_sent, ended)
     held = (f"the case's connection and a fresh connection (unanswered for {time_out:.1f} s) were held; another "
             f"fresh connection was answered after {outcome.latency_s * 1000:.0f} ms")
-    return Stall(case_id, after, writes, time.time() - began, held)
+    return Stall(case_id, after, writes, time.time() - began, held, _at(transcript, ended))
 
 
 #: a fresh connection answered this late after a case's silence was held by the stall too (seconds; at least ten
@@ -94,7 +108,7 @@ def held(transcript: Transcript, fresh: Outcome, usual_s: float, time_out_s: flo
     after, began = _after(transcript, last_sent, ended), _began(transcript, ended)
     who = (f"the case's connection went unanswered for time_out, and a fresh connection asked right after was "
            f"answered only after {fresh.latency_s * 1000:.0f} ms")
-    return Stall(case_id, after, writes, time.time() - began, who)
+    return Stall(case_id, after, writes, time.time() - began, who, _at(transcript, ended))
 
 
 def verdict(stall: Stall, last_sent: bytes) -> CaseVerdict:
