@@ -27,6 +27,7 @@ from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
 from . import (
+    batching,
     conn_deaths,
     conn_limit,
     conn_peers,
@@ -100,6 +101,9 @@ def diagnose(causes: Sequence[RootCause], cases: Sequence[CaseResult], facts: Se
         lab_udp = udp_family.run(prober, udp_target, transport)
         for cause in transport:
             udp_family.assign(cause, lab_udp)
+    for cause in (c for c in causes if c.kind == batching.KIND):
+        if prober is not None:
+            batching.run(prober, cause, time_out_s)  # no NONE within time_out: silent, late, or answers held back?
     for cause in (c for c in causes if c.kind in result_state.KINDS):
         if prober is not None and not still_dead:
             result_state.run(prober, cause, cases)  # E3: wrong before the first cycle only?
@@ -196,7 +200,7 @@ def _assign(causes: list[RootCause], facts_by: dict[str, match.CauseFacts], lab:
             kept.append(cause)
             continue
         if cause.kind in match.SESSION_KINDS:
-            cause.confirmed, cause.diagnosis = True, _session_diagnosis(cause)
+            cause.confirmed, cause.diagnosis = True, cause.diagnosis or _session_diagnosis(cause)
             kept.append(cause)
             continue
         f = facts_by[cause.id]
