@@ -5,9 +5,11 @@ the box never answers (or speaks another profile: PROFILE-01 says which); it ans
 box); or it writes answers in batches, holding a lone answer until more are pending or a timer fires, so a
 robot's lone request waits while a stream looks almost fine. The experiments, each on a fresh connection:
 
-1. one NONE, waited for up to :data:`LATE_FACTOR` × time_out (cut to what is left of the phase): when it is
+1. 16 NONE requests in one write, waited for :data:`BATCH_WAIT_S`: a box that answers nothing at all costs no
+   more than that (nothing else is tried);
+2. one NONE, waited for up to :data:`LATE_FACTOR` × time_out (cut to what is left of the phase): when it is
    answered, how late;
-2. when it came late, NONE requests sent together in one write, 2, 4, 8 and 16 of them, each trial waited for
+3. when it came late, NONE requests sent together in one write, 2, 4 and 8 of them, each trial waited for
    :data:`BATCH_WAIT_S`: the smallest count answered at once is the batch (then narrowed between the last
    count held back and it).
 
@@ -88,17 +90,21 @@ def _trial(p: Prober, exp: Experiment, n: int, wait_s: float) -> tuple[int, floa
 
 
 def measure(p: Prober, exp: Experiment, time_out_s: float) -> Measured:
-    wait = min(LATE_FACTOR * time_out_s, p.left() - 1.0)
-    if wait < time_out_s:
+    """The largest batch first (a box that answers nothing costs :data:`BATCH_WAIT_S`, not a long wait), then, when
+    anything came, a lone NONE waited for past time_out, then the smaller counts."""
+    if p.left() < BATCH_WAIT_S + time_out_s + 1.0:
         return Measured(None, time_out_s)
-    lone = _trial(p, exp, 1, wait)
+    most = _trial(p, exp, COUNTS[-1], BATCH_WAIT_S)
+    if most is None or most[0] == 0:
+        return Measured(None, time_out_s, ((COUNTS[-1], 0),) if most is not None else ())
+    lone = _trial(p, exp, 1, min(LATE_FACTOR * time_out_s, p.left() - 1.0))
     if lone is None or lone[0] == 0:
-        return Measured(None, time_out_s)
+        return Measured(None, time_out_s, ((COUNTS[-1], most[0]),))
     lone_s = lone[1]
     if lone_s <= time_out_s:
         return Measured(lone_s, time_out_s)
-    together: list[tuple[int, int]] = []
-    for n in COUNTS:
+    together: list[tuple[int, int]] = [(COUNTS[-1], most[0])]
+    for n in COUNTS[:-1]:
         if p.left() < BATCH_WAIT_S + 0.5:
             break
         got = _trial(p, exp, n, BATCH_WAIT_S)

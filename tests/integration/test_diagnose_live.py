@@ -126,8 +126,11 @@ def test_a_defect_that_shows_only_when_frames_arrive_together_is_replayed_in_one
     first = done.causes[0]
     assert first.confirmed is True and first.diagnosis is not None, first.diagnosis
     assert first.diagnosis["repro"]["one_write"] is True
-    # isolation names the difference: one write vs one frame at a time (issue 34), not the catalogue's silence
-    assert first.title.startswith("Answers only 1 of 3 requests when several frames arrive in one TCP segment")
+    # isolation names the difference: one write vs one frame at a time (issue 34), not the catalogue's silence; the
+    # segmentation trials (diagnose/segments, run first for R3/R4 cases) or the case's own frames may name it
+    assert first.title.startswith(("Answers only 1 of 3 requests when several frames arrive in one TCP segment",
+                                   "Handles one frame per segment: when several frames arrive coalesced in one TCP "
+                                   "segment")), first.title
     [path] = repro.write_repros(tmp_path, done.causes[:1], profile)
     with serving(choices) as box:
         assert repro.judge(path, Target("127.0.0.1", box.port), profile, 1.5).status == "still present"
@@ -153,7 +156,8 @@ def test_a_death_is_confirmed_while_the_box_stays_silent_and_not_when_it_answers
     with serving(random_choices(4, fixed=FIXED | FAST).with_defect("dead")) as box:
         done = diagnose([RootCause("RC1", ("A4", "T1"), "never answers NONE", "e", [], kind="unresponsive")], [],
                         SessionFacts(unresponsive="silent"), Target("127.0.0.1", box.port), profile, 1.0, budget_s=5)
-    assert done.causes[0].confirmed is True and done.exchanges == 1
+    # the liveness check, and diagnose.batching's 16 NONE in one write (nothing came: no long wait follows)
+    assert done.causes[0].confirmed is True and done.exchanges == 2
 
 
 def _wrong_index_cause(profile: Profile) -> tuple[RootCause, CaseResult]:
