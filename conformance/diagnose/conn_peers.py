@@ -37,6 +37,9 @@ class Steps:
     how long A had been idle by then (seconds)."""
 
     after: tuple[tuple[int, bool | None, float], ...]
+    #: after A was found closed at B's close: did A, with a new B that sent a pose and stayed open, survive as
+    #: long (True: B's close did it; False or None: idle time may explain it)
+    control: bool | None = None
 
 
 def judge(s: Steps) -> tuple[int | None, tuple[Status, str]]:
@@ -45,6 +48,9 @@ def judge(s: Steps) -> tuple[int | None, tuple[Status, str]]:
         if alive is False and idle_s > SLOW_STEP_S:  # A was idle long enough for an idle close to explain it
             return None, (Status.CONSISTENT, f"connection A closed after {_what(action)} on connection B, but it had "
                                              f"been idle {idle_s:.1f} s by then")
+        if alive is False and action == STREAM_CLOSED and s.control is not True:
+            return None, (Status.CONSISTENT, f"connection A closed after {_what(action)}, but also (or untested) "
+                                             "when B stayed open as long: idle time may explain it")
         if alive is False:
             return action, (Status.CONFIRMED, f"connection A closed after {_what(action)} on connection B")
         if alive is None:
@@ -111,7 +117,34 @@ def measure(p: Prober, exp: Experiment) -> Steps:
         for conn in conns:
             conn.close("diagnose peers")
         exp.exchanges.append(Exchange(tuple(frames), tuple(readings)))
+    if after and after[-1][0] == STREAM_CLOSED and after[-1][1] is False:
+        return Steps(tuple(after), _control(p, exp, after[-1][2]))
     return Steps(tuple(after))
+
+
+def _control(p: Prober, exp: Experiment, idle_s: float) -> bool | None:
+    """A fresh A, a fresh B that sends a pose and stays open, A asked after ``idle_s``: does A survive?"""
+    none, pose = p.valid_request(NONE), p.valid_request(POSE)
+    if p.left() < 2 * p.dialer.wait_s() + idle_s:
+        return None
+    conns: list[TcpConnection] = []
+    try:
+        conns.append(p.dialer.dial("diagnose peers: control A"))
+        first, ok = _ask(p, conns[0], none)
+        if not ok:
+            return None
+        since = time.monotonic()
+        conns.append(p.dialer.dial("diagnose peers: control B, left open"))
+        on_b, _ = _ask(p, conns[1], pose)
+        time.sleep(max(0.0, idle_s - (time.monotonic() - since)))
+        on_a, alive = _ask(p, conns[0], none)
+        exp.exchanges.append(Exchange((none, pose, none), (first, on_b, on_a)))
+        return alive
+    except Unreachable:
+        return None
+    finally:
+        for conn in conns:
+            conn.close("diagnose peers: control")
 
 
 def run(p: Prober) -> Found:

@@ -154,9 +154,13 @@ def boxed() -> Iterator[Make]:
     """``boxed(mode, capacity, listening)``: a box and a session testing it; both stopped at the end."""
     made: list[tuple[Box, SessionState]] = []
 
-    def make(mode: str = "answer", capacity: int = 0, listening: bool = True) -> tuple[Box, SessionState]:
+    def make(mode: str = "answer", capacity: int = 0, listening: bool = True,
+             extension: str = "off") -> tuple[Box, SessionState]:
+        # extension off: the connections counted here are the baseline's and the preflight's; with auto (the
+        # default of a run) the session start also sends the run's first result request (E3-02), tested below
         box = Box(mode, capacity, listening)
-        made.append((box, SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=PROFILE))))
+        made.append((box, SessionState(SuiteSettings(target=Target("127.0.0.1", box.port), profile=PROFILE,
+                                                     extension=extension))))
         return made[-1]
 
     yield make
@@ -184,6 +188,15 @@ def ready(state: SessionState, case_id: str = "C-0") -> Transcript:
 
 
 # -- baseline and preflight --------------------------------------------------------------------------
+
+
+def test_the_session_start_sends_the_runs_first_result_request_after_the_preflight(boxed: Make) -> None:
+    box, state = boxed(extension="auto")
+    transcript = ready(state, "C-1")
+    assert labels(transcript)[3] == "session start: the first result request (E3)"
+    assert box.accepted == 4 and state.first_result is not None and state.extension_supported is not None
+    ready(state, "C-2")  # once per session
+    assert box.accepted == 4
 
 
 def test_a_box_serving_connections_at_once_keeps_a_witness(boxed: Make) -> None:
