@@ -182,7 +182,7 @@ class Mechanism:
 
 
 #: mechanism kinds, in the order one explains a root cause before the next
-KINDS = ("count-limit", "byte-limit", "index", "extra-answer", "echo-one", "echo-all", "cycle-dependent",
+KINDS = ("count-limit", "byte-limit", "index", "block-length", "error-byte-order", "answer-shape", "extra-answer", "echo-one", "echo-all", "cycle-dependent",
          "state-leak", "connection-count", "missing-answer", "refuses-valid", "order-dependent", "reproduces")
 
 

@@ -30,7 +30,9 @@ _NAMES = {"count-limit": "a limit on the block count", "byte-limit": "a limit on
           "missing-answer": "an answer missing (later answers shifted back)", "refuses-valid": "a valid request refused",
           "state-leak": "state left by an error answer spoils the next answer",
           "cycle-dependent": "depends on the cycle state", "connection-count": "depends on how many requests the "
-          "connection carried", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)"}
+          "connection carried", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)",
+          "block-length": "a wrong block length accepted", "error-byte-order": "error codes written little-endian",
+          "answer-shape": "an answer's block fields built wrongly"}
 
 
 def statement(kind: str) -> str:
@@ -100,6 +102,8 @@ def _sent_actions(sent_hex: str, anywhere: bool = False) -> set[int]:
 
 
 def explains(m: Mechanism, f: CauseFacts) -> bool:
+    if "explains" in m.detail:  # a mechanism that explains only the catalogue's stories it names
+        return f.kind in m.detail["explains"] and bool(m.actions & f.asked)
     if m.kind in ("count-limit", "byte-limit", "index"):  # the story the catalogue read, or its cases' sizes
         if f.kind == "block-position":
             return True

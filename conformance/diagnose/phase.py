@@ -26,7 +26,7 @@ from ..harness.target import Target
 from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
-from . import death_inputs, deaths, families, match, titles, udp_family
+from . import answer_family, block_length, death_inputs, deaths, families, match, titles, udp_family
 from .dimensions import refine_cycle, refine_refused
 from .experiments import BLOCK_ACTIONS, Prober
 from .families import CORE, CYCLES, NONE, POSE, Found
@@ -102,6 +102,9 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     refine_refused(p, lab.mechanisms)  # a valid request refused: its block length read little-endian? (issue 34)
     if p.unreachable:
         return
+    lab.add(answer_family.shapes(p, lab.experiments.get("alone"), involved))  # answers built wrongly, field by field
+    lab.add(answer_family.byte_order(p, lab.experiments.get("alone")))
+    lab.add(block_length.run(p, probed, cases))  # a wrong block length accepted: the accepted range
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
     lab.add(families.size(p, usable))
     lab.add(families.after_error(p, [NONE, POSE, *sorted(a for a in involved if a in CORE and a not in (NONE, POSE))],
