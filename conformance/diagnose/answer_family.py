@@ -10,10 +10,21 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
+from ..model.verdicts import CaseResult, RootCause
 from ..protocol import ACTION_ERROR, Action, Transport, ValueBlock, request
-from .answer_shape import Observed, ShapeDiff, grouped, shape_diff, shape_title, swap_story, swap_title, swapped
+from .answer_shape import (
+    Observed,
+    ShapeDiff,
+    grouped,
+    shape_diff,
+    shape_title,
+    swap_hints,
+    swap_story,
+    swap_title,
+    swapped,
+)
 from .experiments import BLOCK_ACTIONS, Prober, block_request
 from .families import CYCLES, Found, _mech
 from .hypotheses import LEGAL_CODES, Expect, Experiment, Mechanism, Status
@@ -56,7 +67,7 @@ def shapes(p: Prober, alone: Experiment | None, asked: Iterable[int]) -> Found:
     diffs: list[ShapeDiff] = []
     requests: dict[int, bytes] = {}
     for action, frame, raw, _error in answered:
-        d = shape_diff(action, frame, raw)
+        d = shape_diff(action, frame, raw, p.profile.byte_order)
         if d is not None:
             diffs.append(d)
             requests[action] = frame
@@ -73,15 +84,35 @@ def shapes(p: Prober, alone: Experiment | None, asked: Iterable[int]) -> Found:
 
 def _shape_mech(found: Found, group: list[ShapeDiff], repro: list[tuple[bytes, Expect]]) -> Mechanism:
     first = group[0]
-    clause = "A2" if first.field in ("echo-blocks", "blocks-attached") else ("E2" if first.action == PROG_IDX else "E3")
+    clause = {"echo-blocks": "A2", "blocks-attached": "A2", "transfer-type": "F3", "version": "F2"}.get(
+        first.field, "E2" if first.action == PROG_IDX else "E3")
     return _mech("answer-shape", {d.action for d in group}, found, (clause,), repro, title=shape_title(group),
                  field=first.field, got=first.got, want=first.want)
 
 
-def byte_order(p: Prober, alone: Experiment | None) -> Found:
+def quoted_answers(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> list[bytes]:
+    """The answer bytes the root causes' cases quote."""
+    ids = {c for cause in causes for c in cause.cases}
+    out = []
+    for case in cases:
+        if case.id in ids and case.received_hex:
+            try:
+                out.append(bytes.fromhex(case.received_hex.partition("…")[0]))
+            except ValueError:
+                continue
+    return out
+
+
+def byte_order(p: Prober, alone: Experiment | None, causes: Sequence[RootCause] = (),
+               cases: Sequence[CaseResult] = ()) -> Found:
+    """Run only when a code no action allows, swapped, is one A3 names (in the cases' answers or alone)."""
     found = Found(Experiment("error-byte-order", "a parse error of each block action alone (A3 names 1001/1002) "
                                                  "and each valid request's code: legal as sent, or legal with the "
                                                  "error code's two bytes swapped?"))
+    alone_raw = [ex.reading(0).answers[0].raw for ex in (alone.exchanges if alone else []) if ex.reading(0).answers]
+    if not swap_hints([*quoted_answers(causes, cases), *alone_raw], p.profile.byte_order):
+        found.stories["error-byte-order"] = (Status.RULED_OUT, "no answer carries a code that is a named code swapped")
+        return found
     seen: list[Observed] = []
     for _action, _frame, _raw, error in _first_answers(p, alone, (), found.experiment):
         legal = frozenset(LEGAL_CODES.get(_action, ()))
@@ -106,7 +137,7 @@ def byte_order(p: Prober, alone: Experiment | None) -> Found:
     confirmed, why = swap_story(seen)
     if confirmed and repro:
         wrong = {o.action for o in seen if o.code not in o.legal}
-        found.mechanisms.append(_mech("error-byte-order", wrong, found, ("F4", "A3"), repro, title=swap_title(seen)))
+        found.mechanisms.append(_mech("error-byte-order", wrong, found, ("F4", "A3"), repro, title=swap_title(seen, p.profile.byte_order)))
     found.stories["error-byte-order"] = (Status.CONFIRMED, why) if found.mechanisms else (
         (Status.RULED_OUT, why) if seen else (Status.UNTESTED, "no error code heard"))
     found.experiment.finding = why

@@ -19,11 +19,15 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 from ..i18n import gettext
 from ..protocol import ANSWER_SHAPE, BLOCK_LEN, Action
-from ..protocol.constants import HEADER_LEN, BlockType
+from ..protocol.answers import CONFLICT, SENDABLE_RESULTS
+from ..protocol.constants import HEADER_LEN, VALUE_BLOCK_LEN, VERSION, BlockType, TransferType
 from . import titles
+
+Order = Literal["big", "little"]
 
 
 @dataclass(frozen=True)
@@ -31,31 +35,37 @@ class ShapeDiff:
     """The one field in which an answer to a valid ``action`` request differs from the allowed answers."""
 
     action: int
-    field: str  # "echo-blocks" | "blocks-attached" | "block-type" | "block-count" | "block-length"
+    field: str  # "transfer-type" | "version" | "echo-blocks" | "blocks-attached" | "block-type" | "block-count" |
+    # "block-length" | "value"
     got: int
     want: int
     header: bytes = b""  # the answer's block type, count and length bytes (6..9)
 
 
-def _u16(raw: bytes, at: int) -> int:
-    return int.from_bytes(raw[at:at + 2], "big")
+def _u16(raw: bytes, at: int, order: Order = "big") -> int:
+    return int.from_bytes(raw[at:at + 2], order)
 
 
-def shape_diff(action: int, request: bytes, answer: bytes) -> ShapeDiff | None:
-    """The first field of ``answer`` (to the valid ``request``) outside every allowed answer's shape; None when its
-    block header is what the action's answer carries (other defects are other families' business)."""
+def shape_diff(action: int, request: bytes, answer: bytes, order: Order = "big") -> ShapeDiff | None:
+    """The first field of ``answer`` (to the valid ``request``) outside every allowed answer; None when its
+    transfer type, version, block header (and a 26/27 answer's block value) are allowed (other defects are other
+    families' business). ``order``: the profile's byte order of the header and the int32 (F4, E1)."""
     if len(answer) < HEADER_LEN or len(request) < HEADER_LEN:
         return None
     try:
         shape = ANSWER_SHAPE[Action(action)]
     except ValueError:
         return None
-    bt, count, length = answer[6], answer[7], _u16(answer, 8)
+    if answer[4] != TransferType.BOX_TO_ROBOT:
+        return ShapeDiff(action, "transfer-type", answer[4], int(TransferType.BOX_TO_ROBOT), bytes(answer[4:5]))
+    if _u16(answer, 2, order) != VERSION:
+        return ShapeDiff(action, "version", _u16(answer, 2), VERSION, bytes(answer[2:4]))
+    bt, count, length = answer[6], answer[7], _u16(answer, 8, order)
     head = bytes(answer[6:10])
     if shape.block_type is BlockType.EMPTY:
         if count == 0 and bt == 0 and length == 0:
             return None
-        body = request[HEADER_LEN:HEADER_LEN + request[7] * _u16(request, 8)]
+        body = request[HEADER_LEN:HEADER_LEN + request[7] * _u16(request, 8, order)]
         same = head == bytes(request[6:10]) and count > 0 and answer[HEADER_LEN:HEADER_LEN + len(body)] == body
         return ShapeDiff(action, "echo-blocks" if same else "blocks-attached", count, 0, head)
     want_len = BLOCK_LEN[shape.block_type]
@@ -65,6 +75,20 @@ def shape_diff(action: int, request: bytes, answer: bytes) -> ShapeDiff | None:
         return ShapeDiff(action, "block-count", count, shape.high, head)
     if length != want_len:
         return ShapeDiff(action, "block-length", length, want_len, head)
+    return _value_diff(action, request, answer, order)
+
+
+def _value_diff(action: int, request: bytes, answer: bytes, order: Order) -> ShapeDiff | None:
+    """E2: a ProgIdx answer carries the index sent or 409; E3: a result answer a ResultCode a box sends."""
+    if len(answer) < HEADER_LEN + VALUE_BLOCK_LEN:
+        return None
+    value = int.from_bytes(answer[HEADER_LEN + 1:HEADER_LEN + 5], order, signed=True)
+    if action == Action.PROG_IDX and len(request) >= HEADER_LEN + VALUE_BLOCK_LEN:
+        sent = int.from_bytes(request[HEADER_LEN + 1:HEADER_LEN + 5], order, signed=True)
+        if value not in (sent, CONFLICT):
+            return ShapeDiff(action, "value", value, sent, bytes(answer[HEADER_LEN + 1:HEADER_LEN + 5]))
+    if action == Action.VISION_RESULT and value not in SENDABLE_RESULTS:
+        return ShapeDiff(action, "value", value, 1, bytes(answer[HEADER_LEN + 1:HEADER_LEN + 5]))
     return None
 
 
@@ -87,7 +111,20 @@ def shape_title(diffs: Sequence[ShapeDiff]) -> str:
         return gettext("Answers {actions} with blocks attached (block type, count, length {head}) instead of an "
                        "answer with no blocks: A2 asks for block type 00, count 0, length 0 — answer without "
                        "blocks").format(actions=actions, head=head)
+    if first.field == "transfer-type":
+        return gettext("Answers {actions} with transfer type {got:02X} where F3 asks for 10 (box to robot) in every "
+                       "answer — write 10 in byte 4 of the answer").format(actions=actions, got=first.got)
+    if first.field == "version":
+        return gettext("Answers {actions} with version {head} where F2 asks for 00 01 in every frame — write the "
+                       "version 00 01 (big-endian) in the answer").format(actions=actions, head=head)
     clause = ANSWER_SHAPE[Action(first.action)].clause
+    if first.field == "value":
+        if first.action == Action.PROG_IDX:
+            return gettext("Answers ProgIdx (26) with the value {got} in its type-03 block where E2 asks for the "
+                           "program index sent ({want}) or 409 — echo the index").format(got=first.got, want=first.want)
+        return gettext("Answers the result request (27) with the value {got} in its type-03 block, which is not a "
+                       "ResultCode a box sends (E3: 1, 2, 10, 20, 202, 400, 409) — answer with a ResultCode").format(
+            got=first.got)
     if first.field == "block-type":
         return gettext("Answers {actions} with block type {got:02X} where {clause} asks for block type {want:02X} "
                        "(the answer's block is of the wrong type) — answer with a type-{want:02X} block").format(
@@ -142,9 +179,32 @@ def swap_story(seen: Sequence[Observed]) -> tuple[bool, str]:
     return True, "; ".join(f"{o.code:04X} to {titles.name(o.action)} is {swapped(o.code):04X} swapped" for o in fixed)
 
 
-def swap_title(seen: Sequence[Observed]) -> str:
+def swap_title(seen: Sequence[Observed], order: Order = "big") -> str:
     shown = list(dict.fromkeys(swapped(o.code) for o in seen if o.code not in o.legal))[:2]
     examples = ", ".join(gettext("{code:04X} goes out as {low:02X} {high:02X}").format(code=c, low=c & 0xFF,
                                                                                        high=c >> 8) for c in shown)
+    if order != "big":  # the profile's header byte order is little-endian: the box writes the other one
+        return gettext("Writes the error code of its answers in the wrong byte order (big-endian where the profile "
+                       "reads little-endian): {examples} — write the error code in the profile's byte order").format(
+            examples=examples)
     return gettext("Writes the error code of its answers in the wrong byte order (little-endian): {examples}: F4 asks "
                    "for big-endian fields — write bytes 10-11 most significant first").format(examples=examples)
+
+
+#: every error code A3 names (S2, A3): a code outside them that is one of them swapped hints at the byte order
+NAMED_CODES = frozenset({0x0001, 0x0002, 0x1001, 0x1002})
+
+
+def swap_hints(received: Iterable[bytes], order: Order = "big") -> set[int]:
+    """The error codes of the answers quoted in ``received`` (each headed FE FE .. 10) that no action allows
+    but that swapped are a code A3 names: worth the byte-order experiment."""
+    out: set[int] = set()
+    for raw in received:
+        at = raw.find(b"\xfe\xfe")
+        while 0 <= at <= len(raw) - HEADER_LEN:
+            if raw[at + 4] == TransferType.BOX_TO_ROBOT:
+                code = int.from_bytes(raw[at + 10:at + 12], order)
+                if code not in NAMED_CODES and swapped(code) in NAMED_CODES:
+                    out.add(code)
+            at = raw.find(b"\xfe\xfe", at + 2)
+    return out

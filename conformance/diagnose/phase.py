@@ -103,7 +103,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     if p.unreachable:
         return
     lab.add(answer_family.shapes(p, lab.experiments.get("alone"), involved))  # answers built wrongly, field by field
-    lab.add(answer_family.byte_order(p, lab.experiments.get("alone")))
+    lab.add(answer_family.byte_order(p, lab.experiments.get("alone"), probed, cases))
     lab.add(block_length.run(p, probed, cases))  # a wrong block length accepted: the accepted range
     usable = [a for a, v in alone.items() if a in BLOCK_ACTIONS and v.kind in ("ok", "extra", "echo")]
     lab.add(families.size(p, usable))

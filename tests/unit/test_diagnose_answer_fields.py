@@ -8,6 +8,7 @@ from conformance.diagnose.answer_shape import (
     grouped,
     shape_diff,
     shape_title,
+    swap_hints,
     swap_story,
     swap_title,
     swapped,
@@ -97,3 +98,22 @@ def test_the_new_mechanisms_explain_the_root_causes_they_name() -> None:
                   {"explains": EXPLAINS})
     assert match.explains(m, match.CauseFacts("wrong-code", frozenset({0x23}), frozenset({0x23})))
     assert not match.explains(m, match.CauseFacts("unanswered", frozenset({0x23}), frozenset({0x23})))
+
+
+def test_the_transfer_type_version_and_progidx_value_of_an_answer_are_compared_too() -> None:
+    d = shape_diff(0x23, POSE_REQ, POSE_ANS[:4] + b"\x01" + POSE_ANS[5:])
+    assert d is not None and (d.field, d.got) == ("transfer-type", 1) and "transfer type 01" in shape_title([d])
+    d = shape_diff(0x23, POSE_REQ, POSE_ANS[:2] + b"\x01\x00" + POSE_ANS[4:])
+    assert d is not None and d.field == "version" and "version 01 00" in shape_title([d])
+    zero = bytes.fromhex("fefe000110260301000500000000000000" "0000")  # ProgIdx answered with index 0, sent 3
+    d = shape_diff(0x26, PROG_REQ, zero)
+    assert d is not None and (d.field, d.got, d.want) == ("value", 0, 3) and "ProgIdx (26)" in shape_title([d])
+    conflict = bytes.fromhex("fefe000110260301000500000000000199" "0000")  # 409: E2's other legal answer
+    assert shape_diff(0x26, PROG_REQ, conflict) is None
+
+
+def test_the_byte_order_experiment_is_hinted_only_by_a_code_that_is_a_named_code_swapped() -> None:
+    swapped_pose = bytes.fromhex("fefe0001102300000000011000 00")
+    assert swap_hints([swapped_pose]) == {0x0110}
+    assert swap_hints([bytes.fromhex("fefe00011023000000001001 0000"), bytes.fromhex("fefe0001100200000000ffff0000")]) \
+        == set()
