@@ -18,6 +18,7 @@ from ..i18n import gettext
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol.constants import HEADER_LEN
 from . import titles
+from .answer_shape import Order
 from .experiments import BLOCK_ACTIONS, Prober, block_request
 from .families import Found, _accepted, _mech
 from .hypotheses import Expect, Experiment, Status
@@ -31,15 +32,16 @@ def grid(right: int) -> list[int]:
     return sorted({right - 1, right + 1, right + 2, right + 5, 2 * right, 100, 255, 0x100 + right, 0x200 + right})
 
 
-def with_length(frame: bytes, length: int) -> bytes:
-    """``frame`` (one block) with its block length set to ``length``: the block cut or padded with zero bytes."""
-    right = int.from_bytes(frame[8:10], "big")
+def with_length(frame: bytes, length: int, order: Order = "big") -> bytes:
+    """``frame`` (one block) with its block length set to ``length`` (in the header's byte ``order``): the block
+    cut or padded with zero bytes."""
+    right = int.from_bytes(frame[8:10], order)
     block = frame[HEADER_LEN:HEADER_LEN + right]
     block = (block + bytes(max(0, length - right)))[:length]
-    return frame[:8] + length.to_bytes(2, "big") + frame[10:HEADER_LEN] + block + frame[-2:]
+    return frame[:8] + length.to_bytes(2, order) + frame[10:HEADER_LEN] + block + frame[-2:]
 
 
-def wrong_lengths(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> dict[int, int]:
+def wrong_lengths(causes: Sequence[RootCause], cases: Sequence[CaseResult], order: Order = "big") -> dict[int, int]:
     """action -> a wrong block length a case quotes for it, answered 0000 (from the root causes' cases)."""
     ids = {c for cause in causes for c in cause.cases}
     out: dict[int, int] = {}
@@ -52,7 +54,7 @@ def wrong_lengths(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> d
             continue
         if len(sent) < HEADER_LEN or len(got) < HEADER_LEN or sent[:2] != b"\xfe\xfe":
             continue
-        action, length = sent[5], int.from_bytes(sent[8:10], "big")
+        action, length = sent[5], int.from_bytes(sent[8:10], order)
         if action in BLOCK_ACTIONS and length != BLOCK_ACTIONS[action] and got[5] == action and got[10:12] == b"\0\0":
             out.setdefault(action, length)
     return out
@@ -104,7 +106,8 @@ def length_title(action: int, rule: str, right: int, accepted: list[int], refuse
 def run(p: Prober, causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> Found:
     found = Found(Experiment("block-length", "the quoted request with other block lengths, each alone: which "
                                              "lengths does the box accept?"))
-    targets = wrong_lengths(causes, cases)
+    order = p.profile.byte_order
+    targets = wrong_lengths(causes, cases, order)
     if not targets:
         found.stories["block-length"] = (Status.UNTESTED, "no case quotes a wrong block length answered 0000")
         return found
@@ -113,7 +116,7 @@ def run(p: Prober, causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> 
     base = block_request(p, action, 1)
     results: dict[int, bool | None] = {}
     for length in grid(right):
-        ok = _accepted(p, found.experiment, with_length(base, length))
+        ok = _accepted(p, found.experiment, with_length(base, length, order))
         if ok is None and p.left() < 1.0:
             break
         results[length] = ok
@@ -122,9 +125,9 @@ def run(p: Prober, causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> 
     if rule:
         same = {a for a in targets if BLOCK_ACTIONS[a] == right}
         for other in sorted(same - {action}):
-            if not _accepted(p, found.experiment, with_length(block_request(p, other, 1), accepted[0])):
+            if not _accepted(p, found.experiment, with_length(block_request(p, other, 1), accepted[0], order)):
                 same.discard(other)
-        repro = [(with_length(base, accepted[0]), Expect("invalid", action))]
+        repro = [(with_length(base, accepted[0], order), Expect("invalid", action))]
         found.mechanisms.append(_mech("block-length", same, found, ("B1" if right == 25 else "B2", "B5", "R1"), repro,
                                       title=length_title(action, rule, right, accepted, refused), rule=rule,
                                       accepted=accepted, refused=refused, explains=EXPLAINS))
