@@ -50,7 +50,7 @@ def _first_answers(p: Prober, alone: Experiment | None, asked: Iterable[int],
             out.append((ex.frames[0][5], ex.frames[0], reading.answers[0].raw, reading.answers[0].error))
     for action in (a for a in (PROG_IDX, RESULT) if a in set(asked)):
         frame = extension_request(p, action)
-        got = p.exchange([frame], settle=False)
+        got = p.exchange([frame], quiet=[True], settle=False)  # a short wait: a 27 may legally take its time (E5)
         if got is None or not got.reached:
             break
         exp.exchanges.append(got)
