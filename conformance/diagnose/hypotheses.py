@@ -182,8 +182,10 @@ class Mechanism:
 
 
 #: mechanism kinds, in the order one explains a root cause before the next
-KINDS = ("count-limit", "byte-limit", "index", "block-length", "error-byte-order", "answer-shape", "extra-answer", "echo-one", "echo-all", "cycle-dependent",
+KINDS: tuple[str, ...] = ("count-limit", "byte-limit", "index", "extra-answer", "echo-one", "echo-all", "cycle-dependent",
          "state-leak", "connection-count", "missing-answer", "refuses-valid", "order-dependent", "reproduces")
+#: answers built wrongly and fields accepted (:mod:`.answer_family`, :mod:`.block_length`): after the size kinds
+KINDS = (*KINDS[:3], "block-length", "error-byte-order", "answer-shape", *KINDS[3:])
 
 
 # -- answers to one valid request alone (pure) ---------------------------------------------------------------

@@ -30,9 +30,10 @@ _NAMES = {"count-limit": "a limit on the block count", "byte-limit": "a limit on
           "missing-answer": "an answer missing (later answers shifted back)", "refuses-valid": "a valid request refused",
           "state-leak": "state left by an error answer spoils the next answer",
           "cycle-dependent": "depends on the cycle state", "connection-count": "depends on how many requests the "
-          "connection carried", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)",
-          "block-length": "a wrong block length accepted", "error-byte-order": "error codes written little-endian",
-          "answer-shape": "an answer's block fields built wrongly"}
+          "connection carried", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)"}
+
+_NAMES.update({"block-length": "a wrong block length accepted", "error-byte-order": "error codes written little-endian",
+               "answer-shape": "an answer's fields built wrongly"})
 
 
 def statement(kind: str) -> str:
