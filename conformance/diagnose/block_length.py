@@ -1,4 +1,4 @@
-"""A block length accepted that should be refused: the field isolated, and the accepted range measured.
+"""A block length (or a block count of 0) accepted that should be refused: the field isolated, the range measured.
 
 When a root cause's cases quote a block request whose block length L is not its block type's (B1: 25, B2: 5)
 and the box answered it 0000, :func:`run` sends the same one-block request with L over a grid (one below, one
@@ -8,6 +8,9 @@ and :func:`length_story` names the rule the box applies instead of ``L == right`
 * ``at-least`` — every L above the right one accepted, every L below refused: checks ``L >= 25``;
 * ``low-byte`` — exactly the lengths whose low byte is right accepted: reads byte 9 only;
 * ``at-most`` — the mirror of ``at-least``; ``some`` — otherwise, the accepted lengths listed.
+
+A case that quotes a block request with block count 0 answered 0000 has each block action sent with count 0 alone:
+the actions that accept it are named (B5: a block count of 1–255).
 """
 
 from __future__ import annotations
@@ -103,10 +106,59 @@ def length_title(action: int, rule: str, right: int, accepted: list[int], refuse
                                                                clause=clause)
 
 
+# -- block count 0 ------------------------------------------------------------------------------------------
+def zero_counts(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> set[int]:
+    """The block actions a case quotes with block count 0 (no blocks) answered 0000."""
+    ids = {c for cause in causes for c in cause.cases}
+    out: set[int] = set()
+    for case in cases:
+        if case.id not in ids:
+            continue
+        try:
+            sent, got = bytes.fromhex(case.sent_hex.partition("…")[0]), bytes.fromhex(case.received_hex.partition("…")[0])
+        except ValueError:
+            continue
+        if len(sent) >= HEADER_LEN and len(got) >= HEADER_LEN and sent[:2] == b"\xfe\xfe" and sent[5] in BLOCK_ACTIONS \
+                and sent[7] == 0 and got[5] == sent[5] and got[10:12] == b"\0\0":
+            out.add(sent[5])
+    return out
+
+
+def without_blocks(frame: bytes) -> bytes:
+    """``frame``'s header with block count 0 and no blocks (block type and length kept), then its check field."""
+    return frame[:7] + b"\0" + frame[8:HEADER_LEN] + frame[-2:]
+
+
+def zero_title(actions: Sequence[int]) -> str:
+    named = ", ".join(titles.name(a) for a in sorted(actions))
+    return gettext("Accepts {actions} with block count 0 (no blocks at all) and answers 0000: B1/B2/B5 ask for a block "
+                   "count of 1–255 — refuse a request with block count 0").format(actions=named)
+
+
+def _zero_count(p: Prober, causes: Sequence[RootCause], cases: Sequence[CaseResult], found: Found) -> None:
+    quoted = zero_counts(causes, cases)
+    if not quoted:
+        found.stories["block-count"] = (Status.UNTESTED, "no case quotes a block count 0 answered 0000")
+        return
+    accepted = []
+    for action in sorted(BLOCK_ACTIONS):
+        if _accepted(p, found.experiment, without_blocks(block_request(p, action, 1))):
+            accepted.append(action)
+    found.experiment.finding = f"block count 0 accepted for {[f'{a:02X}' for a in accepted]}"
+    if not accepted:
+        found.stories["block-count"] = (Status.RULED_OUT, "block count 0 refused alone on a fresh connection")
+        return
+    repro = [(without_blocks(block_request(p, accepted[0], 1)), Expect("invalid", accepted[0]))]
+    found.mechanisms.append(_mech("block-count", set(accepted), found, ("B5", "A3", "R1"), repro,
+                                  title=zero_title(accepted), explains=EXPLAINS))
+    found.stories["block-count"] = (Status.CONFIRMED, found.experiment.finding)
+
+
 def run(p: Prober, causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> Found:
-    found = Found(Experiment("block-length", "the quoted request with other block lengths, each alone: which "
-                                             "lengths does the box accept?"))
+    found = Found(Experiment("block-length", "the quoted request with other block lengths (and each block action with "
+                                             "block count 0), each alone: which does the box accept?"))
     order = p.profile.byte_order
+    _zero_count(p, causes, cases, found)
     targets = wrong_lengths(causes, cases, order)
     if not targets:
         found.stories["block-length"] = (Status.UNTESTED, "no case quotes a wrong block length answered 0000")
@@ -121,7 +173,8 @@ def run(p: Prober, causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> 
             break
         results[length] = ok
     rule, accepted, refused = length_story(right, results)
-    found.experiment.finding = f"{titles.name(action)}: accepted L = {accepted}, refused L = {refused}"
+    found.experiment.finding = "; ".join(filter(None, [found.experiment.finding, f"{titles.name(action)}: accepted L "
+                                                       f"= {accepted}, refused L = {refused}"]))
     if rule:
         same = {a for a in targets if BLOCK_ACTIONS[a] == right}
         for other in sorted(same - {action}):

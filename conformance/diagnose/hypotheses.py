@@ -185,7 +185,7 @@ class Mechanism:
 KINDS: tuple[str, ...] = ("count-limit", "byte-limit", "index", "extra-answer", "echo-one", "echo-all", "cycle-dependent",
          "state-leak", "connection-count", "missing-answer", "refuses-valid", "order-dependent", "reproduces")
 #: answers built wrongly and fields accepted (:mod:`.answer_family`, :mod:`.block_length`): after the size kinds
-KINDS = (*KINDS[:3], "block-length", "error-byte-order", "answer-shape", *KINDS[3:])
+KINDS = (*KINDS[:3], "block-length", "block-count", "error-byte-order", "answer-shape", *KINDS[3:])
 
 
 # -- answers to one valid request alone (pure) ---------------------------------------------------------------

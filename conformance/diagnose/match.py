@@ -32,7 +32,7 @@ _NAMES = {"count-limit": "a limit on the block count", "byte-limit": "a limit on
           "cycle-dependent": "depends on the cycle state", "connection-count": "depends on how many requests the "
           "connection carried", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)"}
 
-_NAMES.update({"block-length": "a wrong block length accepted", "error-byte-order": "error codes written little-endian",
+_NAMES.update({"block-length": "a wrong block length accepted", "block-count": "block count 0 accepted", "error-byte-order": "error codes written little-endian",
                "answer-shape": "an answer's fields built wrongly"})
 
 

@@ -13,7 +13,17 @@ from conformance.diagnose.answer_shape import (
     swap_title,
     swapped,
 )
-from conformance.diagnose.block_length import EXPLAINS, grid, length_story, length_title, with_length, wrong_lengths
+from conformance.diagnose.block_length import (
+    EXPLAINS,
+    grid,
+    length_story,
+    length_title,
+    with_length,
+    without_blocks,
+    wrong_lengths,
+    zero_counts,
+    zero_title,
+)
 from conformance.diagnose.hypotheses import KINDS, Expect, Mechanism
 from conformance.model.verdicts import CaseResult, Level, RootCause, Verdict
 
@@ -117,3 +127,16 @@ def test_the_byte_order_experiment_is_hinted_only_by_a_code_that_is_a_named_code
     assert swap_hints([swapped_pose]) == {0x0110}
     assert swap_hints([bytes.fromhex("fefe00011023000000001001 0000"), bytes.fromhex("fefe0001100200000000ffff0000")]) \
         == set()
+
+
+def test_a_block_count_0_answered_0000_is_read_from_the_cases_and_sent_without_blocks() -> None:
+    empty = without_blocks(POSE_REQ)
+    assert empty == bytes.fromhex("fefe00010123010000190000" "0000")
+    zero = CaseResult("B5-01[pose-N0]", "t", ("B5",), Level.MUST, Verdict.FAIL, "m", sent_hex=empty.hex(" "),
+                      received_hex=POSE_ANS.hex(" "))
+    refused = CaseResult("B5-01[tolerance-N0]", "t", ("B5",), Level.MUST, Verdict.FAIL, "m",
+                         sent_hex="fefe00010125020000050000" "0000", received_hex="fefe00011025000000001002" "0000")
+    cause = RootCause("RC1", ("B5",), "t", "e", [zero.id, refused.id], kind="wrong-code")
+    assert zero_counts([cause], [zero, refused]) == {0x23}
+    title = zero_title([0x23, 0x24]).lower()
+    assert "block count 0" in title and "pose (23), register pose (24)" in title
