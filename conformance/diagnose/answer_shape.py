@@ -63,10 +63,11 @@ def shape_diff(action: int, request: bytes, answer: bytes, order: Order = "big")
     bt, count, length = answer[6], answer[7], _u16(answer, 8, order)
     head = bytes(answer[6:10])
     if shape.block_type is BlockType.EMPTY:
-        if count == 0 and bt == 0 and length == 0:
-            return None
+        if count == 0:  # no blocks, yet a block type or length other than 00 / 0 in the header
+            return (ShapeDiff(action, "block-type", bt, 0, head) if bt else
+                    ShapeDiff(action, "block-length", length, 0, head) if length else None)
         body = request[HEADER_LEN:HEADER_LEN + request[7] * _u16(request, 8, order)]
-        same = head == bytes(request[6:10]) and count > 0 and answer[HEADER_LEN:HEADER_LEN + len(body)] == body
+        same = head == bytes(request[6:10]) and answer[HEADER_LEN:HEADER_LEN + len(body)] == body
         return ShapeDiff(action, "echo-blocks" if same else "blocks-attached", count, 0, head)
     want_len = BLOCK_LEN[shape.block_type]
     if bt != shape.block_type:
@@ -125,6 +126,9 @@ def shape_title(diffs: Sequence[ShapeDiff]) -> str:
         return gettext("Answers the result request (27) with the value {got} in its type-03 block, which is not a "
                        "ResultCode a box sends (E3: 1, 2, 10, 20, 202, 400, 409) — answer with a ResultCode").format(
             got=first.got)
+    if first.field == "block-type" and first.want == 0:
+        return gettext("Answers {actions} with block type {got:02X} (and no blocks) where A2 asks for block type 00 in "
+                       "an answer without blocks — write block type 00").format(actions=actions, got=first.got)
     if first.field == "block-type":
         return gettext("Answers {actions} with block type {got:02X} where {clause} asks for block type {want:02X} "
                        "(the answer's block is of the wrong type) — answer with a type-{want:02X} block").format(

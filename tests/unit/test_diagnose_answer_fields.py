@@ -140,3 +140,12 @@ def test_a_block_count_0_answered_0000_is_read_from_the_cases_and_sent_without_b
     assert zero_counts([cause], [zero, refused]) == {0x23}
     title = zero_title([0x23, 0x24]).lower()
     assert "block count 0" in title and "pose (23), register pose (24)" in title
+
+
+def test_an_answer_without_blocks_whose_header_still_names_a_block_type_or_length_is_named_by_that_field() -> None:
+    typed = shape_diff(0x23, POSE_REQ, bytes.fromhex("fefe00011023010000000000" "0000"))
+    assert typed is not None and (typed.field, typed.got, typed.want) == ("block-type", 1, 0)
+    assert "block type 01 (and no blocks)" in shape_title([typed])
+    long = shape_diff(0x23, POSE_REQ, bytes.fromhex("fefe00011023000000190000" "0000"))
+    assert long is not None and (long.field, long.got, long.want) == ("block-length", 25, 0)
+    assert "block length 25 where A2" in shape_title([long])
