@@ -7,7 +7,8 @@ and :func:`length_story` names the rule the box applies instead of ``L == right`
 
 * ``at-least`` — every L above the right one accepted, every L below refused: checks ``L >= 25``;
 * ``low-byte`` — exactly the lengths whose low byte is right accepted: reads byte 9 only;
-* ``at-most`` — the mirror of ``at-least``; ``some`` — otherwise, the accepted lengths listed.
+* ``at-most`` — the mirror of ``at-least``; ``any`` — every length tried accepted, below and above;
+* ``some`` — otherwise, the accepted lengths listed.
 
 A case that quotes a block request with block count 0 answered 0000 has each block action sent with count 0 alone:
 the actions that accept it are named (B5: a block count of 1–255).
@@ -76,6 +77,8 @@ def length_story(right: int, results: dict[int, bool | None]) -> tuple[str, list
         return "at-least", accepted, refused
     if all(v < right for v in accepted) and all(v > right for v in refused):
         return "at-most", accepted, refused
+    if not refused and any(v < right for v in accepted) and len(accepted) >= 3:
+        return "any", accepted, refused
     return "some", accepted, refused
 
 
@@ -101,6 +104,10 @@ def length_title(action: int, rule: str, right: int, accepted: list[int], refuse
         return gettext("Accepts {what} blocks of any block length up to {right} (L = {shown} answered 0000): checks "
                        "L <= {right} instead of L == {right} — {clause} ask for block length exactly {right}").format(
             what=_what(action), right=right, shown=shown, clause=clause)
+    if rule == "any":
+        return gettext("Does not check the block length of {what} requests: every block length tried ({low} to {high}) "
+                       "is answered 0000 — {clause} ask for block length exactly {right}: refuse any other").format(
+            what=_what(action), low=accepted[0], high=accepted[-1], clause=clause, right=right)
     return gettext("Accepts {what} blocks of block length {shown} (answered 0000) where {clause} ask for block length "
                    "exactly {right} — refuse any other").format(what=_what(action), shown=shown, right=right,
                                                                clause=clause)

@@ -149,3 +149,10 @@ def test_an_answer_without_blocks_whose_header_still_names_a_block_type_or_lengt
     long = shape_diff(0x23, POSE_REQ, bytes.fromhex("fefe00011023000000190000" "0000"))
     assert long is not None and (long.field, long.got, long.want) == ("block-length", 25, 0)
     assert "block length 25 where A2" in shape_title([long])
+
+
+def test_every_block_length_accepted_is_told_as_no_length_check_at_all() -> None:
+    rule, accepted, refused = length_story(25, {v: True for v in grid(25)})
+    assert rule == "any" and refused == []
+    title = length_title(0x23, rule, 25, accepted, refused)
+    assert "Does not check the block length" in title and "24 to 537" in title
