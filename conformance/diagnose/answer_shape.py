@@ -93,7 +93,8 @@ def _value_diff(action: int, request: bytes, answer: bytes, order: Order) -> Sha
     return None
 
 
-def _names(actions: Iterable[int]) -> str:
+def names(actions: Iterable[int]) -> str:
+    """Actions as a title lists them: \"pose (23), register pose (24) and tolerance (25)\"."""
     named = [titles.name(a) for a in sorted(set(actions))]
     return named[0] if len(named) == 1 else gettext("{some} and {last}").format(some=", ".join(named[:-1]),
                                                                               last=named[-1])
@@ -102,7 +103,7 @@ def _names(actions: Iterable[int]) -> str:
 def shape_title(diffs: Sequence[ShapeDiff]) -> str:
     """One line for the answers of one defect (``diffs`` share their field), in the protocol's words."""
     first = diffs[0]
-    actions = _names(d.action for d in diffs)
+    actions = names(d.action for d in diffs)
     head = first.header.hex(" ")
     if first.field == "echo-blocks":
         return gettext("Answers {actions} with the request's blocks copied back (block type, count, length and data "

@@ -22,7 +22,7 @@ from ..i18n import gettext
 from ..model.verdicts import CaseResult, RootCause
 from ..protocol.constants import HEADER_LEN
 from . import titles
-from .answer_shape import Order
+from .answer_shape import Order, names
 from .experiments import BLOCK_ACTIONS, Prober, block_request
 from .families import Found, _accepted, _mech
 from .hypotheses import Expect, Experiment, Status
@@ -137,7 +137,7 @@ def without_blocks(frame: bytes) -> bytes:
 
 
 def zero_title(actions: Sequence[int]) -> str:
-    named = ", ".join(titles.name(a) for a in sorted(actions))
+    named = names(actions)
     return gettext("Accepts {actions} with block count 0 (no blocks at all) and answers 0000: B1/B2/B5 ask for a block "
                    "count of 1–255 — refuse a request with block count 0").format(actions=named)
 

@@ -139,7 +139,7 @@ def test_a_block_count_0_answered_0000_is_read_from_the_cases_and_sent_without_b
     cause = RootCause("RC1", ("B5",), "t", "e", [zero.id, refused.id], kind="wrong-code")
     assert zero_counts([cause], [zero, refused]) == {0x23}
     title = zero_title([0x23, 0x24]).lower()
-    assert "block count 0" in title and "pose (23), register pose (24)" in title
+    assert "block count 0" in title and "pose (23) and register pose (24)" in title
 
 
 def test_an_answer_without_blocks_whose_header_still_names_a_block_type_or_length_is_named_by_that_field() -> None:
