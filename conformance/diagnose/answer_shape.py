@@ -94,7 +94,7 @@ def _value_diff(action: int, request: bytes, answer: bytes, order: Order) -> Sha
 
 
 def names(actions: Iterable[int]) -> str:
-    """Actions as a title lists them: \"pose (23), register pose (24) and tolerance (25)\"."""
+    """Actions as a title lists them: pose (23), register pose (24) and tolerance (25)."""
     named = [titles.name(a) for a in sorted(set(actions))]
     return named[0] if len(named) == 1 else gettext("{some} and {last}").format(some=", ".join(named[:-1]),
                                                                               last=named[-1])
