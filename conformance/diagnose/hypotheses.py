@@ -182,10 +182,14 @@ class Mechanism:
 
 
 #: mechanism kinds, in the order one explains a root cause before the next
-KINDS = ("count-limit", "byte-limit", "index", "extra-answer", "echo-one", "echo-all", "cycle-dependent",
-         "state-leak", "connection-count", "latency-per-block", "latency-per-request", "stall", "late-answer",
-         "peer-close", "open-limit", "idle-close", "age-close", "missing-answer", "refuses-valid",
-         "order-dependent", "reproduces")
+KINDS: tuple[str, ...] = (
+    "count-limit", "byte-limit", "index",
+    # answers built wrongly and fields accepted (:mod:`.answer_family`, :mod:`.block_length`): after the size kinds
+    "block-length", "block-count", "error-byte-order", "answer-shape",
+    "extra-answer", "echo-one", "echo-all", "cycle-dependent", "state-leak", "connection-count",
+    "latency-per-block", "latency-per-request", "stall", "late-answer",
+    "peer-close", "open-limit", "idle-close", "age-close", "missing-answer", "refuses-valid",
+    "order-dependent", "reproduces")
 
 
 # -- answers to one valid request alone (pure) ---------------------------------------------------------------

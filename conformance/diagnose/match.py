@@ -37,6 +37,9 @@ _NAMES = {"count-limit": "a limit on the block count", "byte-limit": "a limit on
           "age-close": "closes every connection some time after it opened", "closes-at-request": "the request "
           "itself closes the connection", "order-dependent": "shows only after other frames on the same connection", "reproduces": "a defect of the request alone (reproduces on a fresh connection)"}
 
+_NAMES.update({"block-length": "a wrong block length accepted", "block-count": "block count 0 accepted", "error-byte-order": "error codes written little-endian",
+               "answer-shape": "an answer's fields built wrongly"})
+
 
 def statement(kind: str) -> str:
     return _NAMES.get(kind, kind)
@@ -115,6 +118,8 @@ def _sent_actions(sent_hex: str, anywhere: bool = False) -> set[int]:
 
 
 def explains(m: Mechanism, f: CauseFacts) -> bool:
+    if "explains" in m.detail:  # a mechanism that explains only the catalogue's stories it names
+        return f.kind in m.detail["explains"] and bool(m.actions & f.asked)
     if m.kind in ("count-limit", "byte-limit", "index"):  # the story the catalogue read, or its cases' sizes
         if f.kind == "block-position":
             return True

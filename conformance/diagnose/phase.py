@@ -27,7 +27,9 @@ from ..model.verdicts import CaseResult, Level, RootCause
 from ..protocol import Action, Profile
 from ..runtime.run_state import SessionState
 from . import (
+    answer_family,
     batching,
+    block_length,
     conn_deaths,
     conn_limit,
     conn_peers,
@@ -128,6 +130,9 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     refine_refused(p, lab.mechanisms)  # a valid request refused: its block length read little-endian? (issue 34)
     if p.unreachable:
         return
+    lab.add(answer_family.shapes(p, lab.experiments.get("alone"), involved))  # answers built wrongly, field by field
+    lab.add(answer_family.byte_order(p, lab.experiments.get("alone"), probed, cases))
+    lab.add(block_length.run(p, probed, cases))  # a wrong block length accepted: the accepted range
     waiting = [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
     for found in timing.run(p, waiting, {c.id: facts_by[c.id].asked for c in waiting}, alone):
         lab.add(found)  # not answered within time_out: late, a stall, latency per block? (first: they wait long)
