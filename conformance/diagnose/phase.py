@@ -38,6 +38,7 @@ from . import (
     deaths,
     families,
     match,
+    prog_idx_value,
     result_state,
     segments,
     timing,
@@ -131,6 +132,7 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
     if p.unreachable:
         return
     lab.add(answer_family.shapes(p, lab.experiments.get("alone"), involved))  # answers built wrongly, field by field
+    lab.add(prog_idx_value.run(p, involved))  # the ProgIdx int32 echoed another way: which reading?
     lab.add(answer_family.byte_order(p, lab.experiments.get("alone"), probed, cases))
     lab.add(block_length.run(p, probed, cases))  # a wrong block length accepted: the accepted range
     waiting = [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]
