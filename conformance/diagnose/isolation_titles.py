@@ -41,6 +41,11 @@ def unchecked(field: str, values: list[str], action: int | None) -> str:
 
 def one_byte(field: str, low: bool, value: str, action: int | None) -> str:
     what, clause, allowed = _FIELDS.get(field, (field, "R1", "its legal values"))
+    if field == "start_word":  # a byte pattern, not a number: its first and second byte
+        checked, ignored = (gettext("second"), gettext("first")) if low else (gettext("first"), gettext("second"))
+        return gettext("Checks only the {checked} byte of the start word: answers 0000 to {action} with the start word "
+                       "{value} (its {ignored} byte ignored); F1 allows only FE FE — check both bytes").format(
+            checked=checked, ignored=ignored, action=name(action), value=value)
     if low:
         return gettext("Reads only the low byte of {field}: answers 0000 to {action} with {field} {value} (its high "
                        "byte ignored); {clause} allow only {allowed} — read and check both bytes").format(

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from ..model.signature import Sig, Signature
 from ..model.verdicts import CaseResult
 from ..protocol import ProtocolError, TransferType, Transport, parse_header
-from ..protocol.constants import HEADER_LEN, START_WORD
+from ..protocol.constants import HEADER_LEN
 from .experiments import Prober
 from .families import Found
 from .hypotheses import LEGAL_CODES, Exchange, Expect, Experiment, Mechanism, Status
@@ -45,7 +45,7 @@ def expect_of(frame: bytes, prober: Prober) -> Expect:
     action = 0
     if len(frame) >= HEADER_LEN:
         header = parse_header(frame[:HEADER_LEN])
-        action = header.action if header.start_word == START_WORD else 0
+        action = header.action  # what a box reading the header takes for the action, whatever its start word (F1)
     try:
         parsed = prober.codec.parse(frame, Transport.TCP, TransferType.ROBOT_TO_BOX)
     except ProtocolError:

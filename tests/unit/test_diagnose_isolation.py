@@ -149,3 +149,12 @@ def test_a_death_is_named_with_the_input_it_followed() -> None:
     assert leak.title.startswith("Stops accepting new connections after a header announcing 255 × 65535 block bytes")
     assert "length beyond the largest legal frame" in leak.title and "still served" in leak.title
     assert unconfirmed.title == "unconfirmed: …"  # only what the phase confirmed is retitled
+
+
+def test_a_start_word_read_from_one_byte_is_named_by_its_first_and_second_byte() -> None:
+    from conformance.diagnose import isolation_titles
+
+    title = isolation_titles.one_byte("start_word", False, "fe ff", 0x23)
+    assert title.startswith("Checks only the first byte of the start word") and "second byte ignored" in title
+    assert "fe ff" in title and "F1" in title
+    assert "second byte of the start word" in isolation_titles.one_byte("start_word", True, "ff fe", 0x23)
