@@ -10,10 +10,14 @@
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterable, Sequence
 
+from ..harness.target import Unreachable
+from ..i18n import gettext
 from ..model.verdicts import CaseResult, RootCause
-from ..protocol import ACTION_ERROR, Action, Transport, ValueBlock, request
+from ..protocol import ACTION_ERROR, Action, Transport, ValueBlock, peek_header, request
+from ..protocol.constants import CHECK_LEN, HEADER_LEN, START_WORD
 from .answer_shape import (
     Observed,
     ShapeDiff,
@@ -142,3 +146,55 @@ def byte_order(p: Prober, alone: Experiment | None, causes: Sequence[RootCause] 
         (Status.RULED_OUT, why) if seen else (Status.UNTESTED, "no error code heard"))
     found.experiment.finding = why
     return found
+
+
+#: how long the bytes after a lone request's answer are read for
+TRAILING_SETTLE_S = 0.3
+
+
+def trailing(p: Prober, asked: Iterable[int]) -> Found:
+    """A lone NONE on a fresh connection, every byte read for a moment after its answer: one frame and nothing
+    else, or one frame followed by bytes that are not a frame (a buffer sized past the frame)? A box that writes
+    one stray byte after each answer looks, to a reader, like a box answering twice."""
+    found = Found(Experiment("answer-bytes", "a lone NONE on a fresh connection: exactly one frame's bytes back, or "
+                                             "the frame followed by bytes that are not a frame?"))
+    if int(Action.NONE) not in set(asked) or p.left() < p.dialer.wait_s() + 1.0:
+        return found
+    none = p.valid_request(int(Action.NONE))
+    try:
+        conn = p.dialer.dial("diagnose: the bytes of one answer")
+    except Unreachable:
+        return found
+    p.count += 1
+    try:
+        conn.send(none, "diagnose: a lone NONE")
+        conn.receive(p.dialer.by())
+        conn.receive(time.monotonic() + TRAILING_SETTLE_S)  # whatever follows the answer
+        raw = p.dialer.transcript.received(conn.conn_id)
+    finally:
+        conn.close("diagnose: the bytes of one answer")
+    extra = trailing_bytes(raw, p.profile.byte_order)
+    found.experiment.finding = f"{len(raw)} bytes back: {raw.hex(' ')}"
+    if extra:
+        found.mechanisms.append(_mech("answer-shape", {int(Action.NONE)}, found, ("F5", "A2"),
+                                      [(none, Expect("valid", int(Action.NONE)))], title=trailing_title(raw, extra),
+                                      field="trailing"))
+    return found
+
+
+def trailing_bytes(raw: bytes, byte_order: str) -> bytes:
+    """The bytes after the first answer frame in ``raw`` when they are fewer than a header and hold no start word
+    (b"" when ``raw`` is one frame exactly, or more frames follow)."""
+    head = peek_header(raw, 0, byte_order)
+    if head is None or head.start_word != START_WORD:
+        return b""
+    end = HEADER_LEN + head.block_count * head.block_length + CHECK_LEN
+    rest = raw[end:]
+    return rest if 0 < len(rest) < HEADER_LEN and START_WORD.to_bytes(2, "big") not in rest else b""
+
+
+def trailing_title(raw: bytes, extra: bytes) -> str:
+    return gettext("Writes {n} extra byte(s) ({hex}) after each answer's check field ({size} bytes for a {frame}-byte "
+                   "frame): the next answer then seems to start with a stray byte, as if the box answered twice; "
+                   "F5/A2 ask for exactly 12+N×L+2 bytes per answer — size the answer buffer to the frame").format(
+        n=len(extra), hex=extra.hex(" "), size=len(raw), frame=len(raw) - len(extra))

@@ -133,6 +133,9 @@ def _run(p: Prober, lab: _Lab, probed: list[RootCause], facts_by: dict[str, matc
         return
     lab.add(answer_family.shapes(p, lab.experiments.get("alone"), involved))  # answers built wrongly, field by field
     lab.add(prog_idx_value.run(p, involved))  # the ProgIdx int32 echoed another way: which reading?
+    extra = any(m.kind == "extra-answer" for m in lab.mechanisms)  # two answers, or one answer and a stray byte?
+    if extra and lab.add(answer_family.trailing(p, involved)).mechanisms:
+        lab.mechanisms = [m for m in lab.mechanisms if m.kind != "extra-answer"]  # the stray byte read as one
     lab.add(answer_family.byte_order(p, lab.experiments.get("alone"), probed, cases))
     lab.add(block_length.run(p, probed, cases))  # a wrong block length accepted: the accepted range
     waiting = [c for c in probed if match.pick(lab.mechanisms, facts_by[c.id]) is None]

@@ -156,3 +156,15 @@ def test_every_block_length_accepted_is_told_as_no_length_check_at_all() -> None
     assert rule == "any" and refused == []
     title = length_title(0x23, rule, 25, accepted, refused)
     assert "Does not check the block length" in title and "24 to 537" in title
+
+
+def test_one_answer_and_a_stray_byte_is_told_from_two_answers() -> None:
+    from conformance.diagnose.answer_family import trailing_bytes, trailing_title
+
+    answer = bytes.fromhex("fefe00011000000000000000" "0000")
+    assert trailing_bytes(answer + b"\x00", "big") == b"\x00"
+    assert trailing_bytes(answer, "big") == b""  # one frame exactly
+    assert trailing_bytes(answer + answer, "big") == b""  # two answers: a real extra answer, not a stray byte
+    assert trailing_bytes(b"\x00" + answer, "big") == b""  # not an answer first
+    title = trailing_title(answer + b"\x00", b"\x00")
+    assert "1 extra byte(s) (00)" in title and "15 bytes for a 14-byte frame" in title and "F5" in title
