@@ -19,6 +19,7 @@ robot's lone request waits while a stream looks almost fine. The experiments, ea
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from ..harness.client import Answer, Closed, Malformed, TcpConnection
@@ -104,28 +105,25 @@ def measure(p: Prober, exp: Experiment, time_out_s: float) -> Measured:
     if lone_s <= time_out_s:
         return Measured(lone_s, time_out_s)
     together: list[tuple[int, int]] = [(COUNTS[-1], most[0])]
-    for n in COUNTS[:-1]:
-        if p.left() < BATCH_WAIT_S + 0.5:
-            break
-        got = _trial(p, exp, n, BATCH_WAIT_S)
-        if got is None:
-            break
-        together.append((n, got[0]))
-        if got[0] >= n:
-            break
+    _until_prompt(p, exp, COUNTS[:-1], together)
     prompt = [n for n, got in together if got >= n]
     held = [n for n, got in together if got < n]
     if prompt and held:  # narrowed between the largest count held back and the smallest answered at once
-        for n in range(max(held) + 1, min(prompt)):
-            if p.left() < BATCH_WAIT_S + 0.5:
-                break
-            got = _trial(p, exp, n, BATCH_WAIT_S)
-            if got is None:
-                break
-            together.append((n, got[0]))
-            if got[0] >= n:
-                break
+        _until_prompt(p, exp, range(max(held) + 1, min(prompt)), together)
     return Measured(lone_s, time_out_s, tuple(together))
+
+
+def _until_prompt(p: Prober, exp: Experiment, counts: Iterable[int], together: list[tuple[int, int]]) -> None:
+    """Each count sent together in turn, until one is answered at once (appended to ``together``)."""
+    for n in counts:
+        if p.left() < BATCH_WAIT_S + 0.5:
+            return
+        got = _trial(p, exp, n, BATCH_WAIT_S)
+        if got is None:
+            return
+        together.append((n, got[0]))
+        if got[0] >= n:
+            return
 
 
 def title_of(kind: str, m: Measured, n: int | None) -> str:
