@@ -16,9 +16,12 @@ that stopped answering fresh connections is not probed at all.
 
 from __future__ import annotations
 
+import sys
 import time
+import traceback
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from ..engine.rootcause import SessionFacts
@@ -293,6 +296,15 @@ def run_phase(state: SessionState, cases: Sequence[CaseResult], causes: Sequence
     target = state.settings.target
     if target is None or not causes:
         return list(causes)
-    done = diagnose(causes, cases, facts, target, state.profile, state.time_out_s, udp_target=state.udp_target())
+    try:
+        done = diagnose(causes, cases, facts, target, state.profile, state.time_out_s, udp_target=state.udp_target())
+    except Exception as exc:  # a defect of the phase never costs the run its reports: the causes stay as read
+        frames = traceback.extract_tb(exc.__traceback__)
+        where = next((f for f in reversed(frames) if "conformance" in f.filename), frames[-1])
+        note = f"the diagnose phase stopped ({type(exc).__name__}: {exc}, at {Path(where.filename).name}:{where.lineno})"
+        print(f"isight-conformance: {note}; the root causes are reported as read from the verdicts", file=sys.stderr)
+        for cause in causes:
+            cause.diagnosis = {"confirmed": None, "error": note}
+        return list(causes)
     relink(done.causes, cases)
     return done.causes

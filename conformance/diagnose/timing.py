@@ -302,7 +302,10 @@ def _per_request(p: Prober, found: Found, none: bytes, growth: J.Growth, first: 
 
 # -- the family ---------------------------------------------------------------------------------------------------------
 def _actions(causes: Sequence[RootCause], asked: Mapping[str, frozenset[int]]) -> list[int]:
-    return sorted(set().union(*(asked.get(c.id, frozenset()) for c in causes if c.kind in FOR_KINDS)))
+    """The requests the causes asked for that PROTOCOL.md defines (a fuzz case's bytes may carry any action byte:
+    an unknown one has no valid request to time)."""
+    known = {int(a) for a in Action}
+    return sorted(set().union(*(asked.get(c.id, frozenset()) for c in causes if c.kind in FOR_KINDS)) & known)
 
 
 def run(p: Prober, causes: Sequence[RootCause], asked: Mapping[str, frozenset[int]],

@@ -132,3 +132,12 @@ def test_a_late_answer_ranks_after_a_mechanism_in_the_answers_and_before_a_story
     done = _ordered([cause("again", "reproduces"), cause("late", J.LATE), cause("open", None),
                      cause("size", "byte-limit")], {})
     assert [c.title for c in done.causes] == ["size", "late", "again", "open"]
+
+
+def test_an_action_protocol_md_does_not_define_is_not_timed() -> None:
+    # a fuzz case's bytes may carry any action byte (03 here): there is no valid request of it to send
+    from conformance.diagnose.timing import _actions
+    from conformance.model.verdicts import RootCause
+
+    cause = RootCause("RC1", ("T1",), "t", "e", [], kind="unanswered")
+    assert _actions([cause], {"RC1": frozenset({0x03, 0x23, 0x00})}) == [0x00, 0x23]
