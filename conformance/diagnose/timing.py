@@ -127,7 +127,7 @@ def late(p: Prober, action: int) -> Found:
         found.stories[k] = (status, why)
     found.experiment.finding = "; ".join(why for _, _, why in stories[:1])
     if kind:
-        found.mechanisms.append(_mech(kind, {action}, found, ("T1",) if kind == J.LATE else ("T1", "S4"),
+        found.mechanisms.append(_mech(kind, {action}, found, ("T1", "S4") if kind == J.STALL else ("T1",),
                                       [(frame, _expect(action))], J.title_of(kind, detail), detail))
     return found
 

@@ -27,6 +27,7 @@ from .titles import name
 
 LATE = "late-answer"
 STALL = "stall"
+SILENT = "missing-answer"  # never answered, even past time_out, while the box serves another connection
 PER_BLOCK = "latency-per-block"
 BUDGET = "connection-count"  # the same story as families.per_connection, told with its count to the first silence
 PER_REQUEST = "latency-per-request"
@@ -67,6 +68,11 @@ def late_story(f: LateFacts) -> tuple[str, dict[str, Any], list[Story]]:
     """The confirmed kind (``""`` for none), its numbers, and each story's status."""
     if f.latency_s is None:
         why = f"no answer within {seconds(f.waited_s)} ({f.waited_s / f.time_out_s:.1f} × time_out)"
+        if f.other_latency_s is not None and f.other_latency_s < f.time_out_s:  # the box served the other connection
+            why += f"; a NONE on another connection meanwhile was answered in {seconds(f.other_latency_s)}"
+            silent = {"action": f.action, "waited_s": round(f.waited_s, 3), "other_s": round(f.other_latency_s, 3)}
+            return SILENT, silent, [(SILENT, Status.CONFIRMED, why), (LATE, Status.RULED_OUT, why),
+                               (STALL, Status.RULED_OUT, why)]
         return "", {}, [(LATE, Status.RULED_OUT, why), (STALL, Status.RULED_OUT, why)]
     if f.latency_s <= f.time_out_s:
         why = f"answered in {seconds(f.latency_s)}, within time_out, when sent alone"
@@ -245,7 +251,16 @@ def per_request_title(g: Growth, fresh_s: float) -> str:
         last=seconds(g.last_s), n=g.last, fresh=seconds(fresh_s))
 
 
+def silent_title(action: int, waited_s: float, other_s: float) -> str:
+    return gettext("Never answers {action}: no answer within {waited} (past time_out) while a NONE on another "
+                   "connection meanwhile was answered in {other}: A1/T1 ask for one answer within time_out — answer "
+                   "every {action} (with an error code if it cannot be served)").format(
+        action=name(action), waited=seconds(waited_s), other=seconds(other_s))
+
+
 def title_of(kind: str, d: dict[str, Any], points: Sequence[tuple[int, float]] = ()) -> str:
+    if kind == SILENT:
+        return silent_title(int(d["action"]), float(d["waited_s"]), float(d["other_s"]))
     if kind == LATE:
         return late_title(int(d["action"]), float(d["latency_s"]), float(d["time_out_s"]), d.get("other_s"))
     if kind == STALL:

@@ -38,12 +38,19 @@ def test_the_other_connection_unanswered_is_a_stall_too() -> None:
 
 
 def test_no_answer_past_time_out_or_an_answer_in_time_confirms_no_timing_story() -> None:
-    silent = J.late_story(J.LateFacts(CYCLE_ON, 5.0, 15.0, None, 0.003, 0.2))
+    silent = J.late_story(J.LateFacts(CYCLE_ON, 5.0, 15.0, None, None, 0.2))  # the other connection unanswered too
     in_time = J.late_story(J.LateFacts(CYCLE_ON, 5.0, 15.0, 0.01, None, 0.0))
     for kind, _, stories in (silent, in_time):
         assert kind == ""
         assert set(_statuses(stories).values()) == {Status.RULED_OUT}
     assert "3.0 × time_out" in silent[2][0][2]
+
+
+def test_no_answer_past_time_out_while_another_connection_is_served_is_a_missing_answer() -> None:
+    kind, d, stories = J.late_story(J.LateFacts(0x27, 5.0, 10.0, None, 0.003, 0.2))
+    assert kind == J.SILENT and _statuses(stories)[J.SILENT] is Status.CONFIRMED
+    title = J.title_of(kind, d)
+    assert title.startswith("Never answers result request (27): no answer within 10") and "A1/T1" in title
 
 
 def test_latency_growing_on_one_line_gives_the_slope_and_the_count_past_time_out() -> None:
