@@ -24,7 +24,7 @@ from typing import Literal
 from ..i18n import gettext
 from ..protocol import ANSWER_SHAPE, BLOCK_LEN, Action
 from ..protocol.answers import CONFLICT, SENDABLE_RESULTS
-from ..protocol.constants import HEADER_LEN, VALUE_BLOCK_LEN, VERSION, BlockType, TransferType
+from ..protocol.constants import HEADER_LEN, START_WORD, VALUE_BLOCK_LEN, VERSION, BlockType, TransferType
 from . import titles
 
 Order = Literal["big", "little"]
@@ -51,6 +51,8 @@ def shape_diff(action: int, request: bytes, answer: bytes, order: Order = "big")
     transfer type, version, block header (and a 26/27 answer's block value) are allowed (other defects are other
     families' business). ``order``: the profile's byte order of the header and the int32 (F4, E1)."""
     if len(answer) < HEADER_LEN or len(request) < HEADER_LEN:
+        return None
+    if answer[:2] != START_WORD.to_bytes(2, "big") or answer[5] != action:  # not recognisably this request's answer (F1, A2: theirs)
         return None
     try:
         shape = ANSWER_SHAPE[Action(action)]
@@ -146,7 +148,7 @@ def grouped(diffs: Sequence[ShapeDiff]) -> list[list[ShapeDiff]]:
     """The diffs by field (one defect each), the field seen for most actions first."""
     by: dict[tuple[str, int, int], list[ShapeDiff]] = {}
     for d in diffs:
-        key = (d.field, d.got if d.field.startswith("block-") else 0, d.want)
+        key = (d.field, d.got if d.field.startswith("block-") or d.field in ("transfer-type", "version") else 0, d.want)
         by.setdefault(key, []).append(d)
     return sorted(by.values(), key=lambda g: -len(g))
 

@@ -168,3 +168,14 @@ def test_one_answer_and_a_stray_byte_is_told_from_two_answers() -> None:
     assert trailing_bytes(b"\x00" + answer, "big") == b""  # not an answer first
     title = trailing_title(answer + b"\x00", b"\x00")
     assert "1 extra byte(s) (00)" in title and "15 bytes for a 14-byte frame" in title and "F5" in title
+
+
+def test_bytes_that_are_not_recognisably_the_answer_show_no_field() -> None:
+    # a box flooding random bytes: no start word, or another action, is not this request's answer with one field wrong
+    from conformance.diagnose.answer_shape import shape_diff
+
+    none = bytes.fromhex("fefe00010100000000000000" "0000")
+    assert shape_diff(0x00, none, bytes.fromhex("a3fe00017700000000000000" "0000")) is None
+    assert shape_diff(0x00, none, bytes.fromhex("fefe00017723000000000000" "0000")) is None
+    wrong = shape_diff(0x00, none, bytes.fromhex("fefe00010100000000000000" "0000"))
+    assert wrong is not None and wrong.field == "transfer-type"
