@@ -247,7 +247,8 @@ def test_a_robot_that_does_not_wait_for_cycle_on_s_answer_fails_a1_with_the_fram
     assert got.received_hex == (cycle_on + cycle_off).hex(" ")  # the request and the one sent before its answer
     focused = [w for w in got.wire[:3]]
     assert [w.direction for w in focused] == ["←", "←", "→"]
-    assert focused[0].t_ms < focused[1].t_ms < focused[2].t_ms and "held" in focused[2].summary
+    # CycleOn and CycleOff may arrive in one segment (the same receive time); the held answer comes after both
+    assert focused[0].t_ms <= focused[1].t_ms < focused[2].t_ms and "held" in focused[2].summary
     assert verdicts(outcome)["RB-S1-01"] is Verdict.PASS  # the order is right; the waiting is not
 
 
