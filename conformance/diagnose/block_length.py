@@ -16,7 +16,7 @@ the actions that accept it are named (B5: a block count of 1–255).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from ..i18n import gettext
 from ..model.verdicts import CaseResult, RootCause
@@ -45,17 +45,22 @@ def with_length(frame: bytes, length: int, order: Order = "big") -> bytes:
     return frame[:8] + length.to_bytes(2, order) + frame[10:HEADER_LEN] + block + frame[-2:]
 
 
-def wrong_lengths(causes: Sequence[RootCause], cases: Sequence[CaseResult], order: Order = "big") -> dict[int, int]:
-    """action -> a wrong block length a case quotes for it, answered 0000 (from the root causes' cases)."""
+def quoted(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> Iterator[tuple[bytes, bytes]]:
+    """(sent, received) as the root causes' cases quote them (cut at any "…"), readable ones only."""
     ids = {c for cause in causes for c in cause.cases}
-    out: dict[int, int] = {}
     for case in cases:
         if case.id not in ids:
             continue
         try:
-            sent, got = bytes.fromhex(case.sent_hex.partition("…")[0]), bytes.fromhex(case.received_hex.partition("…")[0])
+            yield bytes.fromhex(case.sent_hex.partition("…")[0]), bytes.fromhex(case.received_hex.partition("…")[0])
         except ValueError:
             continue
+
+
+def wrong_lengths(causes: Sequence[RootCause], cases: Sequence[CaseResult], order: Order = "big") -> dict[int, int]:
+    """action -> a wrong block length a case quotes for it, answered 0000 (from the root causes' cases)."""
+    out: dict[int, int] = {}
+    for sent, got in quoted(causes, cases):
         if len(sent) < HEADER_LEN or len(got) < HEADER_LEN or sent[:2] != b"\xfe\xfe":
             continue
         action, length = sent[5], int.from_bytes(sent[8:10], order)
@@ -116,15 +121,8 @@ def length_title(action: int, rule: str, right: int, accepted: list[int], refuse
 # -- block count 0 ------------------------------------------------------------------------------------------
 def zero_counts(causes: Sequence[RootCause], cases: Sequence[CaseResult]) -> set[int]:
     """The block actions a case quotes with block count 0 (no blocks) answered 0000."""
-    ids = {c for cause in causes for c in cause.cases}
     out: set[int] = set()
-    for case in cases:
-        if case.id not in ids:
-            continue
-        try:
-            sent, got = bytes.fromhex(case.sent_hex.partition("…")[0]), bytes.fromhex(case.received_hex.partition("…")[0])
-        except ValueError:
-            continue
+    for sent, got in quoted(causes, cases):
         if len(sent) >= HEADER_LEN and len(got) >= HEADER_LEN and sent[:2] == b"\xfe\xfe" and sent[5] in BLOCK_ACTIONS \
                 and sent[7] == 0 and got[5] == sent[5] and got[10:12] == b"\0\0":
             out.add(sent[5])
